@@ -1,0 +1,11 @@
+"""robofdi: model-based fault detection, isolation, identification and fault-tolerant control of robots."""
+from pathlib import Path
+
+__version__ = "0.1.0"
+
+#: Folder of the shipped MJCF models (the repository's ``assets/``).
+ASSETS = Path(__file__).resolve().parents[1] / "assets"
+
+
+class RobofdiError(ValueError):
+    """Invalid input: the message names the field (or joint, file) and what was expected."""
