@@ -1,0 +1,81 @@
+"""Reference trajectories."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from robofdi import RobofdiError
+
+__all__ = ["Quintic", "Sequence"]
+
+
+@dataclass(frozen=True)
+class Quintic:
+    """Fifth-order polynomial q0 → q0 + Δq in ``duration`` s with null initial/final velocity and acceleration;
+    holds the final pose afterwards (the trajectory of Caccavale & Villani Sec. 7)."""
+
+    q0: tuple
+    dq: tuple
+    duration: float
+    start: float = 0.0
+
+    def __post_init__(self):
+        object.__setattr__(self, "q0", tuple(float(v) for v in self.q0))
+        object.__setattr__(self, "dq", tuple(float(v) for v in self.dq))
+        if len(self.q0) != len(self.dq):
+            raise RobofdiError(f"Quintic: fields 'q0' and 'dq' must have the same length ({len(self.q0)} vs {len(self.dq)})")
+        if not np.all(np.isfinite(self.q0 + self.dq)):
+            raise RobofdiError("Quintic: fields 'q0' and 'dq' must be finite")
+        if not (np.isfinite(self.duration) and self.duration > 0):
+            raise RobofdiError(f"Quintic: field 'duration' must be > 0, got {self.duration}")
+
+    @property
+    def end(self) -> float:
+        return self.start + self.duration
+
+    @property
+    def qf(self) -> np.ndarray:
+        return np.add(self.q0, self.dq)
+
+    def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(q_d, q̇_d, q̈_d) at time t."""
+        s = float(np.clip((t - self.start) / self.duration, 0.0, 1.0))
+        d = self.duration
+        p = 10 * s**3 - 15 * s**4 + 6 * s**5
+        dp = (30 * s**2 - 60 * s**3 + 30 * s**4) / d
+        ddp = (60 * s - 180 * s**2 + 120 * s**3) / d**2
+        dq = np.asarray(self.dq)
+        return np.asarray(self.q0) + p * dq, dp * dq, ddp * dq
+
+
+@dataclass(frozen=True)
+class Sequence:
+    """Quintic segments one after the other (each starts where the previous ended)."""
+
+    segments: tuple
+
+    def __post_init__(self):
+        if not self.segments:
+            raise RobofdiError("Sequence: field 'segments' must not be empty")
+
+    @classmethod
+    def through(cls, waypoints, durations, start: float = 0.0) -> "Sequence":
+        wps = [np.asarray(w, dtype=float) for w in waypoints]
+        if len(durations) != len(wps) - 1:
+            raise RobofdiError("Sequence.through: need one duration per segment (len(waypoints) - 1)")
+        segs, t = [], start
+        for a, b, d in zip(wps[:-1], wps[1:], durations):
+            segs.append(Quintic(tuple(a), tuple(b - a), d, t))
+            t += d
+        return cls(tuple(segs))
+
+    @property
+    def end(self) -> float:
+        return self.segments[-1].end
+
+    def __call__(self, t: float):
+        for seg in self.segments:
+            if t < seg.end:
+                return seg(t)
+        return self.segments[-1](t)

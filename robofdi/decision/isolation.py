@@ -1,0 +1,152 @@
+"""Threshold decision and isolation by fault signatures."""
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from robofdi import RobofdiError
+
+__all__ = ["Signature", "Alarms", "ThresholdDecision"]
+
+
+def _component_set(value: Iterable[str], name: str) -> frozenset[str]:
+    if isinstance(value, str):
+        raise RobofdiError(f"{name}: expected a set of component names, got the single string {value!r}")
+    items = frozenset(value)
+    bad = [c for c in items if not isinstance(c, str)]
+    if bad:
+        raise RobofdiError(f"{name}: expected component names (str), got {bad[0]!r}")
+    return items
+
+
+@dataclass(frozen=True)
+class Signature:
+    """Which residual components a fault must raise (``required``) and which it may also raise (``allowed``)."""
+
+    fault: str
+    required: frozenset[str]
+    allowed: frozenset[str] = frozenset()
+
+    def __post_init__(self):
+        if not isinstance(self.fault, str) or not self.fault:
+            raise RobofdiError(f"fault: expected a non-empty fault name such as 'joint3', got {self.fault!r}")
+        if "+" in self.fault:
+            raise RobofdiError(f"fault: '+' joins isolated faults in records and cannot be part of a name, got {self.fault!r}")
+        required = _component_set(self.required, f"signature {self.fault!r} required")
+        if not required:
+            raise RobofdiError(f"signature {self.fault!r} required: expected at least one residual component")
+        object.__setattr__(self, "required", required)
+        object.__setattr__(self, "allowed", _component_set(self.allowed, f"signature {self.fault!r} allowed"))
+
+    @property
+    def explains(self) -> frozenset[str]:
+        """Every component this fault can account for: required ∪ allowed."""
+        return self.required | self.allowed
+
+
+@dataclass(frozen=True)
+class Alarms:
+    """Decision at one sample: alarm per component, faults isolated so far, faults isolated at this sample."""
+
+    alarm: np.ndarray
+    isolated: tuple[str, ...] = ()
+    new: tuple[str, ...] = ()
+
+
+@dataclass
+class ThresholdDecision:
+    """Fixed-threshold alarms |r_j| > threshold_j — Caccavale & Villani eq. (49) — and signature isolation.
+
+    At each sample the alarmed components are explained greedily: among signatures whose required components
+    all alarm (and which explain a still unexplained one), pick the one with the largest
+    max_{j in required} |r_j| / threshold_j, mark its required ∪ allowed components explained, repeat.
+    Finally a pick is dropped when the other picks already explain all its required components
+    (parsimony: a sensor fault that may raise every torque residual wins over the actuator faults it explains).
+    With ``latch`` an isolated fault stays isolated for the rest of the run.
+    """
+
+    components: Sequence[str]
+    threshold: np.ndarray
+    signatures: Sequence[Signature]
+    latch: bool = True
+    _isolated: list[str] = field(default_factory=list, init=False, repr=False)
+
+    def __post_init__(self):
+        self.components = tuple(self.components)
+        if not self.components or not all(isinstance(c, str) for c in self.components):
+            raise RobofdiError(f"components: expected a non-empty sequence of names, got {self.components!r}")
+        dup = sorted({c for c in self.components if self.components.count(c) > 1})
+        if dup:
+            raise RobofdiError(f"components: expected unique names, got {dup[0]!r} more than once")
+        m = len(self.components)
+        self.threshold = np.array(self.threshold, dtype=float)
+        if self.threshold.shape != (m,):
+            raise RobofdiError(f"threshold: expected shape ({m},) for {m} components, got {self.threshold.shape}")
+        bad = np.flatnonzero(~np.isfinite(self.threshold) | (self.threshold <= 0))
+        if bad.size:
+            j = bad[0]
+            raise RobofdiError(
+                f"threshold: expected finite values > 0, got {self.threshold[j]} for component {self.components[j]!r}"
+            )
+        self.signatures = tuple(self.signatures)
+        names = [s.fault for s in self.signatures]
+        for sig in self.signatures:
+            if not isinstance(sig, Signature):
+                raise RobofdiError(f"signatures: expected Signature objects, got {type(sig).__name__}")
+            if names.count(sig.fault) > 1:
+                raise RobofdiError(f"signatures: expected one signature per fault, got {sig.fault!r} more than once")
+            unknown = sorted(sig.explains - set(self.components))
+            if unknown:
+                raise RobofdiError(
+                    f"signature {sig.fault!r}: component {unknown[0]!r} is not a residual component; "
+                    f"expected one of {list(self.components)}"
+                )
+        self._index = {c: j for j, c in enumerate(self.components)}
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget everything isolated so far (start of a new run)."""
+        self._isolated = []
+
+    def update(self, residual: np.ndarray) -> Alarms:
+        """One residual sample (m,) in, alarms and isolation out."""
+        r = np.asarray(residual, dtype=float)
+        m = len(self.components)
+        if r.shape != (m,):
+            raise RobofdiError(f"residual: expected shape ({m},), got {r.shape}")
+        bad = np.flatnonzero(~np.isfinite(r))
+        if bad.size:
+            j = bad[0]
+            raise RobofdiError(f"residual: expected finite values, got {r[j]} at component {j} ({self.components[j]!r})")
+        ratio = np.abs(r) / self.threshold
+        alarm = ratio > 1.0
+        picks = self._isolate(ratio, alarm)
+        previous = list(self._isolated)
+        if self.latch:
+            self._isolated = previous + [f for f in picks if f not in previous]
+        else:
+            self._isolated = picks
+        new = tuple(f for f in self._isolated if f not in previous)
+        return Alarms(alarm=alarm, isolated=tuple(self._isolated), new=new)
+
+    def _isolate(self, ratio: np.ndarray, alarm: np.ndarray) -> list[str]:
+        alarmed = {c for c, a in zip(self.components, alarm) if a}
+        unexplained = set(alarmed)
+        picks: list[Signature] = []
+        while unexplained:
+            candidates = [
+                s for s in self.signatures
+                if s not in picks and s.required <= alarmed and s.explains & unexplained
+            ]
+            if not candidates:
+                break
+            best = max(candidates, key=lambda s: max(ratio[self._index[c]] for c in s.required))
+            picks.append(best)
+            unexplained -= best.explains
+        for s in list(picks):
+            others = set().union(*(o.explains for o in picks if o is not s))
+            if s.required <= others:
+                picks.remove(s)
+        return [s.fault for s in picks]

@@ -1,0 +1,175 @@
+"""The :class:`Fault` description: what fails, how, when and how much."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, fields
+from typing import Any, Mapping
+
+from robofdi import RobofdiError
+from robofdi.faults.profiles import Profile, Step, profile_from_dict
+
+__all__ = ["Fault", "FAULT_KINDS"]
+
+
+@dataclass(frozen=True)
+class _ParamSpec:
+    """One kind-specific parameter: its check, description and whether it must be given."""
+
+    check: Any
+    expected: str
+    required: bool = False
+
+
+_LIMIT = _ParamSpec(lambda v: True, "a finite number", required=True)
+_RATE = _ParamSpec(lambda v: v > 0, "a finite number > 0 (units/s)")
+_PERIOD = _ParamSpec(lambda v: v > 0, "a finite number > 0 (s)")
+_DUTY = _ParamSpec(lambda v: 0 < v <= 1, "a finite number in (0, 1]")
+_DELAY = _ParamSpec(lambda v: v > 0, "a finite number > 0 (s)", required=True)
+_PROBABILITY = _ParamSpec(lambda v: 0 < v <= 1, "a finite number in (0, 1]", required=True)
+
+#: Fault kind -> allowed ``params`` (name -> spec). The prefix before "_" is the family.
+FAULT_KINDS: dict[str, dict[str, _ParamSpec]] = {
+    "actuator_additive": {},
+    "actuator_drift": {},
+    "actuator_loss_of_effectiveness": {},
+    "actuator_lock_in_place": {},
+    "actuator_float": {},
+    "actuator_hard_over": {"limit": _LIMIT, "rate": _RATE},
+    "actuator_intermittent": {"period": _PERIOD, "duty": _DUTY},
+    "sensor_bias": {},
+    "sensor_drift": {},
+    "sensor_freeze": {},
+    "sensor_dropout": {},
+    "sensor_scale": {},
+    "sensor_noise": {},
+    "sensor_delay": {"delay": _DELAY},
+    "sensor_outliers": {"probability": _PROBABILITY},
+}
+
+
+def _finite(x: Any) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+
+@dataclass(frozen=True)
+class Fault:
+    """One fault on one actuator or sensor channel, active on [onset, end).
+
+    ``magnitude`` m and ``profile`` p(t - onset) set the size; ``params`` holds kind-specific
+    settings (see :data:`FAULT_KINDS`); ``seed`` fixes its randomness (None: derived from the injector seed).
+    """
+
+    name: str
+    kind: str
+    target: str
+    onset: float
+    end: float | None = None
+    magnitude: float = 0.0
+    profile: Profile = Step()
+    params: Mapping[str, float] = field(default_factory=dict)
+    seed: int | None = None
+
+    def __post_init__(self):
+        if not isinstance(self.name, str) or not self.name.strip():
+            raise RobofdiError(f"Fault: field 'name' must be a non-empty string, got {self.name!r}")
+        who = f"Fault {self.name!r}"
+        if self.kind not in FAULT_KINDS:
+            raise RobofdiError(f"{who}: unknown kind {self.kind!r}; expected one of {', '.join(FAULT_KINDS)}")
+        if not isinstance(self.target, str) or not self.target:
+            raise RobofdiError(f"{who}: field 'target' must be a non-empty string, got {self.target!r}")
+        if not _finite(self.onset) or self.onset < 0:
+            raise RobofdiError(f"{who}: field 'onset' must be a finite number >= 0, got {self.onset!r}")
+        if self.end is not None and (not _finite(self.end) or self.end <= self.onset):
+            raise RobofdiError(
+                f"{who}: field 'end' must be None or a finite number > onset ({self.onset}), got {self.end!r}"
+            )
+        if not _finite(self.magnitude):
+            raise RobofdiError(f"{who}: field 'magnitude' must be a finite number, got {self.magnitude!r}")
+        if self.kind == "actuator_loss_of_effectiveness" and not 0 <= self.magnitude <= 1:
+            raise RobofdiError(f"{who}: field 'magnitude' must be in [0, 1] for {self.kind}, got {self.magnitude!r}")
+        if self.kind == "sensor_noise" and self.magnitude < 0:
+            raise RobofdiError(
+                f"{who}: field 'magnitude' must be >= 0 for {self.kind} (standard deviation), got {self.magnitude!r}"
+            )
+        if not isinstance(self.profile, Profile):
+            raise RobofdiError(f"{who}: field 'profile' must be a Profile, got {self.profile!r}")
+        if self.seed is not None and (not isinstance(self.seed, int) or isinstance(self.seed, bool) or self.seed < 0):
+            raise RobofdiError(f"{who}: field 'seed' must be None or an integer >= 0, got {self.seed!r}")
+        self._check_params(who)
+        # private copy with float values, so later edits of the caller's dict cannot change the fault
+        object.__setattr__(self, "params", {k: float(v) for k, v in self.params.items()})
+        object.__setattr__(self, "onset", float(self.onset))
+        object.__setattr__(self, "magnitude", float(self.magnitude))
+        if self.end is not None:
+            object.__setattr__(self, "end", float(self.end))
+
+    def _check_params(self, who: str) -> None:
+        if not isinstance(self.params, Mapping):
+            raise RobofdiError(f"{who}: field 'params' must be a mapping, got {self.params!r}")
+        specs = FAULT_KINDS[self.kind]
+        unknown = sorted(set(self.params) - set(specs))
+        if unknown:
+            raise RobofdiError(
+                f"{who}: unknown params {', '.join(map(repr, unknown))} for kind {self.kind!r}; "
+                f"expected {', '.join(specs) or 'no params'}"
+            )
+        for key, spec in specs.items():
+            if key not in self.params:
+                if spec.required:
+                    raise RobofdiError(f"{who}: kind {self.kind!r} requires params[{key!r}] ({spec.expected})")
+                continue
+            value = self.params[key]
+            if not _finite(value) or not spec.check(value):
+                raise RobofdiError(f"{who}: field 'params[{key!r}]' must be {spec.expected}, got {value!r}")
+
+    def __hash__(self):
+        return hash((self.name, self.kind, self.target, self.onset, self.end, self.magnitude,
+                     self.profile, tuple(sorted(self.params.items())), self.seed))
+
+    @property
+    def family(self) -> str:
+        """"actuator" or "sensor"."""
+        return self.kind.split("_", 1)[0]
+
+    def active(self, t: float) -> bool:
+        """True on the window onset <= t < end (end None: forever)."""
+        return self.onset <= t and (self.end is None or t < self.end)
+
+    def to_dict(self) -> dict:
+        """Plain JSON-serialisable dict, inverse of :meth:`from_dict`."""
+        return {
+            "name": self.name,
+            "kind": self.kind,
+            "target": self.target,
+            "onset": self.onset,
+            "end": self.end,
+            "magnitude": self.magnitude,
+            "profile": self.profile.to_dict(),
+            "params": dict(self.params),
+            "seed": self.seed,
+        }
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> "Fault":
+        """Build from a plain dict (e.g. parsed JSON); ``profile`` may be a dict with a ``type`` key."""
+        if not isinstance(d, Mapping):
+            raise RobofdiError(f"Fault: expected a mapping, got {type(d).__name__}")
+        who = f"Fault {d.get('name', '<unnamed>')!r}"
+        names = [f.name for f in fields(cls)]
+        unknown = sorted(set(d) - set(names))
+        if unknown:
+            raise RobofdiError(f"{who}: unknown key(s) {', '.join(map(repr, unknown))}; expected {', '.join(names)}")
+        missing = [k for k in ("name", "kind", "target", "onset") if k not in d]
+        if missing:
+            raise RobofdiError(f"{who}: missing required key(s) {', '.join(map(repr, missing))}")
+        kwargs = dict(d)
+        if kwargs.get("profile") is None:
+            kwargs.pop("profile", None)
+        else:
+            try:
+                kwargs["profile"] = profile_from_dict(kwargs["profile"])
+            except RobofdiError as exc:
+                raise RobofdiError(f"{who}: field 'profile': {exc}") from None
+        if kwargs.get("params") is None:
+            kwargs.pop("params", None)
+        return cls(**kwargs)

@@ -1,0 +1,144 @@
+"""Time profiles of a fault: how its effect grows with the time ``s`` elapsed since onset."""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, fields
+from typing import Any, Mapping
+
+from robofdi import RobofdiError
+
+__all__ = [
+    "Profile",
+    "Step",
+    "ExponentialRise",
+    "Ramp",
+    "Sinusoid",
+    "Intermittent",
+    "PROFILE_TYPES",
+    "profile_from_dict",
+]
+
+
+def _is_number(x: Any) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+
+def _positive(owner: str, name: str, value: Any) -> None:
+    if not _is_number(value) or value <= 0:
+        raise RobofdiError(f"{owner}: field '{name}' must be a finite number > 0, got {value!r}")
+
+
+@dataclass(frozen=True)
+class Profile:
+    """Base class: a shape p(s) of the fault over the elapsed time s >= 0 since onset."""
+
+    type_name = ""  # serialised name, set by subclasses (class attribute, not a field)
+
+    def __call__(self, s: float) -> float:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def to_dict(self) -> dict:
+        """Plain JSON-serialisable description, inverse of :func:`profile_from_dict`."""
+        return {"type": self.type_name, **{k: float(v) for k, v in asdict(self).items()}}
+
+
+@dataclass(frozen=True)
+class Step(Profile):
+    """Abrupt fault: p(s) = 1."""
+
+    type_name = "step"
+
+    def __call__(self, s: float) -> float:
+        return 1.0
+
+
+@dataclass(frozen=True)
+class ExponentialRise(Profile):
+    """Incipient fault with time constant tau: p(s) = 1 - exp(-s/tau)."""
+
+    tau: float
+    type_name = "exponential_rise"
+
+    def __post_init__(self):
+        _positive("ExponentialRise", "tau", self.tau)
+
+    def __call__(self, s: float) -> float:
+        return 1.0 - math.exp(-s / self.tau)
+
+
+@dataclass(frozen=True)
+class Ramp(Profile):
+    """Linear growth to full effect over ``duration`` seconds: p(s) = min(s/duration, 1)."""
+
+    duration: float
+    type_name = "ramp"
+
+    def __post_init__(self):
+        _positive("Ramp", "duration", self.duration)
+
+    def __call__(self, s: float) -> float:
+        return min(s / self.duration, 1.0)
+
+
+@dataclass(frozen=True)
+class Sinusoid(Profile):
+    """Oscillating fault: p(s) = sin(2*pi*frequency*s + phase)."""
+
+    frequency: float
+    phase: float = 0.0
+    type_name = "sinusoid"
+
+    def __post_init__(self):
+        _positive("Sinusoid", "frequency", self.frequency)
+        if not _is_number(self.phase):
+            raise RobofdiError(f"Sinusoid: field 'phase' must be a finite number, got {self.phase!r}")
+
+    def __call__(self, s: float) -> float:
+        return math.sin(2.0 * math.pi * self.frequency * s + self.phase)
+
+
+@dataclass(frozen=True)
+class Intermittent(Profile):
+    """On/off pattern: p(s) = 1 while (s mod period) < duty*period, else 0."""
+
+    period: float
+    duty: float
+    type_name = "intermittent"
+
+    def __post_init__(self):
+        _positive("Intermittent", "period", self.period)
+        if not _is_number(self.duty) or not 0 < self.duty <= 1:
+            raise RobofdiError(f"Intermittent: field 'duty' must be a finite number in (0, 1], got {self.duty!r}")
+
+    def __call__(self, s: float) -> float:
+        return 1.0 if math.fmod(s, self.period) < self.duty * self.period else 0.0
+
+
+#: Serialised profile type name -> class.
+PROFILE_TYPES: dict[str, type[Profile]] = {
+    cls.type_name: cls for cls in (Step, ExponentialRise, Ramp, Sinusoid, Intermittent)
+}
+
+
+def profile_from_dict(d: Mapping[str, Any]) -> Profile:
+    """Build a profile from ``{"type": "exponential_rise", "tau": 0.002}`` (inverse of ``Profile.to_dict``)."""
+    if isinstance(d, Profile):
+        return d
+    if not isinstance(d, Mapping):
+        raise RobofdiError(f"profile must be a mapping with a 'type' key, got {d!r}")
+    if "type" not in d:
+        raise RobofdiError(f"profile: missing field 'type'; expected one of {', '.join(PROFILE_TYPES)}")
+    kind = d["type"]
+    if kind not in PROFILE_TYPES:
+        raise RobofdiError(f"profile: unknown type {kind!r}; expected one of {', '.join(PROFILE_TYPES)}")
+    cls = PROFILE_TYPES[kind]
+    names = [f.name for f in fields(cls)]
+    extra = sorted(set(d) - set(names) - {"type"})
+    if extra:
+        raise RobofdiError(
+            f"profile {kind!r}: unknown field(s) {', '.join(map(repr, extra))}; expected {', '.join(names) or 'none'}"
+        )
+    try:
+        return cls(**{k: v for k, v in d.items() if k != "type"})
+    except TypeError as exc:  # missing required field
+        raise RobofdiError(f"profile {kind!r}: {exc}; expected fields {', '.join(names)}") from None
