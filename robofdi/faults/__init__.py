@@ -1,0 +1,27 @@
+"""Fault models: time profiles, fault descriptions and the injector that applies them to u and y."""
+from robofdi.faults.fault import FAULT_KINDS, Fault
+from robofdi.faults.injector import FaultInjector
+from robofdi.faults.profiles import (
+    PROFILE_TYPES,
+    ExponentialRise,
+    Intermittent,
+    Profile,
+    Ramp,
+    Sinusoid,
+    Step,
+    profile_from_dict,
+)
+
+__all__ = [
+    "Profile",
+    "Step",
+    "ExponentialRise",
+    "Ramp",
+    "Sinusoid",
+    "Intermittent",
+    "PROFILE_TYPES",
+    "profile_from_dict",
+    "Fault",
+    "FAULT_KINDS",
+    "FaultInjector",
+]

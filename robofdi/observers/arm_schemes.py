@@ -1,0 +1,54 @@
+"""The diagnosis schemes of Caccavale & Villani's robot chapter, plus the momentum baseline, built on one nominal
+model with the chapter's experimental settings (Sec. 7) as defaults."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from robofdi import RobofdiError
+from robofdi.models.manipulator import ManipulatorModel
+from robofdi.observers.diagnostic import Adaptive, DiagnosticObserver, Recursive, RippleModel, TimeDelayed
+from robofdi.observers.momentum import MomentumObserver
+
+__all__ = ["ArmSchemeSettings", "SCHEMES", "arm_schemes"]
+
+SCHEMES = ("simple", "time_delayed", "recursive", "adaptive", "position_only", "momentum")
+
+
+@dataclass(frozen=True)
+class ArmSchemeSettings:
+    """K1 = K2 = 0.1 I; Γ_η = 0.1 diag(0.1 ×n, 2 ×(n−1), 3) [spec: erratum I₃ → I₆]; Q = 2 Γ_η⁻¹;
+    momentum-observer bandwidth K_O [1/s]; residual space of the observers ("torque" or "state")."""
+
+    T: float = 0.002
+    K1: float = 0.1
+    K2: float = 0.1
+    momentum_gain: float = 50.0
+    # eq. (39) uses 2, the edge of stability: measured divergence with the physical ripple (README, "departures").
+    adaptive_step: float = 1.0
+    residual_space: str = "torque"
+
+    def gamma_eta(self, n: int) -> np.ndarray:
+        return 0.1 * np.concatenate([np.full(n, 0.1), np.full(n - 1, 2.0), [3.0]])
+
+
+def arm_schemes(model: ManipulatorModel, settings: ArmSchemeSettings = ArmSchemeSettings(),
+                theta0: np.ndarray | None = None, schemes=SCHEMES) -> dict:
+    """Fresh diagnosers by name (``schemes`` a subset of :data:`SCHEMES`); ``theta0`` initialises the adaptive
+    ripple model (see :func:`robofdi.observers.spectral.ripple_initial_parameters`)."""
+    unknown = [s for s in schemes if s not in SCHEMES]
+    if unknown:
+        raise RobofdiError(f"arm_schemes: unknown scheme(s) {unknown}; expected a subset of {list(SCHEMES)}")
+    n, s = model.n, settings
+    gamma = s.gamma_eta(n)
+    common = dict(K1=s.K1, K2=s.K2, residual_space=s.residual_space)
+    build = {
+        "simple": lambda: DiagnosticObserver(model, s.T, None, **common),
+        "time_delayed": lambda: DiagnosticObserver(model, s.T, TimeDelayed(), **common),
+        "recursive": lambda: DiagnosticObserver(model, s.T, Recursive(gamma), **common),
+        "adaptive": lambda: DiagnosticObserver(model, s.T, Adaptive(RippleModel(n), 2.0 / gamma, theta0, step=s.adaptive_step), **common),
+        "position_only": lambda: DiagnosticObserver(model, s.T, Recursive(gamma), velocity="backward_difference", **common),
+        "momentum": lambda: MomentumObserver(model, s.T, s.momentum_gain),
+    }
+    return {name: build[name]() for name in schemes}

@@ -1,0 +1,293 @@
+"""Discrete-time diagnostic observers for manipulators — Caccavale & Villani, "Fault Diagnosis for Industrial
+Robots" (in Caccavale & Villani eds., 2003), eqs. (10)–(48).
+
+The Euler model of the arm, eq. (11)–(12), with state x = [q; q̇] and sample time T:
+
+    x(k+1) = A x(k) + h(x(k)) + B(x(k)) u(k) + η(k),   A = [[I, T I], [0, I]],
+    h(x) = [0; −T M̂⁻¹ n̂],  B(x) = [0; T M̂⁻¹]
+
+Every scheme is one :class:`DiagnosticObserver` (eq. (23)) with a different uncertainty estimator η̂:
+``simple`` (η̂ = 0, residual of eq. (20)), :class:`TimeDelayed` (eq. (28)), :class:`Recursive` (eq. (33)) and
+:class:`Adaptive` (eqs. (37)–(39) with the ripple model of eq. (50)). ``velocity="backward_difference"``
+gives the position-only variant of Sec. 5 (eqs. (43)–(48)).
+
+Sampling convention of ``update(y, u)``: y = x̄(k) is the measurement at sample k and u = ū(k−1) the input
+held over the interval that *ended* at sample k. The residual returned is r(k) of eq. (26); it uses only
+x̄(k), x̄(k−1) and ū(k−1) — no look-ahead.
+
+h and B are evaluated at the measured state x̄ (the default ``eval_at="measured"``, which makes eq. (25)
+exact); ``eval_at="estimate"`` evaluates them at x̂ as printed in eq. (23) [spec ERRATUM/RECON].
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from robofdi import RobofdiError
+from robofdi.models.manipulator import ManipulatorModel
+from robofdi.observers.residual import Residual, check_measurement
+
+__all__ = [
+    "EulerArmModel",
+    "NoEstimate",
+    "TimeDelayed",
+    "Recursive",
+    "Adaptive",
+    "RippleModel",
+    "DiagnosticObserver",
+]
+
+
+class EulerArmModel:
+    """The discrete-time nominal model of eqs. (11)–(12)."""
+
+    def __init__(self, model: ManipulatorModel, T: float):
+        if not (np.isfinite(T) and T > 0):
+            raise RobofdiError(f"EulerArmModel: field 'T' must be a positive sample time, got {T}")
+        self.model, self.T, self.n = model, float(T), model.n
+        n = self.n
+        self.A = np.block([[np.eye(n), T * np.eye(n)], [np.zeros((n, n)), np.eye(n)]])
+
+    def predict(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """A x + h(x) + B(x) u."""
+        n, T = self.n, self.T
+        q, v = x[:n], x[n:]
+        return np.concatenate([q + T * v, v + T * self.model.acceleration(q, v, u)])
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Uncertainty estimators: each keeps η̂ and is told the residual r(k) once it is known.
+# ----------------------------------------------------------------------------------------------------------
+class NoEstimate:
+    """η̂ ≡ 0: the observer's residual is then the simple model-based residual of eq. (20)."""
+
+    def reset(self, dim: int) -> None:
+        self.eta_hat = np.zeros(dim)
+
+    def update(self, r: np.ndarray, r_model: np.ndarray, x: np.ndarray, u: np.ndarray) -> None:
+        """Called with r(k), r₂₀(k), x̄(k−1), ū(k−1); leaves η̂(k) in ``eta_hat``."""
+
+    def prepare(self, x: np.ndarray, u: np.ndarray) -> None:
+        """Called with x̄(k), ū(k) before η̂(k) is used (only the adaptive estimator needs it)."""
+
+
+class TimeDelayed(NoEstimate):
+    """η̂(k) = x̄(k) − A x̄(k−1) − h(x̄(k−1)) − B(x̄(k−1)) ū(k−1) — eq. (28); equals r₂₀(k)."""
+
+    def update(self, r, r_model, x, u):
+        self.eta_hat = r_model.copy()
+
+
+@dataclass
+class Recursive(NoEstimate):
+    """η̂(k+1) = η̂(k) + Γ_η (e(k+1) − F e(k)) — eq. (33). ``gain`` is diag(Γ_η) (2n entries)."""
+
+    gain: np.ndarray = None
+
+    def reset(self, dim):
+        g = np.asarray(self.gain, dtype=float)
+        if g.shape != (dim,) or not np.all((g > 0) & (g < 2)):
+            raise RobofdiError(f"Recursive: field 'gain' must be {dim} values in (0, 2) (eig(I − Γ_η) inside the unit circle), got {self.gain!r}")
+        self.gamma = g
+        super().reset(dim)
+
+    def update(self, r, r_model, x, u):
+        self.eta_hat = self.eta_hat + self.gamma * r
+
+
+@dataclass
+class RippleModel:
+    """Parametric uncertainty of eq. (50), one block of 7 parameters per joint (p = n + 7n):
+
+        η_i        = θ_i                                                          (positions)
+        η_{n+i}    = θ_a + θ_b sin(θ_c x_{1i} + θ_d) + τ_i θ_e sin(θ_f x_{1i} + θ_g)   (velocities)
+    """
+
+    n: int
+
+    @property
+    def p(self) -> int:
+        return 8 * self.n
+
+    def split(self, theta: np.ndarray):
+        n = self.n
+        return theta[:n], theta[n:].reshape(n, 7).T  # (a, b, c, d, e, f, g) rows, each (n,)
+
+    def eta(self, theta: np.ndarray, x1: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        pos, (a, b, c, d, e, f, g) = self.split(theta)
+        return np.concatenate([pos, a + b * np.sin(c * x1 + d) + tau * e * np.sin(f * x1 + g)])
+
+    def jacobian(self, theta: np.ndarray, x1: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """Z = ∂η/∂θ — eq. (38), a (2n × 8n) matrix."""
+        n = self.n
+        _, (a, b, c, d, e, f, g) = self.split(theta)
+        s1, c1 = np.sin(c * x1 + d), np.cos(c * x1 + d)
+        s2, c2 = np.sin(f * x1 + g), np.cos(f * x1 + g)
+        Z = np.zeros((2 * n, 8 * n))
+        Z[np.arange(n), np.arange(n)] = 1.0
+        cols = np.stack([np.ones(n), s1, b * x1 * c1, b * c1, tau * s2, tau * e * x1 * c2, tau * e * c2], axis=1)
+        for i in range(n):
+            Z[n + i, n + 7 * i : n + 7 * i + 7] = cols[i]
+        return Z
+
+
+class Adaptive(NoEstimate):
+    """θ̂(k+1) = θ̂(k) + Zᵀ Γ_θ (e(k+1) − F e(k)),  Γ_θ = 2 (Z Zᵀ + Q)⁻¹ — eqs. (37)–(39)."""
+
+    def __init__(self, model: RippleModel, Q: np.ndarray, theta0: np.ndarray | None = None, step: float = 2.0):
+        if not (np.isfinite(step) and 0 < step <= 2):
+            raise RobofdiError(f"Adaptive: field 'step' must be in (0, 2] (eq. (39) uses 2), got {step}")
+        self.ripple, self.step = model, float(step)
+        Q = np.asarray(Q, dtype=float)
+        Q = np.diag(Q) if Q.ndim == 1 else Q
+        dim = 2 * model.n
+        if Q.shape != (dim, dim) or not np.allclose(Q, Q.T) or np.min(np.linalg.eigvalsh(Q)) <= 0:
+            raise RobofdiError(f"Adaptive: field 'Q' must be a symmetric positive definite {dim}x{dim} matrix")
+        self.Q = Q
+        theta0 = np.zeros(model.p) if theta0 is None else np.asarray(theta0, dtype=float)
+        if theta0.shape != (model.p,) or not np.all(np.isfinite(theta0)):
+            raise RobofdiError(f"Adaptive: field 'theta0' must be {model.p} finite values")
+        self.theta0 = theta0
+
+    def reset(self, dim):
+        super().reset(dim)
+        self.theta = self.theta0.copy()
+        self._Z = None
+
+    def prepare(self, x, u):
+        n = self.ripple.n
+        self._Z = self.ripple.jacobian(self.theta, x[:n], u)
+        self.eta_hat = self.ripple.eta(self.theta, x[:n], u)
+
+    def gain(self, Z: np.ndarray) -> np.ndarray:
+        """Γ_θ = 2 (Z Zᵀ + Q)⁻¹ — eq. (39); ``step`` replaces the factor 2."""
+        return self.step * np.linalg.inv(Z @ Z.T + self.Q)
+
+    def update(self, r, r_model, x, u):
+        if self._Z is not None:
+            self.theta = self.theta + self._Z.T @ (self.gain(self._Z) @ r)
+
+
+# ----------------------------------------------------------------------------------------------------------
+class DiagnosticObserver:
+    """x̂(k+1) = A x̂ + h(x̄) + B(x̄) ū + K_o e + η̂ with K_o = [[K1, T I], [0, K2]] — eqs. (23)–(27).
+
+    residual_space: "state" gives r of eq. (26) (rad and rad/s per sample, components ``joint{i}_pos`` and
+    ``joint{i}_vel``); "torque" maps the velocity rows to joint torques, r_τ = (M̂(x̄₁)/T) r₂ [N·m], which
+    isolates actuator i on component ``joint{i}`` (the velocity rows of an actuator fault are coupled through
+    M̂⁻¹; spec §4).
+
+    Identification (Sec. 6): ``estimate`` holds δτ̂ = (M̂/T) f̂₂ per joint (components ``joint{i}``) with
+    f̂ = η̂, and the per-sample position-fault increment f̂₁ = r₁ (components ``joint{i}_pos``, summed from
+    the isolation sample on by :class:`robofdi.decision.Identification`).
+    """
+
+    def __init__(
+        self,
+        model: ManipulatorModel,
+        T: float,
+        estimator: NoEstimate | None = None,
+        K1: float | np.ndarray = 0.1,
+        K2: float | np.ndarray = 0.1,
+        velocity: str = "measured",
+        eval_at: str = "measured",
+        residual_space: str = "torque",
+    ):
+        self.euler = EulerArmModel(model, T)
+        self.model, self.T, self.n = model, float(T), model.n
+        n = self.n
+        K1 = np.broadcast_to(np.asarray(K1, dtype=float), (n,)).copy()
+        K2 = np.broadcast_to(np.asarray(K2, dtype=float), (n,)).copy()
+        for name, K in (("K1", K1), ("K2", K2)):
+            if not np.all((K > 0) & (K < 2)):
+                raise RobofdiError(f"DiagnosticObserver: field {name!r} must be diagonal gains in (0, 2) (F = I − K stable), got {K}")
+        if velocity not in ("measured", "backward_difference"):
+            raise RobofdiError(f"DiagnosticObserver: field 'velocity' must be 'measured' or 'backward_difference', got {velocity!r}")
+        if eval_at not in ("measured", "estimate"):
+            raise RobofdiError(f"DiagnosticObserver: field 'eval_at' must be 'measured' or 'estimate', got {eval_at!r}")
+        if residual_space not in ("state", "torque"):
+            raise RobofdiError(f"DiagnosticObserver: field 'residual_space' must be 'state' or 'torque', got {residual_space!r}")
+        self.K1, self.K2 = K1, K2
+        self.F = np.concatenate([1.0 - K1, 1.0 - K2])          # F = blkdiag(I − K1, I − K2), eq. (25)
+        self.Ko = np.block([[np.diag(K1), T * np.eye(n)], [np.zeros((n, n)), np.diag(K2)]])  # eq. (24)
+        self.estimator = estimator if estimator is not None else NoEstimate()
+        self.velocity, self.eval_at, self.residual_space = velocity, eval_at, residual_space
+        names = model.joint_names
+        self.components = [f"{j}_pos" for j in names] + (
+            list(names) if residual_space == "torque" else [f"{j}_vel" for j in names]
+        )
+        self.estimate_components = list(names) + [f"{j}_pos" for j in names]
+        self.reset()
+
+    def reset(self) -> None:
+        self.estimator.reset(2 * self.n)
+        self._x_prev = None      # x̄(k−1)
+        self._q_prev = None      # raw position for backward differences
+        self.x_hat = None
+        self._e_prev = None
+
+    def _state(self, y: np.ndarray) -> np.ndarray | None:
+        n = self.n
+        if self.velocity == "measured":
+            return y.copy()
+        q = y[:n]
+        if self._q_prev is None:
+            self._q_prev = q.copy()
+            return None
+        z = np.concatenate([q, (q - self._q_prev) / self.T])  # eq. (43)
+        self._q_prev = q.copy()
+        return z
+
+    def update(self, y: np.ndarray, u: np.ndarray) -> Residual:
+        """One sample: y = x̄(k), u = ū(k−1). Returns r(k) and the identification candidates."""
+        n = self.n
+        y = check_measurement(y, 2 * n, "y")
+        u = check_measurement(u, n, "u")
+        x = self._state(y)
+        if x is None or self._x_prev is None:
+            if x is not None:
+                self._x_prev, self.x_hat, self._e_prev = x, x.copy(), np.zeros(2 * n)
+            return Residual(np.zeros(2 * n), np.zeros(2 * n))
+        est = self.estimator
+        est.prepare(self._x_prev, u)           # η̂(k−1) with x̄(k−1), ū(k−1)
+        eta_prev = est.eta_hat
+        x_model = self.euler.predict(self._x_prev, u)
+        r_model = x - x_model                   # eq. (20)
+        if self.eval_at == "measured":          # A x̂ + h(x̄) + B(x̄)ū = A(x̂ − x̄) + predict(x̄)
+            base = self.euler.A @ (self.x_hat - self._x_prev) + x_model
+        else:
+            base = self.euler.predict(self.x_hat, u)
+        self.x_hat = base + self.Ko @ self._e_prev + eta_prev   # eq. (23)
+        e = x - self.x_hat
+        r = e - self.F * self._e_prev          # eq. (26)
+        est.update(r, r_model, self._x_prev, u)
+        self._x_prev, self._e_prev = x, e
+        return self._output(x, r, est.eta_hat)
+
+    def _output(self, x: np.ndarray, r: np.ndarray, eta_hat: np.ndarray) -> Residual:
+        n, T = self.n, self.T
+        M = self.model.mass_matrix(x[:n])
+        tau_hat = M @ eta_hat[n:] / T          # δτ̂ = (M̂/T) f̂₂, f̂ = η̂ (Sec. 6, M̂ for M)
+        if self.residual_space == "torque":
+            out = np.concatenate([r[:n], M @ r[n:] / T])
+        else:
+            out = r
+        return Residual(out, np.concatenate([tau_hat, r[:n]]), state_residual=r)
+
+    def signatures(self):
+        """Fault signatures of the residual: actuator i raises its torque (or velocity) component; sensor i
+        raises its position component and may raise the velocity/torque ones (Sec. 6)."""
+        from robofdi.decision import Signature
+
+        n = self.n
+        names = self.model.joint_names
+        lower = self.components[n:]
+        sigs = [Signature(names[i], frozenset([lower[i]]), frozenset(lower) if self.residual_space == "state" else frozenset()) for i in range(n)]
+        sigs += [Signature(f"{names[i]}_pos", frozenset([self.components[i]]), frozenset(lower)) for i in range(n)]
+        return sigs
+
+    @property
+    def estimate_modes(self) -> list[str]:
+        """'level' components are read as they are; 'increment' ones are summed from the isolation sample."""
+        return ["level"] * self.n + ["increment"] * self.n

@@ -1,0 +1,134 @@
+"""Threshold calibration and signature isolation (robofdi.decision)."""
+import numpy as np
+import pytest
+
+from robofdi import RobofdiError
+from robofdi.decision import Alarms, Signature, ThresholdDecision, calibrate_thresholds
+
+TORQUES = [f"joint{i}_tau" for i in range(1, 4)]
+COMPONENTS = TORQUES + ["joint3_pos"]
+
+
+def arm_signatures():
+    actuators = [Signature(f"joint{i}", frozenset({f"joint{i}_tau"})) for i in range(1, 4)]
+    sensor = Signature("joint3_pos", frozenset({"joint3_pos"}), frozenset(TORQUES))
+    return actuators + [sensor]
+
+
+def decision(latch=True):
+    return ThresholdDecision(COMPONENTS, np.ones(4), arm_signatures(), latch=latch)
+
+
+# --- calibrate_thresholds -------------------------------------------------------------------------
+
+def test_calibrate_is_margin_times_max_abs_after_skip():
+    run1 = np.array([[100.0, -100.0], [0.5, -2.0], [1.0, 0.0]])  # first sample is a start-up transient
+    run2 = np.array([[50.0, 50.0], [-3.0, 1.0]])
+    thr = calibrate_thresholds([run1, run2], margin=1.5, skip=1)
+    np.testing.assert_allclose(thr, [1.5 * 3.0, 1.5 * 2.0])
+
+
+def test_calibrate_without_skip_and_zero_component_gets_positive_floor():
+    thr = calibrate_thresholds([np.array([[-2.0, 0.0], [1.0, 0.0]])])
+    assert thr[0] == pytest.approx(2.4)
+    assert 0 < thr[1] < 1e-9
+
+
+@pytest.mark.parametrize(
+    "runs, kwargs, field",
+    [
+        ([np.array([[1.0, np.nan]])], {}, "residuals[0]"),
+        ([np.ones((3, 2)), np.ones((3, 3))], {}, "residuals[1]"),
+        ([np.ones((3, 2))], {"margin": 0.9}, "margin"),
+        ([np.ones((3, 2))], {"skip": 3}, "skip"),
+        ([], {}, "residuals"),
+        ([np.ones(3)], {}, "residuals[0]"),
+    ],
+)
+def test_calibrate_rejects_bad_input(runs, kwargs, field):
+    with pytest.raises(RobofdiError, match=field.replace("[", r"\[").replace("]", r"\]")):
+        calibrate_thresholds(runs, **kwargs)
+
+
+# --- Signature / ThresholdDecision ---------------------------------------------------------------
+
+def test_signature_normalises_sets_and_rejects_a_bare_string():
+    s = Signature("joint1", ["joint1_tau"], ("joint2_tau",))
+    assert s.required == frozenset({"joint1_tau"}) and s.explains == {"joint1_tau", "joint2_tau"}
+    with pytest.raises(RobofdiError, match="required"):
+        Signature("joint1", "joint1_tau")
+    with pytest.raises(RobofdiError, match="required"):
+        Signature("joint1", frozenset())
+
+
+def test_no_alarm_below_threshold():
+    out = decision().update(np.array([0.5, -0.9, 1.0, 0.0]))  # |r| == threshold is not an alarm
+    assert isinstance(out, Alarms)
+    assert not out.alarm.any() and out.isolated == () and out.new == ()
+
+
+def test_single_actuator_fault_is_isolated():
+    d = decision()
+    out = d.update(np.array([0.1, -4.0, 0.2, 0.3]))
+    np.testing.assert_array_equal(out.alarm, [False, True, False, False])
+    assert out.isolated == ("joint2",) and out.new == ("joint2",)
+
+
+def test_sensor_signature_beats_actuator_signatures_when_position_alarms():
+    d = decision()
+    # torque residuals react more than the position residual, yet one sensor fault explains all of them
+    out = d.update(np.array([3.0, 5.0, 8.0, 2.0]))
+    assert out.alarm.all()
+    assert out.isolated == ("joint3_pos",)
+
+
+def test_two_actuator_faults_are_both_isolated_largest_first():
+    out = decision().update(np.array([2.0, 0.0, 6.0, 0.0]))
+    assert out.isolated == ("joint3", "joint1") and out.new == ("joint3", "joint1")
+
+
+def test_latching_keeps_faults_and_new_reports_only_fresh_ones():
+    d = decision(latch=True)
+    assert d.update(np.array([0.0, 3.0, 0.0, 0.0])).new == ("joint2",)
+    out = d.update(np.zeros(4))
+    assert out.isolated == ("joint2",) and out.new == () and not out.alarm.any()
+    out = d.update(np.array([2.0, 3.0, 0.0, 0.0]))
+    assert out.isolated == ("joint2", "joint1") and out.new == ("joint1",)
+    d.reset()
+    assert d.update(np.zeros(4)).isolated == ()
+
+
+def test_without_latch_isolation_follows_the_current_sample():
+    d = decision(latch=False)
+    assert d.update(np.array([0.0, 3.0, 0.0, 0.0])).isolated == ("joint2",)
+    assert d.update(np.zeros(4)).isolated == ()
+    assert d.update(np.array([0.0, 3.0, 0.0, 0.0])).new == ("joint2",)
+
+
+def test_nan_residual_names_residual_and_component():
+    d = decision()
+    with pytest.raises(RobofdiError, match=r"residual.*joint2_tau"):
+        d.update(np.array([0.0, np.nan, 0.0, 0.0]))
+    with pytest.raises(RobofdiError, match="residual"):
+        d.update(np.array([0.0, np.inf, 0.0, 0.0]))
+    with pytest.raises(RobofdiError, match="residual"):
+        d.update(np.zeros(3))
+
+
+def test_unknown_signature_component_is_named():
+    with pytest.raises(RobofdiError, match="joint9_tau"):
+        ThresholdDecision(COMPONENTS, np.ones(4), [Signature("joint9", frozenset({"joint9_tau"}))])
+
+
+@pytest.mark.parametrize(
+    "components, threshold, field",
+    [
+        (["a", "a"], [1.0, 1.0], "components"),
+        (["a", "b"], [1.0], "threshold"),
+        (["a", "b"], [1.0, 0.0], "threshold"),
+        (["a", "b"], [1.0, np.nan], "threshold"),
+    ],
+)
+def test_decision_configuration_is_validated(components, threshold, field):
+    with pytest.raises(RobofdiError, match=field):
+        ThresholdDecision(components, np.array(threshold), [])

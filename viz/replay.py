@@ -1,0 +1,374 @@
+"""Replay a run record of a MuJoCo robot in meshcat, with the faults and their diagnosis overlaid.
+
+For every joint that is a fault target (``record.meta["faults"][k]["target"]``, sensor channels such as
+``joint5_pos`` map to ``joint5``) and every joint the chosen diagnoser isolates, two markers ride on the
+joint's body:
+
+* ``robot/<body>/fault_onset_<joint>``: a yellow translucent ring around the joint axis, visible while a
+  true fault on that joint is active (from its ``onset`` to its ``end``, ``end`` None = to the end of the run);
+* ``robot/<body>/fault_detected_<joint>``: a red translucent, slightly inflated copy of the link's geoms plus
+  a red sphere at the joint, visible from the first diagnosis sample whose ``isolated`` contains that joint.
+
+The visibility is animated (``visible`` boolean tracks) together with the body transforms, so the markers
+move with the link in the browser.
+"""
+from __future__ import annotations
+
+import contextlib
+import io
+import math
+import time as _time
+import webbrowser
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import meshcat
+import meshcat.geometry as g
+import numpy as np
+from meshcat.animation import Animation
+
+import robofdi
+from robofdi import RobofdiError
+
+from .scene import MeshcatScene, rgba_to_material
+
+__all__ = ["Replay", "Marker", "resolve_mjcf", "fault_joint", "isolated_joints", "build_replay",
+           "write_replay_html", "view", "close_visualizer"]
+
+ROOT = "robot"
+ONSET_RGBA = (1.0, 0.85, 0.0, 0.55)
+DETECTED_RGBA = (0.95, 0.05, 0.05, 0.45)
+_ONSET_NAME = "fault_onset_{}"
+_DETECTED_NAME = "fault_detected_{}"
+
+
+@dataclass
+class Marker:
+    """One overlay marker: its meshcat path (below the visualizer root) and when it is shown."""
+
+    joint: str
+    kind: str                         # "onset" or "detected"
+    path: str                         # e.g. "robot/link3/fault_onset_joint3"
+    intervals: list[tuple[float, float]] = field(default_factory=list)   # record-time [start, end) shown
+
+    @property
+    def first_visible(self) -> float | None:
+        return min((a for a, _ in self.intervals), default=None)
+
+
+@dataclass
+class Replay:
+    """What :func:`build_replay` put into the visualizer."""
+
+    scene: MeshcatScene
+    animation: Animation
+    fps: int
+    frame_times: np.ndarray           # record time of every animation frame
+    diagnoser: str | None
+    markers: list[Marker]
+
+    def marker(self, joint: str, kind: str) -> Marker | None:
+        return next((m for m in self.markers if m.joint == joint and m.kind == kind), None)
+
+
+# ---------------------------------------------------------------------------- record helpers
+def resolve_mjcf(record) -> Path:
+    """The model file of ``record``: ``record.meta["mjcf"]``, relative names resolved against ``robofdi.ASSETS``."""
+    name = (record.meta or {}).get("mjcf")
+    if not name or not isinstance(name, str):
+        raise RobofdiError("record.meta['mjcf']: missing; expected the MJCF file name of the simulated robot")
+    p = Path(name)
+    if not p.is_absolute():
+        p = Path(robofdi.ASSETS) / p
+    return p
+
+
+def fault_joint(target: str, joint_names) -> str | None:
+    """Joint that a fault target refers to: ``"joint3"`` -> joint3, ``"joint5_pos"``/``"joint5_vel"`` -> joint5."""
+    target = str(target).strip()
+    if target in joint_names:
+        return target
+    head, sep, _ = target.rpartition("_")
+    while sep:
+        if head in joint_names:
+            return head
+        head, sep, _ = head.rpartition("_")
+    return None
+
+
+def isolated_joints(isolated: str, joint_names) -> set[str]:
+    """Joints named by one ``isolated`` entry such as ``"joint3+joint5_pos"``."""
+    out = set()
+    for part in str(isolated).split("+"):
+        j = fault_joint(part, joint_names) if part.strip() else None
+        if j is not None:
+            out.add(j)
+    return out
+
+
+def _choose_diagnoser(record, diagnoser: str | None) -> str | None:
+    diags = record.diagnosers or {}
+    if diagnoser is not None:
+        if diagnoser not in diags:
+            raise RobofdiError(f"diagnoser {diagnoser!r}: not in the record (available: {sorted(diags)})")
+        return diagnoser
+    primary = (record.meta or {}).get("primary_diagnoser")
+    if primary in diags:
+        return primary
+    return next(iter(diags), None)
+
+
+def _fault_intervals(record, joint_names, t_end: float) -> dict[str, list[tuple[float, float]]]:
+    faults = (record.meta or {}).get("faults") or []
+    out: dict[str, list[tuple[float, float]]] = {}
+    for k, f in enumerate(faults):
+        if not isinstance(f, dict) or "target" not in f:
+            raise RobofdiError(f"record.meta['faults'][{k}]: expected a dict with 'target' and 'onset'")
+        j = fault_joint(f["target"], joint_names)
+        if j is None:
+            continue  # not a joint-related fault: nothing to draw on the arm
+        onset = f.get("onset")
+        onset = 0.0 if onset is None else float(onset)
+        end = f.get("end")
+        end = math.inf if end is None or not np.isfinite(float(end)) else float(end)
+        out.setdefault(j, []).append((onset, end))
+    return out
+
+
+def _detection_times(record, diag: str | None, joint_names) -> dict[str, float]:
+    if diag is None:
+        return {}
+    tr = record.diagnosers[diag]
+    out: dict[str, float] = {}
+    for t, iso in zip(np.asarray(tr.time, dtype=float), tr.isolated):
+        if isinstance(iso, bytes):
+            iso = iso.decode()
+        if not iso:
+            continue
+        for j in isolated_joints(iso, joint_names):
+            out.setdefault(j, float(t))
+    return out
+
+
+def _resample(record, scene: MeshcatScene, fps: int) -> tuple[np.ndarray, np.ndarray]:
+    t = np.asarray(record.time, dtype=float).reshape(-1)
+    x = np.asarray(record.truth_state, dtype=float)
+    if t.size == 0:
+        raise RobofdiError("record.time: empty; expected at least one time stamp")
+    if x.ndim != 2 or x.shape[0] != t.size or x.shape[1] < scene.nq:
+        raise RobofdiError(f"record.truth_state: expected shape ({t.size}, >={scene.nq}) with qpos first, "
+                           f"got {x.shape}")
+    n = int(math.floor((t[-1] - t[0]) * fps + 1e-9)) + 1
+    ft = t[0] + np.arange(n) / fps
+    q = np.column_stack([np.interp(ft, t, x[:, i]) for i in range(scene.nq)])
+    return ft, q
+
+
+# ---------------------------------------------------------------------------- markers
+def _perp_frame(axis: np.ndarray) -> np.ndarray:
+    """Rotation whose y column is ``axis`` (meshcat cylinders are along y)."""
+    y = axis / np.linalg.norm(axis)
+    helper = np.array([1.0, 0, 0]) if abs(y[0]) < 0.9 else np.array([0, 0, 1.0])
+    x = np.cross(y, helper)
+    x /= np.linalg.norm(x)
+    z = np.cross(x, y)
+    return np.column_stack([x, y, z])
+
+
+def _body_radius(scene: MeshcatScene, body: str, anchor: np.ndarray) -> float:
+    """A ring radius that encloses the body's geometry near the joint."""
+    r = 0.05
+    for gs in scene.geoms:
+        if gs.body != body:
+            continue
+        if gs.type in ("cylinder", "capsule", "sphere"):
+            r = max(r, gs.size[0])
+        elif gs.type == "box":
+            r = max(r, float(np.min(gs.size[:3])))
+    return min(r, 0.25)
+
+
+def _draw_markers(vis, scene: MeshcatScene, joint: str) -> tuple[str, str]:
+    info = scene.joint(joint)
+    body, anchor, axis = info["body"], info["pos"], info["axis"]
+    onset = f"{ROOT}/{body}/{_ONSET_NAME.format(joint)}"
+    det = f"{ROOT}/{body}/{_DETECTED_NAME.format(joint)}"
+    r = _body_radius(scene, body, anchor) * 1.35
+    T = np.eye(4)
+    T[:3, :3] = _perp_frame(axis)
+    T[:3, 3] = anchor
+    vis[onset]["ring"].set_object(g.Cylinder(0.05, radius=r), rgba_to_material(ONSET_RGBA))
+    vis[onset]["ring"].set_transform(T)
+    for gs in scene.geoms:
+        if gs.body != body:
+            continue
+        for name, geom, pose in gs.geometries(inflate=0.012):
+            node = vis[det][f"geom_{gs.index}"] if not name else vis[det][f"geom_{gs.index}"][name]
+            node.set_object(geom, rgba_to_material(DETECTED_RGBA))
+            node.set_transform(gs.local @ pose if not name else pose)
+    S = np.eye(4)
+    S[:3, 3] = anchor
+    vis[det]["joint_sphere"].set_object(g.Sphere(r * 0.9), rgba_to_material(DETECTED_RGBA))
+    vis[det]["joint_sphere"].set_transform(S)
+    vis[onset].set_property("visible", False)
+    vis[det].set_property("visible", False)
+    return onset, det
+
+
+def _frame_of(t: float, t0: float, fps: int, n: int) -> int:
+    return int(min(max(math.ceil((t - t0) * fps - 1e-9), 0), n))
+
+
+def _animate_visibility(anim: Animation, vis, path: str, intervals, t0: float, fps: int, n: int) -> None:
+    """Key ``visible`` on ``path``: False at frame 0, True/False at every interval edge (frames clipped to the clip)."""
+    keys = {0: False}
+    for a, b in sorted(intervals):
+        fa = _frame_of(a, t0, fps, n)
+        if fa >= n:
+            continue
+        keys[fa] = True
+        if math.isfinite(b):
+            fb = _frame_of(b, t0, fps, n)
+            if fb < n and fb > fa:
+                keys.setdefault(fb, False)
+    # a final key keeps the track as long as the clip
+    last = max(k for k in keys if keys[k] is not None)
+    state = False
+    for k in sorted(keys):
+        state = keys[k]
+        with anim.at_frame(vis, k) as frame:
+            frame[path].set_property("visible", "boolean", bool(state))
+    if n - 1 > last:
+        with anim.at_frame(vis, n - 1) as frame:
+            frame[path].set_property("visible", "boolean", bool(state))
+
+
+def _set_camera(vis, scene: MeshcatScene, q0) -> None:
+    """Place the default camera so that the whole arm is in view.
+
+    meshcat 0.3.2's orbit controls always look at the world origin (the robot's base) and the camera
+    lives in the y-up frame ``/Cameras/default/rotated``: world (x, y, z) -> three.js (x, z, -y).
+    The camera is put on a diagonal, raised, far enough for the robot's bounding sphere.
+    """
+    centre, radius = scene.extent(q0)
+    reach = float(np.linalg.norm(centre)) + radius
+    dist = max(1.45 * reach, 1.2)
+    direction = np.array([1.0, -1.2, 0.55])
+    eye = dist * direction / np.linalg.norm(direction)
+    vis["/Cameras/default/rotated/<object>"].set_property("position", [float(eye[0]), float(eye[2]), float(-eye[1])])
+
+
+# ---------------------------------------------------------------------------- public API
+def build_replay(vis: meshcat.Visualizer, record, diagnoser: str | None = None, fps: int = 50) -> Replay:
+    """Draw ``record``'s robot into ``vis`` and set an animation of its motion with fault markers.
+
+    ``diagnoser`` picks the trace whose isolation drives the "detected" markers (default:
+    ``record.meta["primary_diagnoser"]``, else the first diagnoser). Frames are the record's truth
+    ``qpos`` linearly resampled at ``fps``.
+    """
+    if not isinstance(fps, (int, np.integer)) or fps <= 0:
+        raise RobofdiError(f"fps: expected a positive integer, got {fps!r}")
+    fps = int(fps)
+    scene = MeshcatScene(resolve_mjcf(record))
+    diag = _choose_diagnoser(record, diagnoser)
+    ft, q = _resample(record, scene, fps)
+    n, t0 = len(ft), float(ft[0])
+
+    vis[ROOT].delete()
+    scene.draw(vis, ROOT)
+    scene.set_pose(vis, q[0], ROOT)
+    _set_camera(vis, scene, q[0])
+
+    joints = scene.joint_names
+    onsets = _fault_intervals(record, joints, float(ft[-1]))
+    detections = _detection_times(record, diag, joints)
+    marked = [j for j in joints if j in onsets or j in detections]
+
+    anim = Animation(default_framerate=fps)
+    for i in range(n):
+        with anim.at_frame(vis, i) as frame:
+            scene.set_pose(frame, q[i], ROOT)
+
+    markers: list[Marker] = []
+    for j in marked:
+        onset_path, det_path = _draw_markers(vis, scene, j)
+        on_iv = onsets.get(j, [])
+        det_iv = [(detections[j], math.inf)] if j in detections else []
+        _animate_visibility(anim, vis, onset_path, on_iv, t0, fps, n)
+        _animate_visibility(anim, vis, det_path, det_iv, t0, fps, n)
+        markers.append(Marker(j, "onset", onset_path, on_iv))
+        markers.append(Marker(j, "detected", det_path, det_iv))
+
+    vis.set_animation(anim, play=True, repetitions=1)
+    return Replay(scene, anim, fps, ft, diag, markers)
+
+
+def close_visualizer(vis: meshcat.Visualizer) -> None:
+    """Stop the meshcat server that ``meshcat.Visualizer()`` started and close the zmq socket."""
+    window = getattr(vis, "window", None)
+    if window is None:
+        return
+    with contextlib.suppress(Exception):
+        window.zmq_socket.close(linger=0)
+    proc = getattr(window, "server_proc", None)
+    if proc is not None and proc.poll() is None:
+        proc.kill()
+        with contextlib.suppress(Exception):
+            proc.wait(timeout=10)
+    if proc is not None:
+        for stream in (proc.stdout, proc.stderr):
+            with contextlib.suppress(Exception):
+                stream.close()
+
+
+def _as_record(record_or_path):
+    if isinstance(record_or_path, (str, Path)):
+        from robofdi.record import load
+
+        p = Path(record_or_path)
+        try:
+            return load(p)
+        except FileNotFoundError:
+            raise RobofdiError(f"record file {str(p)!r}: does not exist") from None
+        except (OSError, KeyError) as exc:
+            raise RobofdiError(f"record file {str(p)!r}: not a robofdi record ({exc})") from exc
+    return record_or_path
+
+
+def write_replay_html(record, path: str | Path, diagnoser: str | None = None, fps: int = 50) -> Path:
+    """Write a self-contained HTML replay (meshcat's JS inlined, works offline) to ``path``; returns the path.
+
+    ``record`` is a :class:`robofdi.record.Record` or the path of a saved one.
+    """
+    record = _as_record(record)
+    path = Path(path)
+    with contextlib.redirect_stdout(io.StringIO()):
+        vis = meshcat.Visualizer()
+    try:
+        build_replay(vis, record, diagnoser=diagnoser, fps=fps)
+        html = vis.static_html()
+    finally:
+        close_visualizer(vis)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(html, encoding="utf-8")
+    return path
+
+
+def view(record_path, diagnoser: str | None = None, open_browser: bool = True, fps: int = 50) -> None:
+    """Live viewer: start meshcat, load the replay, print the URL and block until Ctrl-C."""
+    record = _as_record(record_path)
+    with contextlib.redirect_stdout(io.StringIO()):
+        vis = meshcat.Visualizer()
+    try:
+        rep = build_replay(vis, record, diagnoser=diagnoser, fps=fps)
+        url = vis.url()
+        print(f"robofdi view: {url}  (diagnoser: {rep.diagnoser or 'none'}; "
+              f"use the 'Animations' panel to replay; Ctrl-C to quit)", flush=True)
+        if open_browser:
+            webbrowser.open(url, new=2)
+        while True:
+            _time.sleep(0.5)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        close_visualizer(vis)

@@ -1,0 +1,206 @@
+"""A MuJoCo model drawn in meshcat: one meshcat group per body, one primitive per geom.
+
+Layout of the meshcat tree (below the visualizer's root)::
+
+    robot/<body>/geom_<i>        one primitive per MuJoCo geom, fixed pose in its body's frame
+    robot/<body>                 a group whose transform is the body's world pose
+
+Posing the robot is therefore a matter of setting the (few) body transforms; anything attached
+below ``robot/<body>`` (e.g. fault markers) moves with that link.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import meshcat.geometry as g
+import mujoco
+import numpy as np
+
+from robofdi import RobofdiError
+
+__all__ = ["MeshcatScene", "GeomSpec", "rgba_to_material"]
+
+_T = mujoco.mjtGeom
+#: Rotation taking meshcat's cylinder axis (+y) onto MuJoCo's (+z): +90 deg about x.
+_Y_TO_Z = np.array([[1.0, 0, 0, 0], [0, 0, -1, 0], [0, 1, 0, 0], [0, 0, 0, 1]])
+#: Thickness of the slab that stands in for a plane [m]; a plane of size 0 (infinite) is drawn this big.
+_PLANE_THICKNESS = 0.01
+_PLANE_DEFAULT_HALF = 2.0
+
+
+def _homogeneous(pos, rot) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3] = np.asarray(rot, dtype=float).reshape(3, 3)
+    T[:3, 3] = pos
+    return T
+
+
+def _quat_to_mat(quat) -> np.ndarray:
+    m = np.zeros(9)
+    mujoco.mju_quat2Mat(m, np.asarray(quat, dtype=float))
+    return m.reshape(3, 3)
+
+
+def rgba_to_material(rgba, *, scale_opacity: float = 1.0) -> g.MeshPhongMaterial:
+    """A meshcat Phong material of colour ``rgba`` (components in [0, 1])."""
+    r, gg, b, a = (float(x) for x in rgba)
+    color = (int(round(255 * r)) << 16) | (int(round(255 * gg)) << 8) | int(round(255 * b))
+    opacity = float(np.clip(a * scale_opacity, 0.0, 1.0))
+    return g.MeshPhongMaterial(color=color, opacity=opacity, transparent=opacity < 1.0)
+
+
+@dataclass
+class GeomSpec:
+    """One drawable geom: its meshcat path, primitive type, sizes, colour and fixed offset in its body frame."""
+
+    index: int
+    body: str
+    path: str                 # relative to the robot root, e.g. "link3/geom_7"
+    type: str                 # "box", "cylinder", "sphere", "capsule", "ellipsoid", "plane"
+    size: np.ndarray          # MuJoCo size vector (3,)
+    rgba: np.ndarray          # (4,)
+    local: np.ndarray         # (4, 4) pose of the meshcat object in the body frame (cylinder axis fix included)
+
+    def geometries(self, inflate: float = 0.0) -> list[tuple[str, g.Geometry, np.ndarray]]:
+        """Meshcat primitives ``(name, geometry, pose in the geom's meshcat frame)``; ``inflate`` grows every size [m]."""
+        s = self.size + inflate
+        eye = np.eye(4)
+        if self.type == "box":
+            return [("", g.Box(2 * s[:3]), eye)]
+        if self.type == "plane":
+            hx = self.size[0] if self.size[0] > 0 else _PLANE_DEFAULT_HALF
+            hy = self.size[1] if self.size[1] > 0 else _PLANE_DEFAULT_HALF
+            return [("", g.Box([2 * hx, 2 * hy, _PLANE_THICKNESS]), eye)]
+        if self.type == "sphere":
+            return [("", g.Sphere(s[0]), eye)]
+        if self.type == "ellipsoid":
+            return [("", g.Ellipsoid(s[:3]), eye)]
+        if self.type == "cylinder":
+            return [("", g.Cylinder(2 * s[1], s[0]), eye)]
+        if self.type == "capsule":
+            # meshcat frame here has the axis along +y (see _Y_TO_Z)
+            top, bottom = np.eye(4), np.eye(4)
+            top[1, 3], bottom[1, 3] = s[1], -s[1]
+            return [("", g.Cylinder(2 * s[1], s[0]), eye), ("cap_top", g.Sphere(s[0]), top),
+                    ("cap_bottom", g.Sphere(s[0]), bottom)]
+        raise AssertionError(self.type)  # pragma: no cover - filtered in MeshcatScene
+
+
+_TYPE_NAMES = {
+    _T.mjGEOM_PLANE: "plane",
+    _T.mjGEOM_SPHERE: "sphere",
+    _T.mjGEOM_CAPSULE: "capsule",
+    _T.mjGEOM_ELLIPSOID: "ellipsoid",
+    _T.mjGEOM_CYLINDER: "cylinder",
+    _T.mjGEOM_BOX: "box",
+}
+
+
+class MeshcatScene:
+    """A MuJoCo MJCF model, ready to be drawn into a :class:`meshcat.Visualizer` and posed from ``qpos``.
+
+    Geoms of unsupported types (meshes, height fields) and fully transparent geoms are skipped
+    (listed in :attr:`skipped`).
+    """
+
+    def __init__(self, mjcf_path: str | Path):
+        path = Path(mjcf_path)
+        if not path.is_file():
+            raise RobofdiError(f"mjcf file {str(path)!r}: does not exist (expected an MJCF XML file)")
+        try:
+            self.model = mujoco.MjModel.from_xml_path(str(path))
+        except Exception as exc:  # mujoco raises ValueError with the parser's message
+            msg = str(exc).strip().replace("\n", " ")
+            raise RobofdiError(f"mjcf file {str(path)!r}: not a valid MJCF model ({msg})") from exc
+        self.path = path
+        self.data = mujoco.MjData(self.model)
+        m = self.model
+        self.body_names: list[str] = [m.body(i).name or f"body{i}" for i in range(m.nbody)]
+        self.joint_names: list[str] = [m.joint(i).name or f"joint{i}" for i in range(m.njnt)]
+        self.geoms: list[GeomSpec] = []
+        self.skipped: list[int] = []
+        for i in range(m.ngeom):
+            tname = _TYPE_NAMES.get(int(m.geom_type[i]))
+            matid = int(m.geom_matid[i])
+            rgba = np.array(m.mat_rgba[matid] if matid >= 0 else m.geom_rgba[i], dtype=float)
+            if tname is None or rgba[3] <= 0.0:
+                self.skipped.append(i)
+                continue
+            body = self.body_names[int(m.geom_bodyid[i])]
+            local = _homogeneous(m.geom_pos[i], _quat_to_mat(m.geom_quat[i]))
+            if tname in ("cylinder", "capsule"):
+                local = local @ _Y_TO_Z
+            elif tname == "plane":
+                local = local.copy()
+                local[:3, 3] -= local[:3, 2] * _PLANE_THICKNESS / 2  # top face at the plane
+            self.geoms.append(GeomSpec(i, body, f"{body}/geom_{i}", tname, np.array(m.geom_size[i], dtype=float),
+                                       rgba, local))
+
+    # ------------------------------------------------------------------ kinematics
+    @property
+    def nq(self) -> int:
+        return int(self.model.nq)
+
+    def joint(self, name: str) -> dict:
+        """Body, anchor and axis (in the body frame) of joint ``name``."""
+        try:
+            j = self.model.joint(name)
+        except KeyError:
+            raise RobofdiError(f"joint {name!r}: not in model {self.path.name} (joints: {self.joint_names})") from None
+        return {"body": self.body_names[int(j.bodyid[0])], "pos": np.array(j.pos, dtype=float),
+                "axis": np.array(j.axis, dtype=float), "type": int(j.type[0]), "qposadr": int(j.qposadr[0])}
+
+    def _forward(self, qpos) -> None:
+        qpos = np.asarray(qpos, dtype=float).reshape(-1)
+        if qpos.shape[0] != self.model.nq:
+            raise RobofdiError(f"qpos: expected {self.model.nq} values for {self.path.name}, got {qpos.shape[0]}")
+        self.data.qpos[:] = qpos
+        mujoco.mj_kinematics(self.model, self.data)
+
+    def body_transforms(self, qpos) -> dict[str, np.ndarray]:
+        """World pose (4x4) of every body at ``qpos`` (``mujoco.mj_kinematics``)."""
+        self._forward(qpos)
+        return {name: _homogeneous(self.data.xpos[b], self.data.xmat[b]) for b, name in enumerate(self.body_names)}
+
+    def geom_transforms(self, qpos) -> dict[str, np.ndarray]:
+        """World pose (4x4) of every drawn geom's meshcat object at ``qpos``, from ``geom_xpos``/``geom_xmat``."""
+        self._forward(qpos)
+        out = {}
+        for gs in self.geoms:
+            T = _homogeneous(self.data.geom_xpos[gs.index], self.data.geom_xmat[gs.index])
+            if gs.type in ("cylinder", "capsule"):
+                T = T @ _Y_TO_Z
+            elif gs.type == "plane":
+                T[:3, 3] -= T[:3, 2] * _PLANE_THICKNESS / 2
+            out[gs.path] = T
+        return out
+
+    def extent(self, qpos=None) -> tuple[np.ndarray, float]:
+        """Centre and radius of a sphere around the robot's (non-world) geoms at ``qpos`` (default: qpos0)."""
+        q = self.model.qpos0 if qpos is None else qpos
+        Ts = self.geom_transforms(q)
+        pts = [Ts[gs.path][:3, 3] for gs in self.geoms if gs.body != self.body_names[0]]
+        if not pts:
+            pts = [np.zeros(3)]
+        pts = np.array(pts)
+        lo, hi = pts.min(axis=0), pts.max(axis=0)
+        centre = (lo + hi) / 2
+        radius = float(np.max(np.linalg.norm(pts - centre, axis=1))) + 0.2
+        return centre, radius
+
+    # ------------------------------------------------------------------ drawing
+    def draw(self, vis, root: str = "robot") -> None:
+        """Create every geom's object below ``vis[root]`` (bodies at their qpos0 pose)."""
+        base = vis[root]
+        for gs in self.geoms:
+            for name, geom, pose in gs.geometries():
+                node = base[gs.path] if not name else base[gs.path][name]
+                node.set_object(geom, rgba_to_material(gs.rgba))
+                node.set_transform(gs.local @ pose if not name else pose)
+        self.set_pose(vis, self.model.qpos0, root)
+
+    def set_pose(self, vis, qpos, root: str = "robot") -> None:
+        """Move the drawn robot to ``qpos`` (works on a Visualizer or an animation frame)."""
+        for name, T in self.body_transforms(qpos).items():
+            vis[root][name].set_transform(T)
