@@ -151,6 +151,43 @@ def test_build_replay_markers_and_frames():
     assert len(body_clip.tracks["position"].frames) == 50
 
 
+def _visible_by_frame(rep, vis, path):
+    track = rep.animation.clips[vis[path].path].tracks["visible"]
+    out, state = [], None
+    keys = dict(zip(track.frames, track.values))
+    for i in range(len(rep.frame_times)):
+        state = keys.get(i, state)
+        out.append(state)
+    return np.array(out, dtype=bool)
+
+
+def test_fault_intervals_overlap_end_and_sensor_targets():
+    import io
+    from contextlib import redirect_stdout
+
+    import meshcat
+
+    rec = make_record(diag_isolated="", diag_from=2.0)  # diagnoser never isolates anything
+    rec.meta["faults"] = [
+        {"name": "a", "kind": "actuator_bias", "target": "joint3", "onset": 0.2, "end": 0.5},
+        {"name": "b", "kind": "actuator_gain", "target": "joint3", "onset": 0.4, "end": None},
+        {"name": "c", "kind": "sensor_bias", "target": "joint5_pos", "onset": 0.1, "end": 0.3},
+    ]
+    with redirect_stdout(io.StringIO()):
+        vis = meshcat.Visualizer()
+    try:
+        rep = build_replay(vis, rec, fps=10)
+    finally:
+        close_visualizer(vis)
+    ft = rep.frame_times
+    v3 = _visible_by_frame(rep, vis, rep.marker("joint3", "onset").path)
+    np.testing.assert_array_equal(v3, ft >= 0.2 - 1e-9)            # union of [0.2, 0.5) and [0.4, inf)
+    v5 = _visible_by_frame(rep, vis, rep.marker("joint5", "onset").path)
+    np.testing.assert_array_equal(v5, (ft >= 0.1 - 1e-9) & (ft < 0.3 - 1e-9))
+    assert rep.marker("joint5", "onset").path == "robot/link5/fault_onset_joint5"
+    assert not _visible_by_frame(rep, vis, rep.marker("joint3", "detected").path).any()
+
+
 def test_replay_html_self_contained(replay_html):
     assert replay_html.is_file()
     html = replay_html.read_text()

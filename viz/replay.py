@@ -118,7 +118,7 @@ def _choose_diagnoser(record, diagnoser: str | None) -> str | None:
     return next(iter(diags), None)
 
 
-def _fault_intervals(record, joint_names, t_end: float) -> dict[str, list[tuple[float, float]]]:
+def _fault_intervals(record, joint_names) -> dict[str, list[tuple[float, float]]]:
     faults = (record.meta or {}).get("faults") or []
     out: dict[str, list[tuple[float, float]]] = {}
     for k, f in enumerate(faults):
@@ -175,7 +175,7 @@ def _perp_frame(axis: np.ndarray) -> np.ndarray:
     return np.column_stack([x, y, z])
 
 
-def _body_radius(scene: MeshcatScene, body: str, anchor: np.ndarray) -> float:
+def _body_radius(scene: MeshcatScene, body: str) -> float:
     """A ring radius that encloses the body's geometry near the joint."""
     r = 0.05
     for gs in scene.geoms:
@@ -193,7 +193,7 @@ def _draw_markers(vis, scene: MeshcatScene, joint: str) -> tuple[str, str]:
     body, anchor, axis = info["body"], info["pos"], info["axis"]
     onset = f"{ROOT}/{body}/{_ONSET_NAME.format(joint)}"
     det = f"{ROOT}/{body}/{_DETECTED_NAME.format(joint)}"
-    r = _body_radius(scene, body, anchor) * 1.35
+    r = _body_radius(scene, body) * 1.35
     T = np.eye(4)
     T[:3, :3] = _perp_frame(axis)
     T[:3, 3] = anchor
@@ -215,46 +215,51 @@ def _draw_markers(vis, scene: MeshcatScene, joint: str) -> tuple[str, str]:
     return onset, det
 
 
-def _frame_of(t: float, t0: float, fps: int, n: int) -> int:
-    return int(min(max(math.ceil((t - t0) * fps - 1e-9), 0), n))
+def _animate_visibility(anim: Animation, vis, path: str, intervals, frame_times: np.ndarray) -> None:
+    """Key ``visible`` on ``path``: shown on the frames whose time lies in any ``[start, end)`` interval.
 
-
-def _animate_visibility(anim: Animation, vis, path: str, intervals, t0: float, fps: int, n: int) -> None:
-    """Key ``visible`` on ``path``: False at frame 0, True/False at every interval edge (frames clipped to the clip)."""
-    keys = {0: False}
-    for a, b in sorted(intervals):
-        fa = _frame_of(a, t0, fps, n)
-        if fa >= n:
-            continue
-        keys[fa] = True
-        if math.isfinite(b):
-            fb = _frame_of(b, t0, fps, n)
-            if fb < n and fb > fa:
-                keys.setdefault(fb, False)
-    # a final key keeps the track as long as the clip
-    last = max(k for k in keys if keys[k] is not None)
-    state = False
-    for k in sorted(keys):
-        state = keys[k]
-        with anim.at_frame(vis, k) as frame:
-            frame[path].set_property("visible", "boolean", bool(state))
-    if n - 1 > last:
-        with anim.at_frame(vis, n - 1) as frame:
-            frame[path].set_property("visible", "boolean", bool(state))
-
-
-def _set_camera(vis, scene: MeshcatScene, q0) -> None:
-    """Place the default camera so that the whole arm is in view.
-
-    meshcat 0.3.2's orbit controls always look at the world origin (the robot's base) and the camera
-    lives in the y-up frame ``/Cameras/default/rotated``: world (x, y, z) -> three.js (x, z, -y).
-    The camera is put on a diagonal, raised, far enough for the robot's bounding sphere.
+    Keys are written at frame 0, at every change and at the last frame (so the track spans the clip).
     """
-    centre, radius = scene.extent(q0)
-    reach = float(np.linalg.norm(centre)) + radius
-    dist = max(1.45 * reach, 1.2)
+    ft = np.asarray(frame_times, dtype=float)
+    shown = np.zeros(ft.size, dtype=bool)
+    for a, b in intervals:
+        shown |= (ft >= a - 1e-9) & (ft < b - 1e-9)
+    keys = [0] + [i for i in range(1, ft.size) if shown[i] != shown[i - 1]]
+    if keys[-1] != ft.size - 1:
+        keys.append(ft.size - 1)
+    for k in keys:
+        with anim.at_frame(vis, k) as frame:
+            frame[path].set_property("visible", "boolean", bool(shown[k]))
+
+
+def _set_camera(vis, scene: MeshcatScene, qs: np.ndarray) -> None:
+    """Place the default camera so that the robot is in view over the whole motion ``qs`` (frames x nq).
+
+    meshcat 0.3.2's orbit controls always look at the world origin (the robot's base) and the camera lives in
+    the y-up frame ``/Cameras/default/rotated``: world (x, y, z) -> three.js (x, z, -y). The camera is put on
+    a raised diagonal, at the smallest distance where every geom (over a subsample of the frames, plus its
+    size) lies within a cone of 30 deg around the view axis (the vertical half field of view is 37.5 deg).
+    """
+    world = scene.body_names[0]
+    moving = [gs for gs in scene.geoms if gs.body != world]
+    if not moving:
+        return
+    margin = max(float(np.max(gs.size)) for gs in moving)
+    idx = np.unique(np.linspace(0, len(qs) - 1, min(len(qs), 40)).astype(int))
+    pts = np.array([T[:3, 3] for i in idx for p, T in scene.geom_transforms(qs[i]).items()
+                    if not p.startswith(world + "/")])
     direction = np.array([1.0, -1.2, 0.55])
-    eye = dist * direction / np.linalg.norm(direction)
+    direction /= np.linalg.norm(direction)
+    limit = math.radians(30.0)
+    dist = 10.0
+    for d in np.arange(1.0, 10.0, 0.05):
+        rel = pts - d * direction
+        n = np.linalg.norm(rel, axis=1)
+        ang = np.arccos(np.clip(rel @ -direction / n, -1, 1)) + np.arcsin(np.clip(margin / n, 0, 1))
+        if np.all(ang <= limit):
+            dist = float(d)
+            break
+    eye = dist * direction
     vis["/Cameras/default/rotated/<object>"].set_property("position", [float(eye[0]), float(eye[2]), float(-eye[1])])
 
 
@@ -272,15 +277,15 @@ def build_replay(vis: meshcat.Visualizer, record, diagnoser: str | None = None, 
     scene = MeshcatScene(resolve_mjcf(record))
     diag = _choose_diagnoser(record, diagnoser)
     ft, q = _resample(record, scene, fps)
-    n, t0 = len(ft), float(ft[0])
+    n = len(ft)
 
     vis[ROOT].delete()
     scene.draw(vis, ROOT)
     scene.set_pose(vis, q[0], ROOT)
-    _set_camera(vis, scene, q[0])
+    _set_camera(vis, scene, q)
 
     joints = scene.joint_names
-    onsets = _fault_intervals(record, joints, float(ft[-1]))
+    onsets = _fault_intervals(record, joints)
     detections = _detection_times(record, diag, joints)
     marked = [j for j in joints if j in onsets or j in detections]
 
@@ -294,8 +299,8 @@ def build_replay(vis: meshcat.Visualizer, record, diagnoser: str | None = None, 
         onset_path, det_path = _draw_markers(vis, scene, j)
         on_iv = onsets.get(j, [])
         det_iv = [(detections[j], math.inf)] if j in detections else []
-        _animate_visibility(anim, vis, onset_path, on_iv, t0, fps, n)
-        _animate_visibility(anim, vis, det_path, det_iv, t0, fps, n)
+        _animate_visibility(anim, vis, onset_path, on_iv, ft)
+        _animate_visibility(anim, vis, det_path, det_iv, ft)
         markers.append(Marker(j, "onset", onset_path, on_iv))
         markers.append(Marker(j, "detected", det_path, det_iv))
 

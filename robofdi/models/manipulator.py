@@ -50,6 +50,18 @@ class ModelMismatch:
                 raise RobofdiError(f"ModelMismatch: field {name!r} must be a relative error in [0, 0.5), got {v!r}")
 
 
+def _motor_limits(path: Path, joints: list[str]) -> np.ndarray:
+    """Motor torque limits (datasheet knowledge) from the MJCF's <motor ctrlrange>; inf where none is given."""
+    import xml.etree.ElementTree as ET
+
+    limits = dict.fromkeys(joints, np.inf)
+    for motor in ET.parse(path).getroot().iter("motor"):
+        rng = motor.get("ctrlrange")
+        if motor.get("joint") in limits and rng:
+            limits[motor.get("joint")] = max(abs(float(v)) for v in rng.split())
+    return np.array([limits[j] for j in joints])
+
+
 class ManipulatorModel:
     """M̂(q), n̂(q, q̇) of an n-joint serial arm — the nominal model of eq. (3)."""
 
@@ -66,6 +78,7 @@ class ManipulatorModel:
         self.joint_names = [model.names[i] for i in range(1, model.njoints)]
         self.n = model.nv
         self.damping = np.array(model.damping, dtype=float)
+        self.torque_limit = _motor_limits(self.path, self.joint_names)
 
     @staticmethod
     def _perturb(model: pin.Model, mm: ModelMismatch) -> None:

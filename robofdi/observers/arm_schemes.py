@@ -25,8 +25,7 @@ class ArmSchemeSettings:
     K1: float = 0.1
     K2: float = 0.1
     momentum_gain: float = 50.0
-    # eq. (39) uses 2, the edge of stability: measured divergence with the physical ripple (README, "departures").
-    adaptive_step: float = 1.0
+    adaptive_step: float = 2.0      # the factor 2 of eq. (39)
     residual_space: str = "torque"
 
     def gamma_eta(self, n: int) -> np.ndarray:
@@ -47,7 +46,7 @@ def arm_schemes(model: ManipulatorModel, settings: ArmSchemeSettings = ArmScheme
         "simple": lambda: DiagnosticObserver(model, s.T, None, **common),
         "time_delayed": lambda: DiagnosticObserver(model, s.T, TimeDelayed(), **common),
         "recursive": lambda: DiagnosticObserver(model, s.T, Recursive(gamma), **common),
-        "adaptive": lambda: DiagnosticObserver(model, s.T, Adaptive(RippleModel(n), 2.0 / gamma, theta0, step=s.adaptive_step), **common),
+        "adaptive": lambda: DiagnosticObserver(model, s.T, Adaptive(RippleModel(n, model.torque_limit), 2.0 / gamma, theta0, step=s.adaptive_step), **common),
         "position_only": lambda: DiagnosticObserver(model, s.T, Recursive(gamma), velocity="backward_difference", **common),
         "momentum": lambda: MomentumObserver(model, s.T, s.momentum_gain),
     }

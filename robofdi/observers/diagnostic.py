@@ -71,8 +71,17 @@ class NoEstimate:
     def prepare(self, x: np.ndarray, u: np.ndarray) -> None:
         """Called with x̄(k), ū(k) before η̂(k) is used (only the adaptive estimator needs it)."""
 
+    def fault_estimate(self, r_model: np.ndarray) -> np.ndarray:
+        """f̂ once a fault is declared (Sec. 6): η̂ — or, with no uncertainty estimate, r₂₀ = η + f itself."""
+        return r_model
 
-class TimeDelayed(NoEstimate):
+
+class _Estimating(NoEstimate):
+    def fault_estimate(self, r_model):
+        return self.eta_hat
+
+
+class TimeDelayed(_Estimating):
     """η̂(k) = x̄(k) − A x̄(k−1) − h(x̄(k−1)) − B(x̄(k−1)) ū(k−1) — eq. (28); equals r₂₀(k)."""
 
     def update(self, r, r_model, x, u):
@@ -80,7 +89,7 @@ class TimeDelayed(NoEstimate):
 
 
 @dataclass
-class Recursive(NoEstimate):
+class Recursive(_Estimating):
     """η̂(k+1) = η̂(k) + Γ_η (e(k+1) − F e(k)) — eq. (33). ``gain`` is diag(Γ_η) (2n entries)."""
 
     gain: np.ndarray = None
@@ -102,9 +111,20 @@ class RippleModel:
 
         η_i        = θ_i                                                          (positions)
         η_{n+i}    = θ_a + θ_b sin(θ_c x_{1i} + θ_d) + τ_i θ_e sin(θ_f x_{1i} + θ_g)   (velocities)
+
+    ``torque_scale`` divides τ_i (same function class, θ_e rescaled): with τ in N·m the torque column of
+    Z dominates Γ_θ and θ_e soaks up Coulomb friction, then diverges when τ changes sign (measured);
+    scaling τ by the motor torque limit keeps eq. (39)'s gain well conditioned.
     """
 
     n: int
+    torque_scale: np.ndarray | float = 1.0
+
+    def __post_init__(self):
+        scale = np.broadcast_to(np.asarray(self.torque_scale, dtype=float), (self.n,))
+        if not np.all(np.isfinite(scale) & (scale > 0)):
+            raise RobofdiError(f"RippleModel: field 'torque_scale' must be {self.n} finite values > 0, got {self.torque_scale!r}")
+        self._inv_scale = 1.0 / scale
 
     @property
     def p(self) -> int:
@@ -115,12 +135,14 @@ class RippleModel:
         return theta[:n], theta[n:].reshape(n, 7).T  # (a, b, c, d, e, f, g) rows, each (n,)
 
     def eta(self, theta: np.ndarray, x1: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        tau = tau * self._inv_scale
         pos, (a, b, c, d, e, f, g) = self.split(theta)
         return np.concatenate([pos, a + b * np.sin(c * x1 + d) + tau * e * np.sin(f * x1 + g)])
 
     def jacobian(self, theta: np.ndarray, x1: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """Z = ∂η/∂θ — eq. (38), a (2n × 8n) matrix."""
         n = self.n
+        tau = tau * self._inv_scale
         _, (a, b, c, d, e, f, g) = self.split(theta)
         s1, c1 = np.sin(c * x1 + d), np.cos(c * x1 + d)
         s2, c2 = np.sin(f * x1 + g), np.cos(f * x1 + g)
@@ -132,7 +154,7 @@ class RippleModel:
         return Z
 
 
-class Adaptive(NoEstimate):
+class Adaptive(_Estimating):
     """θ̂(k+1) = θ̂(k) + Zᵀ Γ_θ (e(k+1) − F e(k)),  Γ_θ = 2 (Z Zᵀ + Q)⁻¹ — eqs. (37)–(39)."""
 
     def __init__(self, model: RippleModel, Q: np.ndarray, theta0: np.ndarray | None = None, step: float = 2.0):
@@ -263,28 +285,34 @@ class DiagnosticObserver:
         r = e - self.F * self._e_prev          # eq. (26)
         est.update(r, r_model, self._x_prev, u)
         self._x_prev, self._e_prev = x, e
-        return self._output(x, r, est.eta_hat)
+        return self._output(x, r, est.fault_estimate(r_model), r_model)
 
-    def _output(self, x: np.ndarray, r: np.ndarray, eta_hat: np.ndarray) -> Residual:
+    def _output(self, x: np.ndarray, r: np.ndarray, f_hat: np.ndarray, r_model: np.ndarray) -> Residual:
         n, T = self.n, self.T
         M = self.model.mass_matrix(x[:n])
-        tau_hat = M @ eta_hat[n:] / T          # δτ̂ = (M̂/T) f̂₂, f̂ = η̂ (Sec. 6, M̂ for M)
+        tau_hat = M @ f_hat[n:] / T            # δτ̂ = (M̂/T) f̂₂ (Sec. 6, with M̂ for the unknown M)
         if self.residual_space == "torque":
             out = np.concatenate([r[:n], M @ r[n:] / T])
         else:
             out = r
-        return Residual(out, np.concatenate([tau_hat, r[:n]]), state_residual=r)
+        # Position faults: f_s1(k) = δx1(k+1) − δx1(k) (eq. (19)), so the position rows of r₂₀ summed from the
+        # isolation sample estimate δx1 (instead of x̄1 − x1d, which needs the reference; spec erratum 2–4).
+        return Residual(out, np.concatenate([tau_hat, r_model[:n]]), state_residual=r)
 
     def signatures(self):
-        """Fault signatures of the residual: actuator i raises its torque (or velocity) component; sensor i
-        raises its position component and may raise the velocity/torque ones (Sec. 6)."""
+        """Fault signatures of the residual: sensor i raises its position component and may raise the
+        velocity/torque ones (Sec. 6); actuator i raises its torque (or velocity) component and, in closed loop,
+        may raise position components too — the Euler truncation error T²q̈/2 of eq. (10) follows the
+        acceleration step a torque fault causes. Which one is isolated is then decided by the larger
+        residual-to-threshold ratio (:class:`robofdi.decision.ThresholdDecision`)."""
         from robofdi.decision import Signature
 
         n = self.n
         names = self.model.joint_names
-        lower = self.components[n:]
-        sigs = [Signature(names[i], frozenset([lower[i]]), frozenset(lower) if self.residual_space == "state" else frozenset()) for i in range(n)]
-        sigs += [Signature(f"{names[i]}_pos", frozenset([self.components[i]]), frozenset(lower)) for i in range(n)]
+        upper, lower = frozenset(self.components[:n]), frozenset(self.components[n:])
+        coupled = lower if self.residual_space == "state" else frozenset()   # M̂⁻¹ couples the velocity rows
+        sigs = [Signature(names[i], frozenset([self.components[n + i]]), upper | coupled) for i in range(n)]
+        sigs += [Signature(f"{names[i]}_pos", frozenset([self.components[i]]), lower) for i in range(n)]
         return sigs
 
     @property

@@ -1,0 +1,155 @@
+"""Book chapter 3 — Caccavale & Villani, "Fault Diagnosis for Industrial Robots" (in Caccavale & Villani eds.,
+Fault Diagnosis and Fault Tolerance for Mechatronic Systems, Springer STAR 1, 2003), Sec. 7.
+
+A 6R industrial arm of the SMART-3 S class moves q₀ → q₀ + Δq in 4 s (quintic) under joint-space inverse
+dynamics control at 1 kHz; the diagnosers run at 500 Hz with K₁ = K₂ = 0.1 I₆, Γ_η and Q = 2Γ_η⁻¹ as printed.
+The book's faults, emulated as the book did (offline: added to the recorded torque / position):
+
+    ch3-actuator   δτ₃ = 60 (1 − e^{−(t−1)/0.002}),  δτ₅ = 40 (1 − e^{−(t−3)/0.08})   N·m
+    ch3-sensor     δx₁,₃ = 0.006 (…),                δx₁,₅ = 0.004 (…)                  rad
+
+Thresholds are calibrated on fault-free low-velocity and high-acceleration runs (the book's worst-case rule),
+not copied from the book. Writes record.h5, summary.json, figures and replay.html into the run folder.
+
+    python experiments/ch3_industrial_robot.py ch3-actuator --out runs --seed 0
+"""
+from __future__ import annotations
+
+import argparse
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from robofdi.evaluate import results_table, summarize, write_summary
+from robofdi.evaluate.figures import plot_estimates, plot_residuals
+from robofdi.faults import ExponentialRise, Fault
+from robofdi.scenarios.arm import ArmScenario, calibrate, calibration_records, calibration_trajectories, run_scenario
+
+Q0 = (np.pi / 2, -2 * np.pi / 3, np.pi / 6, -np.pi / 2, np.pi / 2, 0.0)
+DQ = (np.pi / 4, np.pi / 4, -np.pi / 4, 0.0, -np.pi / 2, np.pi / 2)
+BOOK_THRESHOLDS = [3e-5, 2e-5, 4e-5, 2e-5, 1e-4, 2e-4, 3e-3, 2e-3, 2.5e-3, 1e-3, 5e-3, 1e-2]
+
+FAULTS = {
+    "ch3-actuator": (
+        Fault("tau3", "actuator_additive", "joint3", onset=1.0, magnitude=60.0, profile=ExponentialRise(0.002)),
+        Fault("tau5", "actuator_additive", "joint5", onset=3.0, magnitude=40.0, profile=ExponentialRise(0.08)),
+    ),
+    "ch3-sensor": (
+        Fault("x3", "sensor_bias", "joint3_pos", onset=1.0, magnitude=0.006, profile=ExponentialRise(0.002)),
+        Fault("x5", "sensor_bias", "joint5_pos", onset=3.0, magnitude=0.004, profile=ExponentialRise(0.08)),
+    ),
+}
+EXPERIMENTS = {
+    "ch3-actuator": "Book ch. 3, actuator faults δτ₃ (abrupt) and δτ₅ (incipient) on a 6R arm; 5 schemes + momentum baseline",
+    "ch3-sensor": "Book ch. 3, position-sensor faults δx₁,₃ (abrupt) and δx₁,₅ (incipient); same schemes",
+}
+BOOK_SCHEMES = ("time_delayed", "recursive", "adaptive")
+
+
+def scenario(name: str, seed: int = 0, **overrides) -> ArmScenario:
+    """The book's scenario ``name`` ("ch3-actuator" or "ch3-sensor"); keyword overrides go to ArmScenario."""
+    if name not in FAULTS:
+        from robofdi import RobofdiError
+
+        raise RobofdiError(f"unknown experiment {name!r}; expected one of {sorted(FAULTS)}")
+    base = dict(q0=Q0, dq=DQ, duration=4.0, motion_time=4.0, faults=FAULTS[name], injection="offline", seed=seed)
+    base.update(overrides)
+    return ArmScenario(name, **base)
+
+
+def _fault_free_rms(record, name: str) -> float:
+    """RMS over time and torque/velocity rows of a fault-free residual normalised by its thresholds, after 2 s."""
+    tr = record.diagnosers[name]
+    n = len(tr.components) // 2
+    keep = tr.time >= 2.0
+    return float(np.sqrt(np.mean((tr.residual[keep, n:] / tr.threshold[n:]) ** 2)))
+
+
+def _peak_ratio(record, name: str, fault: dict) -> float:
+    """Largest residual-to-threshold ratio on the faulty joint's torque component within 0.3 s of onset."""
+    tr = record.diagnosers[name]
+    comp = tr.components.index(fault["target"]) if fault["target"] in tr.components else None
+    if comp is None:
+        return float("nan")
+    win = (tr.time >= fault["onset"]) & (tr.time < fault["onset"] + 0.3)
+    return float(np.max(np.abs(tr.residual[win, comp]) / tr.threshold[comp]))
+
+
+def reproduction(name: str, summary: dict, record, fault_free) -> list[dict]:
+    """The chapter's claims (it prints no numeric results), checked on our runs."""
+    out = []
+    diag = summary["diagnosers"]
+    detected = {d: {x["fault"]: x for x in diag[d]["detections"]} for d in diag}
+    if name == "ch3-actuator":
+        td, rec = _peak_ratio(record, "time_delayed", summary["faults"][1]), _peak_ratio(record, "recursive", summary["faults"][1])
+        out.append({"quantity": "tau5 (incipient) peak |r|/threshold: time_delayed < recursive (TD weak on incipient faults)",
+                    "paper": "time-delayed low sensitivity to the incipient fault (Figs. 2, 4)",
+                    "ours": {"time_delayed": td, "recursive": rec}, "tolerance": None, "pass": bool(td < rec)})
+    rms = {d: _fault_free_rms(fault_free, d) for d in BOOK_SCHEMES}
+    out.append({"quantity": "fault-free normalised residual RMS after 2 s: adaptive < recursive (best trade-off)",
+                "paper": "adaptive: best trade-off between robustness and sensitivity (Figs. 6, 12)",
+                "ours": rms, "tolerance": None, "pass": bool(rms["adaptive"] < rms["recursive"])})
+    correct = {d: all(x["isolated"] == f["target"] for f in summary["faults"] for x in [detected[d].get(f["name"], {})]
+                      if x.get("time") is not None) for d in BOOK_SCHEMES}
+    out.append({"quantity": "every detected fault isolated to its own joint/sensor (book schemes)",
+                "paper": "a reliable fault isolation is always ensured (Sec. 6)", "ours": correct,
+                "tolerance": None, "pass": all(correct.values())})
+    return out
+
+
+def run(name: str, out: str | Path = "runs", seed: int = 0, progress: bool = True, replay: bool = True, **overrides):
+    """Calibrate, run fault-free and faulty, evaluate, plot; returns (summary, run folder)."""
+    from tqdm.auto import tqdm
+
+    sc = scenario(name, seed, **overrides)
+    run_dir = Path(out) / f"{name}-seed{seed}"
+    run_dir.mkdir(parents=True, exist_ok=True)
+    steps = int(sum(r.end for r in calibration_trajectories(sc).values()) * sc.rates.control_hz) + int(2 * sc.duration * sc.rates.control_hz)
+    with tqdm(total=steps, desc=f"{name}: simulate", unit="step", disable=not progress, leave=False) as bar:
+        records = calibration_records(sc, progress=bar.update)
+        bar.set_description(f"{name}: calibrate thresholds")
+        cal = calibrate(sc, records)
+        bar.set_description(f"{name}: fault-free run")
+        fault_free = run_scenario(replace(sc, faults=()), cal, progress=bar.update)
+        bar.set_description(f"{name}: faulty run")
+        record = run_scenario(sc, cal, progress=bar.update)
+    faults = [f.to_dict() for f in sc.faults]
+    summary = summarize(record, name, faults)
+    summary["fault_free_false_alarms"] = {d: summarize(fault_free, name, [])["diagnosers"][d]["false_alarms"] for d in fault_free.diagnosers}
+    summary["injection"] = sc.injection
+    summary["thresholds"] = {
+        "calibrated": {k: v.tolist() for k, v in cal.thresholds.items()},
+        "state_space": {k: v.tolist() for k, v in cal.state_thresholds.items()},
+        "book": BOOK_THRESHOLDS,
+    }
+    summary["reproduction"] = reproduction(name, summary, record, fault_free)
+    record.save(run_dir / "record.h5")
+    fault_free.save(run_dir / "fault_free.h5")
+    write_summary(summary, run_dir / "summary.json")
+    figures = run_dir / "figures"
+    figures.mkdir(exist_ok=True)
+    for d in record.diagnosers:
+        plot_residuals(record, d, figures / f"residuals_{d}.png")
+    plot_estimates(record, figures / "estimates.png")
+    if replay:
+        from viz import write_replay_html
+
+        write_replay_html(record, run_dir / "replay.html")
+    return summary, run_dir
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("name", choices=sorted(EXPERIMENTS))
+    p.add_argument("--out", default="runs")
+    p.add_argument("--seed", type=int, default=0)
+    a = p.parse_args(argv)
+    summary, run_dir = run(a.name, a.out, a.seed)
+    print(results_table(summary))
+    print(f"run folder: {run_dir}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,75 @@
+"""Figures in the style of Caccavale & Villani Figs. 2–13: residual components against their thresholds, and
+estimated against true fault, per diagnoser."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from robofdi.record import Record  # noqa: E402
+
+__all__ = ["plot_residuals", "plot_estimates"]
+
+
+def _onsets(ax, faults):
+    for f in faults:
+        ax.axvline(f["onset"], color="0.5", lw=0.8, ls=":")
+
+
+def plot_residuals(record: Record, diagnoser: str, path: str | Path) -> Path:
+    """One panel per residual component: |r_i| (solid), threshold (dashed), alarm samples (red), fault onsets."""
+    tr = record.diagnosers[diagnoser]
+    m = len(tr.components)
+    cols = 2 if m > 6 else 1
+    rows = int(np.ceil(m / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(5.5 * cols, 1.25 * rows + 0.8), sharex=True, squeeze=False)
+    faults = record.meta.get("faults", [])
+    for j, comp in enumerate(tr.components):
+        ax = axes[j % rows, j // rows]
+        r = np.abs(tr.residual[:, j])
+        ax.plot(tr.time, r, lw=0.8, color="C0")
+        ax.axhline(tr.threshold[j], color="k", ls="--", lw=0.8)
+        hit = tr.alarm[:, j]
+        if hit.any():
+            ax.plot(tr.time[hit], r[hit], ".", ms=2, color="C3")
+        _onsets(ax, faults)
+        ax.set_ylabel(comp, fontsize=7)
+        ax.tick_params(labelsize=7)
+        ax.set_yscale("symlog", linthresh=tr.threshold[j] / 10 if np.isfinite(tr.threshold[j]) else 1e-6)
+    for ax in axes[-1]:
+        ax.set_xlabel("time [s]")
+    fig.suptitle(f"{record.scenario}: {diagnoser} residuals |r_i| vs thresholds (dashed); alarms in red", fontsize=9)
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_estimates(record: Record, path: str | Path, diagnosers=None) -> Path:
+    """For each fault: its true value and every diagnoser's identified magnitude after isolation."""
+    faults = record.meta.get("faults", [])
+    names = list(diagnosers or record.diagnosers)
+    fig, axes = plt.subplots(max(len(faults), 1), 1, figsize=(7, 2.4 * max(len(faults), 1)), squeeze=False)
+    for ax, f in zip(axes[:, 0], faults):
+        lab = record.faults[f["name"]]
+        ax.plot(record.time, lab.value, color="k", lw=2, label="true")
+        for i, name in enumerate(names):
+            tr = record.diagnosers[name]
+            if f["target"] in tr.estimate_components:
+                est = tr.estimate[:, tr.estimate_components.index(f["target"])]
+                ax.plot(tr.time, est, lw=0.9, color=f"C{i}", label=name)
+        ax.set_title(f"{f['name']} ({f['kind']} on {f['target']})", fontsize=9)
+        ax.set_xlim(f["onset"] - 0.2, record.time[-1])
+        ax.tick_params(labelsize=7)
+        ax.legend(fontsize=7, ncol=3)
+    axes[-1, 0].set_xlabel("time [s]")
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
