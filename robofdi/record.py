@@ -87,21 +87,30 @@ class Record:
                 created=self.created,
                 meta=json.dumps(self.meta),
             )
-            f["time"] = self.time
-            f["truth/state"] = self.truth_state
+            _put(f, "time", self.time)
+            _put(f, "truth/state", self.truth_state)
             for name, lab in self.faults.items():
-                f[f"truth/faults/{name}/active"] = lab.active
-                f[f"truth/faults/{name}/value"] = lab.value
+                _put(f, f"truth/faults/{name}/active", lab.active)
+                _put(f, f"truth/faults/{name}/value", lab.value)
             for name, arr in self.signals.items():
-                f[f"signals/{name}"] = arr
+                _put(f, f"signals/{name}", arr)
             for name, tr in self.diagnosers.items():
                 g = f.create_group(f"diagnosers/{name}")
                 for key in ("time", "residual", "threshold", "alarm", "estimate"):
-                    g[key] = getattr(tr, key)
+                    _put(g, key, getattr(tr, key))
                 g["isolated"] = np.asarray(tr.isolated, dtype=object).astype(h5py.string_dtype())
                 g.attrs["components"] = json.dumps(list(tr.components))
                 g.attrs["estimate_components"] = json.dumps(list(tr.estimate_components))
         return path
+
+
+def _put(group, name: str, data) -> None:
+    """Write one array, losslessly compressed when it is large enough to matter."""
+    data = np.asarray(data)
+    if data.size >= 1024:
+        group.create_dataset(name, data=data, compression="gzip", compression_opts=4, shuffle=True)
+    else:
+        group[name] = data
 
 
 def load(path: str | Path) -> Record:

@@ -30,7 +30,9 @@ def plot_residuals(record: Record, diagnoser: str, path: str | Path) -> Path:
     faults = record.meta.get("faults", [])
     for j, comp in enumerate(tr.components):
         ax = axes[j % rows, j // rows]
-        r = np.abs(tr.residual[:, j])
+        thr = tr.threshold[j] if np.isfinite(tr.threshold[j]) else np.max(np.abs(tr.residual[:, j])) + 1e-12
+        floor = thr * 1e-3
+        r = np.maximum(np.abs(tr.residual[:, j]), floor)
         ax.plot(tr.time, r, lw=0.8, color="C0")
         ax.axhline(tr.threshold[j], color="k", ls="--", lw=0.8)
         hit = tr.alarm[:, j]
@@ -39,7 +41,8 @@ def plot_residuals(record: Record, diagnoser: str, path: str | Path) -> Path:
         _onsets(ax, faults)
         ax.set_ylabel(comp, fontsize=7)
         ax.tick_params(labelsize=7)
-        ax.set_yscale("symlog", linthresh=tr.threshold[j] / 10 if np.isfinite(tr.threshold[j]) else 1e-6)
+        ax.set_yscale("log")
+        ax.set_ylim(floor, max(r.max(), thr) * 2)
     for ax in axes[-1]:
         ax.set_xlabel("time [s]")
     fig.suptitle(f"{record.scenario}: {diagnoser} residuals |r_i| vs thresholds (dashed); alarms in red", fontsize=9)

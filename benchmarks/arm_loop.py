@@ -1,0 +1,282 @@
+"""Speed benchmark of the arm closed loop: where does the wall time of one 1 kHz control tick go?
+
+Run from the repository root::
+
+    PYTHONPATH=. python benchmarks/arm_loop.py            # the table (about 30-40 s)
+    PYTHONPATH=. python benchmarks/arm_loop.py --profile  # also cProfile loop (b), top robofdi functions
+
+What is measured (every figure is the median over several repeats of a timed block, after a warm-up;
+time.perf_counter, µs per call):
+
+* ``mj_step``     raw ``mujoco.mj_step`` on assets/arm6.xml (0.5 ms physics step, contacts off, Coulomb
+                  friction on), started from states of a recorded closed-loop run with its recorded torque.
+* ``pin.rnea``    Pinocchio inverse dynamics on the nominal model (ManipulatorModel), random q, v, a.
+* ``pin.aba``     Pinocchio forward dynamics on the nominal model, random q, v, tau.
+* ``update/<s>``  ``update(y, u)`` of each diagnoser from ``arm_schemes`` (500 Hz), fed with the y and ū
+                  of a pre-recorded fault-free closed-loop run (θ₀ of the adaptive scheme from
+                  ``ripple_initial_parameters``, as ``scenarios.arm.calibrate`` does), after a warm-up of
+                  50 samples so every estimator is in its normal regime. The "per tick" column is half the
+                  update cost: the diagnoser runs on every 2nd control tick.
+* ``piece/...``   the other pieces of one tick of ``ClosedLoop.run`` in isolation (simulator step = 2
+                  physics steps + ripple term, computed-torque controller, reference, fault injector,
+                  threshold decision) — to see where the loop's time goes.
+* ``loop (a/b/c)`` ``ClosedLoop.run`` over 2 s of simulated time (2000 control ticks, no faults),
+                  wall time / 2000: (a) no diagnoser, (b) the adaptive diagnoser with its
+                  ThresholdDecision (thresholds 1e9, so no alarm), (c) all six diagnosers, each with its
+                  ThresholdDecision. The time includes everything ``run`` does: recording every signal and
+                  building the Record at the end. ``RTF`` = simulated seconds / wall seconds (> 1: faster
+                  than real time).
+
+The floor is the irreducible model cost of one control tick: 2 × mj_step (2 physics steps per tick)
++ 1 rnea (the controller's inverse dynamics) + 1 aba (a diagnoser's forward dynamics). ``loop/floor``
+says how many times slower the Python loop is than that floor; the last line, ``loop/floor ratio: R``,
+is for loop (b). Absolute numbers depend on the machine and its load; the ratios are the portable result.
+"""
+from __future__ import annotations
+
+import argparse
+import gc
+import statistics
+import sys
+import time
+from dataclasses import replace
+
+import mujoco
+import numpy as np
+import pinocchio as pin
+
+import robofdi
+from robofdi.control import ComputedTorque, Quintic
+from robofdi.decision import ThresholdDecision
+from robofdi.faults import FaultInjector
+from robofdi.loop import ClosedLoop, Diagnosis, Rates, diagnose_record
+from robofdi.observers import DiagnosticObserver
+from robofdi.observers.arm_schemes import SCHEMES, arm_schemes
+from robofdi.observers.spectral import ripple_initial_parameters
+from robofdi.scenarios.arm import ArmScenario
+
+# The book's motion (experiments/ch3_industrial_robot.py): q0 → q0 + Δq in 4 s.
+Q0 = (np.pi / 2, -2 * np.pi / 3, np.pi / 6, -np.pi / 2, np.pi / 2, 0.0)
+DQ = (np.pi / 4, np.pi / 4, -np.pi / 4, 0.0, -np.pi / 2, np.pi / 2)
+LOOP_SECONDS = 2.0           # simulated time per timed closed-loop run
+RECORD_SECONDS = 2.0         # pre-recorded run that feeds the diagnosers
+
+
+def bench(fn, number: int, repeats: int, setup=None) -> float:
+    """Median over ``repeats`` of (time of ``fn()`` called ``number`` times) / number, in µs.
+
+    ``fn`` is called as ``fn(i)`` with i = 0..number-1 so it can walk through pre-built inputs;
+    ``setup()`` (untimed) runs before every repeat; one untimed warm-up repeat comes first.
+    """
+    samples = []
+    for rep in range(repeats + 1):
+        if setup is not None:
+            setup()
+        gc.collect()
+        t0 = time.perf_counter()
+        for i in range(number):
+            fn(i)
+        dt = time.perf_counter() - t0
+        if rep:                       # repeat 0 is the warm-up
+            samples.append(dt / number * 1e6)
+    return statistics.median(samples)
+
+
+def build_loop(scenario: ArmScenario, diagnoser_names=(), theta0=None) -> ClosedLoop:
+    """The loop of ``scenarios.arm._loop`` / ``run_scenario``: fault-free, online injection."""
+    sim = scenario.simulator()
+    model = sim.nominal_model(replace(scenario.mismatch, seed=scenario.seed))
+    controller = ComputedTorque(model, torque_limit=sim.torque_limit)
+    injector = FaultInjector([], sim.actuators, sim.sensor_channels, seed=scenario.seed)
+    diagnoses = {}
+    if diagnoser_names:
+        for name, d in arm_schemes(model, scenario.settings, theta0, diagnoser_names).items():
+            decision = ThresholdDecision(d.components, np.full(len(d.components), 1e9), d.signatures())
+            diagnoses[name] = Diagnosis(d, decision)
+    return ClosedLoop(sim, controller, scenario.reference(), injector, diagnoses, scenario.rates, scenario.injection)
+
+
+def time_loop(loop: ClosedLoop, q0, repeats: int) -> float:
+    """Median wall µs per control tick of ``loop.run(LOOP_SECONDS)`` (one short warm-up run first)."""
+    loop.run(0.1, q0)
+    ticks = int(round(LOOP_SECONDS * loop.rates.control_hz))
+    samples = []
+    for _ in range(repeats):
+        gc.collect()
+        t0 = time.perf_counter()
+        loop.run(LOOP_SECONDS, q0)
+        samples.append((time.perf_counter() - t0) / ticks * 1e6)
+    return statistics.median(samples)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--profile", action="store_true", help="cProfile loop (b) and list the top robofdi functions")
+    ap.add_argument("--repeats", type=int, default=7, help="repeats of each micro-benchmark (default 7)")
+    ap.add_argument("--loop-repeats", type=int, default=3, help="repeats of each closed-loop run (default 3)")
+    args = ap.parse_args(argv)
+    R, LR = args.repeats, args.loop_repeats
+    t_start = time.perf_counter()
+
+    scenario = ArmScenario("benchmark", q0=Q0, dq=DQ, duration=LOOP_SECONDS, motion_time=4.0)
+    ratio = scenario.rates.ratio
+    rows: list[tuple[str, float, str]] = []   # (name, µs per call, note)
+
+    # ---- a pre-recorded fault-free run: realistic states, torques, diagnoser inputs, and θ₀ -------------
+    rec_loop = build_loop(scenario)
+    record = rec_loop.run(RECORD_SECONDS, Q0)
+    model = rec_loop.controller.model
+    n, T = model.n, scenario.settings.T
+    skip = int(np.ceil(0.010 / T))
+    simple = diagnose_record(record, Diagnosis(DiagnosticObserver(model, T, residual_space="state")))
+    theta0 = ripple_initial_parameters(record.signals["y_diag"][::ratio][skip:, :n], simple.residual[skip:, n:])
+    y_all, u_all = record.signals["y_diag"], record.signals["u_diag"]
+    # diagnoser samples k: y = y(k·ratio), ū = mean of the commands over the interval that just ended
+    feed = [(y_all[j], np.mean(u_all[j - ratio:j], axis=0)) for j in range(ratio, len(y_all), ratio)]
+
+    # ---- raw MuJoCo ------------------------------------------------------------------------------------
+    mj_model = mujoco.MjModel.from_xml_path(str(robofdi.ASSETS / "arm6.xml"))
+    mj_data = mujoco.MjData(mj_model)
+    states = record.truth_state
+    u_rec = record.signals["u"]
+    start = iter(range(10**9))
+
+    def mj_setup():
+        k = (next(start) * 397) % (len(states) - 1)
+        mujoco.mj_resetData(mj_model, mj_data)
+        mj_data.qpos[:], mj_data.qvel[:] = states[k, :n], states[k, n:]
+        mj_data.ctrl[:] = u_rec[k]
+        mujoco.mj_forward(mj_model, mj_data)
+
+    mj_step = mujoco.mj_step
+    t_mj = bench(lambda i: mj_step(mj_model, mj_data), 400, R, mj_setup)
+    rows.append(("mj_step (raw, 0.5 ms physics step)", t_mj, ""))
+
+    # ---- raw Pinocchio ---------------------------------------------------------------------------------
+    pm, pd = model.model, model.data
+    rng = np.random.default_rng(0)
+    K = 256
+    qs = [pin.randomConfiguration(pm) for _ in range(K)]
+    vs = [rng.standard_normal(n) for _ in range(K)]
+    taus = [rng.standard_normal(n) * 50 for _ in range(K)]
+    t_rnea = bench(lambda i: pin.rnea(pm, pd, qs[i % K], vs[i % K], taus[i % K]), 2000, R)
+    t_aba = bench(lambda i: pin.aba(pm, pd, qs[i % K], vs[i % K], taus[i % K]), 2000, R)
+    rows.append(("pin.rnea (nominal model)", t_rnea, ""))
+    rows.append(("pin.aba  (nominal model)", t_aba, ""))
+    t_floor = 2 * t_mj + t_rnea + t_aba
+
+    # ---- diagnosers' update(y, u) ----------------------------------------------------------------------
+    warm = 50
+    number = min(400, len(feed) - warm)
+    t_update = {}
+    for name in SCHEMES:
+        d = arm_schemes(model, scenario.settings, theta0, [name])[name]
+
+        def setup(d=d):
+            d.reset()
+            for y, u in feed[:warm]:
+                d.update(y, u)
+
+        upd = d.update
+        t_update[name] = bench(lambda i, upd=upd: upd(*feed[warm + i]), number, R, setup)
+        rows.append((f"update/{name}", t_update[name], f"per tick {t_update[name] / ratio:7.1f} µs"))
+
+    # ---- the other pieces of one loop tick, in isolation ----------------------------------------------
+    sim = rec_loop.simulator
+    ctrl, ref_fn, inj = rec_loop.controller, rec_loop.reference, rec_loop.injector
+    ys = record.signals["y_true"]
+    ts = record.time
+    refs = [ref_fn(t) for t in ts]
+
+    def sim_setup():
+        sim.reset(np.asarray(Q0))
+
+    t_sim = bench(lambda i: sim.step(u_rec[i]), 400, R, sim_setup)
+    rows.append(("piece/ArmSimulator.step (2 mj_step + ripple)", t_sim, ""))
+    t_ctrl = bench(lambda i: ctrl.update(ys[i], refs[i]), 1000, R)
+    rows.append(("piece/ComputedTorque.update (crba + nle)", t_ctrl, ""))
+    t_ref = bench(lambda i: ref_fn(ts[i]), 1000, R)
+    rows.append(("piece/Quintic reference(t)", t_ref, ""))
+    t_inj = bench(lambda i: (inj.sense(ts[i], ys[i]), inj.actuate(ts[i], u_rec[i])), 1000, R)
+    rows.append(("piece/FaultInjector sense+actuate (no faults)", t_inj, ""))
+    d_ad = arm_schemes(model, scenario.settings, theta0, ["adaptive"])["adaptive"]
+    dec = ThresholdDecision(d_ad.components, np.full(2 * n, 1e9), d_ad.signatures())
+    res = [d_ad.update(y, u).r for y, u in feed[:200]]
+    t_dec = bench(lambda i: dec.update(res[i % 200]), 1000, R)
+    rows.append(("piece/ThresholdDecision.update (no alarm)", t_dec, f"per tick {t_dec / ratio:7.1f} µs"))
+
+    # ---- the full closed loop --------------------------------------------------------------------------
+    loops = {
+        "a": ("loop (a) no diagnoser", build_loop(scenario)),
+        "b": ("loop (b) adaptive + decision", build_loop(scenario, ("adaptive",), theta0)),
+        "c": ("loop (c) all six + decisions", build_loop(scenario, SCHEMES, theta0)),
+    }
+    t_loop = {}
+    for key, (label, loop) in loops.items():
+        t_loop[key] = time_loop(loop, Q0, LR)
+        rows.append((label + ", per control tick", t_loop[key], f"RTF {1e3 / t_loop[key]:5.2f}x real time"))
+
+    # ---- report ----------------------------------------------------------------------------------------
+    print(f"robofdi arm closed-loop benchmark  (python {sys.version.split()[0]}, mujoco {mujoco.__version__}, "
+          f"pinocchio {pin.__version__}, numpy {np.__version__})")
+    print(f"control {scenario.rates.control_hz:g} Hz, diagnosis {scenario.rates.diagnosis_hz:g} Hz, "
+          f"physics {1 / sim.physics_dt:g} Hz ({sim.substeps} substeps/tick); median of {R} repeats "
+          f"({LR} for the loops)")
+    print()
+    w = max(len(r[0]) for r in rows)
+    print(f"{'what':<{w}}  {'µs/call':>9}  note")
+    print("-" * (w + 40))
+    for name, us, note in rows:
+        print(f"{name:<{w}}  {us:9.2f}  {note}")
+    print("-" * (w + 40))
+    print()
+    print("real-time factor (simulated s / wall s):")
+    for key, (label, _) in loops.items():
+        print(f"  {label:<32} {1e3 / t_loop[key]:6.2f}")
+    print()
+    print(f"floor per control tick = 2 x mj_step + rnea + aba = 2 x {t_mj:.2f} + {t_rnea:.2f} + {t_aba:.2f} "
+          f"= {t_floor:.2f} µs")
+    est_b = t_sim + t_ctrl + t_ref + t_inj + (t_update["adaptive"] + t_dec) / ratio
+    print(f"sum of the isolated pieces for loop (b) = {est_b:.2f} µs/tick "
+          f"(loop overhead: recording, runner, Record = {t_loop['b'] - est_b:.2f} µs/tick)")
+    print(f"loop/floor ratio (a): {t_loop['a'] / t_floor:.2f}")
+    print(f"loop/floor ratio (c): {t_loop['c'] / t_floor:.2f}")
+    print(f"[benchmark wall time {time.perf_counter() - t_start:.1f} s]")
+
+    if args.profile:
+        profile_loop(loops["b"][1])
+    print(f"loop/floor ratio: {t_loop['b'] / t_floor:.2f}")
+    return 0
+
+
+def profile_loop(loop: ClosedLoop, top: int = 8) -> None:
+    """cProfile one run of loop (b); print the top robofdi functions by cumulative time."""
+    import cProfile
+    import pstats
+
+    prof = cProfile.Profile()
+    prof.enable()
+    loop.run(LOOP_SECONDS, Q0)
+    prof.disable()
+    stats = pstats.Stats(prof)
+    ticks = LOOP_SECONDS * loop.rates.control_hz
+    entries = [(func, st) for func, st in stats.stats.items() if "robofdi" in func[0]]
+    entries.sort(key=lambda e: e[1][3], reverse=True)
+    print()
+    print(f"cProfile of loop (b), {ticks:g} ticks (profiler overhead inflates everything); top {top} robofdi "
+          f"functions by cumulative time:")
+    print(f"  {'cum ms':>8} {'µs/tick':>8} {'calls':>7}  function")
+    for (file, line, fn), (cc, nc, tt, ct, callers) in entries[:top]:
+        short = file[file.rfind("robofdi"):]
+        print(f"  {ct * 1e3:8.1f} {ct / ticks * 1e6:8.2f} {nc:7d}  {short}:{line}({fn})")
+    print()
+    print("  top 12 functions overall by own (tottime) time:")
+    flat = sorted(stats.stats.items(), key=lambda e: e[1][2], reverse=True)[:12]
+    for (file, line, fn), (cc, nc, tt, ct, callers) in flat:
+        short = file[file.rfind("robofdi"):] if "robofdi" in file else file.split("/")[-1]
+        print(f"  {tt * 1e3:8.1f} ms {nc:7d}  {short}:{line}({fn})")
+    print()
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

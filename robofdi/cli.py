@@ -1,0 +1,108 @@
+"""`robofdi list | run NAME | demo | view RUN` — the command line.
+
+Errors print one line ``robofdi: error: …`` and exit with code 2 (bad input) or 1 (a run that failed; what
+it had recorded is saved as ``partial.h5`` in the run folder).
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from pathlib import Path
+
+from robofdi import RobofdiError, __version__
+
+# experiment name → module in experiments/ (each module has EXPERIMENTS {name: description} and run()).
+MODULES = ("experiments.ch3_industrial_robot",)
+
+
+def _experiments() -> dict[str, tuple[str, object]]:
+    found = {}
+    for mod_name in MODULES:
+        mod = importlib.import_module(mod_name)
+        for name, description in mod.EXPERIMENTS.items():
+            found[name] = (description, mod)
+    return found
+
+
+def _cmd_list(args) -> int:
+    for name, (description, _) in _experiments().items():
+        print(f"{name:16s} {description}")
+    return 0
+
+
+def _cmd_run(args) -> int:
+    from robofdi.evaluate import results_table
+    from robofdi.loop import RunAborted
+
+    experiments = _experiments()
+    if args.name not in experiments:
+        raise RobofdiError(f"unknown experiment {args.name!r}; expected one of {', '.join(experiments)} (see `robofdi list`)")
+    if args.seed < 0:
+        raise RobofdiError(f"--seed must be an integer >= 0, got {args.seed}")
+    _, mod = experiments[args.name]
+    try:
+        summary, run_dir = mod.run(args.name, args.out, args.seed, progress=not args.quiet)
+    except RunAborted as exc:
+        path = Path(args.out) / f"{args.name}-seed{args.seed}" / "partial.h5"
+        exc.record.save(path)
+        print(f"robofdi: error: {exc} (recorded so far: {path})", file=sys.stderr)
+        return 1
+    print(results_table(summary))
+    for check in summary.get("reproduction", []):
+        print(f"  [{'pass' if check['pass'] else 'FAIL'}] {check['quantity']}")
+    print(f"\nrun folder: {run_dir}  (summary.json, record.h5, figures/, replay.html)")
+    print(f"3-D replay: open {run_dir / 'replay.html'} in a browser, or `robofdi view {run_dir / 'record.h5'}`")
+    return 0
+
+
+def _cmd_view(args) -> int:
+    path = Path(args.run)
+    if path.is_dir():
+        path = path / "record.h5"
+    if not path.is_file():
+        raise RobofdiError(f"RUN: no record at {str(path)!r}; expected a record .h5 file or a run folder holding record.h5")
+    from viz import view
+
+    view(path, diagnoser=args.diagnoser, open_browser=not args.no_browser)
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="robofdi", description="Model-based fault diagnosis and fault-tolerant control of simulated robots.")
+    p.add_argument("--version", action="version", version=f"robofdi {__version__}")
+    sub = p.add_subparsers(dest="command", required=True)
+    sub.add_parser("list", help="list the experiments").set_defaults(func=_cmd_list)
+    run = sub.add_parser("run", help="run one experiment")
+    run.add_argument("name")
+    run.add_argument("--out", default="runs", help="parent folder of the run folder (default: ./runs)")
+    run.add_argument("--seed", type=int, default=0)
+    run.add_argument("--quiet", action="store_true", help="no progress bar")
+    run.set_defaults(func=_cmd_run)
+    demo = sub.add_parser("demo", help="the chapter-3 actuator-fault experiment (= run ch3-actuator)")
+    demo.add_argument("--out", default="runs")
+    demo.add_argument("--seed", type=int, default=0)
+    demo.add_argument("--quiet", action="store_true")
+    demo.set_defaults(func=_cmd_run, name="ch3-actuator")
+    view = sub.add_parser("view", help="open a recorded run in the live Meshcat viewer")
+    view.add_argument("run", help="a record .h5 file or a run folder")
+    view.add_argument("--diagnoser", default=None, help="whose detections light up the joints (default: adaptive)")
+    view.add_argument("--no-browser", action="store_true")
+    view.set_defaults(func=_cmd_view)
+    return p
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.func(args)
+    except RobofdiError as exc:
+        print(f"robofdi: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("robofdi: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,34 @@
+"""Shared fixtures: one calibration of the chapter-3 arm per test session (real MuJoCo + Pinocchio runs)."""
+from __future__ import annotations
+
+import os
+from dataclasses import replace
+
+import pytest
+
+os.environ.setdefault("MPLBACKEND", "Agg")
+
+
+@pytest.fixture(scope="session")
+def ch3():
+    """The ch3-actuator scenario (shorter low-velocity calibration runs, to keep the suite fast) and its calibration."""
+    from experiments.ch3_industrial_robot import scenario
+    from robofdi.scenarios.arm import calibrate, calibration_records
+
+    sc = scenario("ch3-actuator", seed=0, calibration_low_velocity_time=8.0)
+    cal = calibrate(sc, calibration_records(sc))
+    return sc, cal
+
+
+@pytest.fixture(scope="session")
+def ch3_runs(ch3):
+    """Fault-free, actuator-fault and sensor-fault runs of the book trajectory with every scheme in the loop."""
+    from experiments.ch3_industrial_robot import FAULTS
+    from robofdi.scenarios.arm import run_scenario
+
+    sc, cal = ch3
+    return {
+        "fault_free": run_scenario(replace(sc, faults=()), cal),
+        "actuator": run_scenario(sc, cal),
+        "sensor": run_scenario(replace(sc, name="ch3-sensor", faults=FAULTS["ch3-sensor"]), cal),
+    }
