@@ -49,7 +49,7 @@ import robofdi
 from robofdi.control import ComputedTorque, Quintic
 from robofdi.decision import ThresholdDecision
 from robofdi.faults import FaultInjector
-from robofdi.loop import ClosedLoop, Diagnosis, Rates, diagnose_record
+from robofdi.loop import ClosedLoop, Diagnosis, DiagnosisRunner, diagnose_record
 from robofdi.observers import DiagnosticObserver
 from robofdi.observers.arm_schemes import SCHEMES, arm_schemes
 from robofdi.observers.spectral import ripple_initial_parameters
@@ -62,7 +62,16 @@ LOOP_SECONDS = 2.0           # simulated time per timed closed-loop run
 RECORD_SECONDS = 2.0         # pre-recorded run that feeds the diagnosers
 
 
-def bench(fn, number: int, repeats: int, setup=None) -> float:
+class Timing(float):
+    """µs per call: the median of the repeats (it is a float); ``.min`` the fastest repeat."""
+
+    def __new__(cls, samples):
+        obj = super().__new__(cls, statistics.median(samples))
+        obj.min = min(samples)
+        return obj
+
+
+def bench(fn, number: int, repeats: int, setup=None) -> Timing:
     """Median over ``repeats`` of (time of ``fn()`` called ``number`` times) / number, in µs.
 
     ``fn`` is called as ``fn(i)`` with i = 0..number-1 so it can walk through pre-built inputs;
@@ -79,7 +88,7 @@ def bench(fn, number: int, repeats: int, setup=None) -> float:
         dt = time.perf_counter() - t0
         if rep:                       # repeat 0 is the warm-up
             samples.append(dt / number * 1e6)
-    return statistics.median(samples)
+    return Timing(samples)
 
 
 def build_loop(scenario: ArmScenario, diagnoser_names=(), theta0=None) -> ClosedLoop:
@@ -96,24 +105,42 @@ def build_loop(scenario: ArmScenario, diagnoser_names=(), theta0=None) -> Closed
     return ClosedLoop(sim, controller, scenario.reference(), injector, diagnoses, scenario.rates, scenario.injection)
 
 
-def time_loop(loop: ClosedLoop, q0, repeats: int) -> float:
-    """Median wall µs per control tick of ``loop.run(LOOP_SECONDS)`` (one short warm-up run first)."""
-    loop.run(0.1, q0)
-    ticks = int(round(LOOP_SECONDS * loop.rates.control_hz))
-    samples = []
+def time_loops(loops: dict, q0, repeats: int) -> dict:
+    """Median wall µs per control tick of ``loop.run(LOOP_SECONDS)`` for each loop. One short warm-up run
+    each, then the repeats go round-robin over the loops so that a burst of load elsewhere on the machine
+    hits all of them alike."""
+    for loop in loops.values():
+        loop.run(0.1, q0)
+    samples = {key: [] for key in loops}
     for _ in range(repeats):
-        gc.collect()
-        t0 = time.perf_counter()
-        loop.run(LOOP_SECONDS, q0)
-        samples.append((time.perf_counter() - t0) / ticks * 1e6)
-    return statistics.median(samples)
+        for key, loop in loops.items():
+            ticks = int(round(LOOP_SECONDS * loop.rates.control_hz))
+            gc.collect()
+            t0 = time.perf_counter()
+            loop.run(LOOP_SECONDS, q0)
+            samples[key].append((time.perf_counter() - t0) / ticks * 1e6)
+    return {key: Timing(v) for key, v in samples.items()}
+
+
+class _StubDiagnoser:
+    """Looks like ``like`` to a DiagnosisRunner but returns a fixed residual: isolates the runner's own cost."""
+
+    def __init__(self, like, residual):
+        self.components, self.estimate_components = like.components, like.estimate_components
+        self.estimate_modes, self._res = like.estimate_modes, residual
+
+    def reset(self):
+        pass
+
+    def update(self, y, u):
+        return self._res
 
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--profile", action="store_true", help="cProfile loop (b) and list the top robofdi functions")
-    ap.add_argument("--repeats", type=int, default=7, help="repeats of each micro-benchmark (default 7)")
-    ap.add_argument("--loop-repeats", type=int, default=3, help="repeats of each closed-loop run (default 3)")
+    ap.add_argument("--repeats", type=int, default=11, help="repeats of each micro-benchmark (default 11)")
+    ap.add_argument("--loop-repeats", type=int, default=7, help="repeats of each closed-loop run (default 7)")
     args = ap.parse_args(argv)
     R, LR = args.repeats, args.loop_repeats
     t_start = time.perf_counter()
@@ -201,9 +228,12 @@ def main(argv=None) -> int:
     rows.append(("piece/FaultInjector sense+actuate (no faults)", t_inj, ""))
     d_ad = arm_schemes(model, scenario.settings, theta0, ["adaptive"])["adaptive"]
     dec = ThresholdDecision(d_ad.components, np.full(2 * n, 1e9), d_ad.signatures())
-    res = [d_ad.update(y, u).r for y, u in feed[:200]]
-    t_dec = bench(lambda i: dec.update(res[i % 200]), 1000, R)
+    res = [d_ad.update(y, u) for y, u in feed[:200]]
+    t_dec = bench(lambda i: dec.update(res[i % 200].r), 1000, R)
     rows.append(("piece/ThresholdDecision.update (no alarm)", t_dec, f"per tick {t_dec / ratio:7.1f} µs"))
+    runner = DiagnosisRunner(Diagnosis(_StubDiagnoser(d_ad, res[-1])), scenario.rates)
+    t_run = bench(lambda i: runner.push(i + 1, ts[i], ys[i], u_rec[i]), 1000, R, runner.reset)
+    rows.append(("piece/DiagnosisRunner.push, own cost per tick", t_run, "mean of ū, identification, trace rows"))
 
     # ---- the full closed loop --------------------------------------------------------------------------
     loops = {
@@ -211,40 +241,47 @@ def main(argv=None) -> int:
         "b": ("loop (b) adaptive + decision", build_loop(scenario, ("adaptive",), theta0)),
         "c": ("loop (c) all six + decisions", build_loop(scenario, SCHEMES, theta0)),
     }
-    t_loop = {}
+    t_loop = time_loops({key: loop for key, (_, loop) in loops.items()}, Q0, LR)
     for key, (label, loop) in loops.items():
-        t_loop[key] = time_loop(loop, Q0, LR)
-        rows.append((label + ", per control tick", t_loop[key], f"RTF {1e3 / t_loop[key]:5.2f}x real time"))
+        rows.append((label + ", per tick", t_loop[key], f"RTF {1e3 / t_loop[key]:5.2f}"))
 
     # ---- report ----------------------------------------------------------------------------------------
-    print(f"robofdi arm closed-loop benchmark  (python {sys.version.split()[0]}, mujoco {mujoco.__version__}, "
-          f"pinocchio {pin.__version__}, numpy {np.__version__})")
-    print(f"control {scenario.rates.control_hz:g} Hz, diagnosis {scenario.rates.diagnosis_hz:g} Hz, "
-          f"physics {1 / sim.physics_dt:g} Hz ({sim.substeps} substeps/tick); median of {R} repeats "
-          f"({LR} for the loops)")
+    print(__doc__.splitlines()[0])
+    print(f"python {sys.version.split()[0]}, mujoco {mujoco.__version__}, pinocchio {pin.__version__}, "
+          f"numpy {np.__version__}; control {scenario.rates.control_hz:g} Hz, diagnosis "
+          f"{scenario.rates.diagnosis_hz:g} Hz, physics {1 / sim.physics_dt:g} Hz ({sim.substeps} substeps/tick)")
+    print(f"µs per call: median (and fastest) of {R} repeats, {LR} interleaved repeats of {LOOP_SECONDS:g} s for the loops")
     print()
     w = max(len(r[0]) for r in rows)
-    print(f"{'what':<{w}}  {'µs/call':>9}  note")
-    print("-" * (w + 40))
+    print(f"{'what':<{w}}  {'median':>8}  {'(min)':>8}  note")
+    print("-" * (w + 60))
     for name, us, note in rows:
-        print(f"{name:<{w}}  {us:9.2f}  {note}")
-    print("-" * (w + 40))
+        print(f"{name:<{w}}  {us:8.2f}  {us.min:8.2f}  {note}")
+    print("-" * (w + 60))
     print()
     print("real-time factor (simulated s / wall s):")
     for key, (label, _) in loops.items():
-        print(f"  {label:<32} {1e3 / t_loop[key]:6.2f}")
+        print(f"  {label:<30} {1e3 / t_loop[key]:6.2f}")
+    print()
+    pieces_a = t_sim + t_ctrl + t_ref + t_inj
+    print("where the time of a tick goes (µs, medians):")
+    print(f"  loop (a) {t_loop['a']:.1f} = sim.step {t_sim:.1f} + controller {t_ctrl:.1f} + reference {t_ref:.1f} "
+          f"+ injector {t_inj:.1f} + rest {t_loop['a'] - pieces_a:.1f} (recording, loop body, Record)")
+    diag_b = (t_update["adaptive"] + t_dec) / ratio + t_run
+    print(f"  loop (b) - (a) = {t_loop['b'] - t_loop['a']:.1f}; isolated: (update {t_update['adaptive']:.1f} + decision "
+          f"{t_dec:.1f}) / {ratio} + runner {t_run:.1f} = {diag_b:.1f}; in-loop excess "
+          f"{t_loop['b'] - t_loop['a'] - diag_b:.1f}")
+    diag_c = sum(t_update.values()) / ratio + len(SCHEMES) * (t_dec / ratio + t_run)
+    print(f"  loop (c) - (a) = {t_loop['c'] - t_loop['a']:.1f}; isolated: six updates, decisions and runners "
+          f"= {diag_c:.1f}; in-loop excess {t_loop['c'] - t_loop['a'] - diag_c:.1f}")
     print()
     print(f"floor per control tick = 2 x mj_step + rnea + aba = 2 x {t_mj:.2f} + {t_rnea:.2f} + {t_aba:.2f} "
           f"= {t_floor:.2f} µs")
-    est_b = t_sim + t_ctrl + t_ref + t_inj + (t_update["adaptive"] + t_dec) / ratio
-    print(f"sum of the isolated pieces for loop (b) = {est_b:.2f} µs/tick "
-          f"(loop overhead: recording, runner, Record = {t_loop['b'] - est_b:.2f} µs/tick)")
-    print(f"loop/floor ratio (a): {t_loop['a'] / t_floor:.2f}")
-    print(f"loop/floor ratio (c): {t_loop['c'] / t_floor:.2f}")
     print(f"[benchmark wall time {time.perf_counter() - t_start:.1f} s]")
-
     if args.profile:
         profile_loop(loops["b"][1])
+    print(f"loop/floor ratio (a): {t_loop['a'] / t_floor:.2f}")
+    print(f"loop/floor ratio (c): {t_loop['c'] / t_floor:.2f}")
     print(f"loop/floor ratio: {t_loop['b'] / t_floor:.2f}")
     return 0
 
