@@ -2,35 +2,43 @@
 
 Run from the repository root::
 
-    PYTHONPATH=. python benchmarks/arm_loop.py            # the table (about 30-40 s)
+    PYTHONPATH=. python benchmarks/arm_loop.py            # the table (about 20 s)
     PYTHONPATH=. python benchmarks/arm_loop.py --profile  # also cProfile loop (b), top robofdi functions
 
-What is measured (every figure is the median over several repeats of a timed block, after a warm-up;
-time.perf_counter, µs per call):
+What is measured (time.perf_counter, µs per call; every figure is the median over several repeats of a
+timed block after an untimed warm-up repeat; the "(min)" column is the fastest repeat — when it is far
+below the median, something else was using the CPU):
 
 * ``mj_step``     raw ``mujoco.mj_step`` on assets/arm6.xml (0.5 ms physics step, contacts off, Coulomb
                   friction on), started from states of a recorded closed-loop run with its recorded torque.
 * ``pin.rnea``    Pinocchio inverse dynamics on the nominal model (ManipulatorModel), random q, v, a.
 * ``pin.aba``     Pinocchio forward dynamics on the nominal model, random q, v, tau.
-* ``update/<s>``  ``update(y, u)`` of each diagnoser from ``arm_schemes`` (500 Hz), fed with the y and ū
-                  of a pre-recorded fault-free closed-loop run (θ₀ of the adaptive scheme from
+* ``update/<s>``  ``update(y, u)`` of each diagnoser from ``arm_schemes``, fed with the y and ū of a
+                  pre-recorded fault-free closed-loop run (θ₀ of the adaptive scheme from
                   ``ripple_initial_parameters``, as ``scenarios.arm.calibrate`` does), after a warm-up of
-                  50 samples so every estimator is in its normal regime. The "per tick" column is half the
-                  update cost: the diagnoser runs on every 2nd control tick.
-* ``piece/...``   the other pieces of one tick of ``ClosedLoop.run`` in isolation (simulator step = 2
-                  physics steps + ripple term, computed-torque controller, reference, fault injector,
-                  threshold decision) — to see where the loop's time goes.
-* ``loop (a/b/c)`` ``ClosedLoop.run`` over 2 s of simulated time (2000 control ticks, no faults),
-                  wall time / 2000: (a) no diagnoser, (b) the adaptive diagnoser with its
-                  ThresholdDecision (thresholds 1e9, so no alarm), (c) all six diagnosers, each with its
-                  ThresholdDecision. The time includes everything ``run`` does: recording every signal and
-                  building the Record at the end. ``RTF`` = simulated seconds / wall seconds (> 1: faster
-                  than real time).
+                  50 samples so every estimator is in its normal regime. "per tick" is half the update
+                  cost: the diagnosers run at 500 Hz, on every 2nd control tick.
+* ``piece/...``   the other pieces of one tick of ``ClosedLoop.run``, each in isolation: simulator step
+                  (2 physics steps + ripple term + measurement), computed-torque controller, reference,
+                  fault injector (no faults), threshold decision, and the DiagnosisRunner's own
+                  bookkeeping per tick (with a stub diagnoser).
+* ``loop (a/b/c)`` ``ClosedLoop.run`` over 2 s of simulated time (2000 control ticks, no faults), wall
+                  time / 2000: (a) no diagnoser, (b) the adaptive diagnoser with its ThresholdDecision
+                  (thresholds 1e9, so no alarm), (c) all six diagnosers, each with its ThresholdDecision.
+                  Includes everything ``run`` does: recording every signal, building the Record at the
+                  end. The repeats go round-robin over (a), (b), (c). ``RTF`` = simulated seconds / wall
+                  seconds (> 1: faster than real time).
 
-The floor is the irreducible model cost of one control tick: 2 × mj_step (2 physics steps per tick)
-+ 1 rnea (the controller's inverse dynamics) + 1 aba (a diagnoser's forward dynamics). ``loop/floor``
-says how many times slower the Python loop is than that floor; the last line, ``loop/floor ratio: R``,
-is for loop (b). Absolute numbers depend on the machine and its load; the ratios are the portable result.
+"where the time of a tick goes" splits each loop into the isolated pieces. The "in-loop excess" is what
+the loop costs beyond the sum of its isolated pieces: the same Python/numpy code runs slower when it is
+interleaved with MuJoCo, Pinocchio and the other pieces (colder caches; measured ~+30 % on the adaptive
+update) than in a tight loop of itself — plus measurement noise.
+
+The floor is the raw model cost of one control tick: 2 × mj_step (2 physics steps per tick) + 1 rnea (the
+controller's inverse dynamics) + 1 aba (a diagnoser's forward dynamics). ``loop/floor`` says how many
+times slower the loop is than that floor, i.e. the Python overhead factor; the very last line,
+``loop/floor ratio: R``, is for loop (b). Absolute numbers depend on the machine and its load; the
+ratios travel better.
 """
 from __future__ import annotations
 

@@ -95,16 +95,13 @@ class DiagnosisRunner:
         self._inputs: list[np.ndarray] = []
         self._rows: dict[str, list] = {k: [] for k in ("time", "residual", "alarm", "isolated", "estimate")}
 
-    def push(self, j: int, t: float, y: np.ndarray, u_prev: np.ndarray | None) -> None:
-        """Control tick j at time t: y measured now, u_prev the command held over the tick that just ended."""
-        if u_prev is not None:
-            self._inputs.append(u_prev)
+    def push(self, j: int, t: float, y: np.ndarray, u_prev: np.ndarray) -> None:
+        """Control tick j at time t: y measured now, u_prev the command held over the tick that just ended
+        (zeros at the first tick, which only initialises the diagnoser)."""
+        self._inputs.append(u_prev)
         if j % self.rates.ratio:
             return
-        if self._inputs:
-            u = np.mean(self._inputs, axis=0) if self.rates.input_hold == "mean" else self._inputs[0]
-        else:
-            u = np.zeros(len(self.diagnosis.diagnoser.estimate_components) and y.size // 2)
+        u = np.mean(self._inputs, axis=0) if self.rates.input_hold == "mean" else self._inputs[0]
         self._inputs = []
         res = self.diagnosis.diagnoser.update(y, u)
         decision = self.diagnosis.decision
@@ -142,7 +139,7 @@ def diagnose_record(record: Record, diagnosis: Diagnosis, rates: Rates | None = 
     runner = DiagnosisRunner(diagnosis, rates)
     y, u = record.signals["y_diag"], record.signals["u_diag"]
     for j, t in enumerate(record.time):
-        runner.push(j, float(t), y[j], u[j - 1] if j else None)
+        runner.push(j, float(t), y[j], u[j - 1] if j else np.zeros_like(u[0]))
     return runner.trace()
 
 
@@ -208,7 +205,7 @@ class ClosedLoop:
 
         try:
             y = sim.reset(q0, seed=seed)
-            u_prev_diag = None
+            u_prev_diag = np.zeros(len(sim.actuators))
             for j in range(steps + 1):
                 t = j * dt
                 y_faulty = inj.sense(t, y)

@@ -140,9 +140,6 @@ def test_invalid_mismatch_names_the_field(field, value):
         ModelMismatch(**{field: value})
 
 
-@pytest.mark.xfail(strict=True, reason="BUG: ModelMismatch accepts 1-sigma errors up to 0.5 but draws unbounded "
-                   "Gaussian factors 1 + σz, so a relative error near 0.5 gives negative masses/damping/armature "
-                   "(or a raw pinocchio RuntimeError)")
 @pytest.mark.parametrize("field, seed", [("mass", 6), ("inertia", 2), ("damping", 0), ("armature", 14)])
 def test_accepted_mismatch_gives_a_physical_model(field, seed):
     try:

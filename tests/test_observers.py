@@ -400,9 +400,6 @@ def test_momentum_observer_estimates_actuator_torque(model):
     np.testing.assert_allclose(r[50 + j, 2], 25.0 * (1 - 0.9 ** j), rtol=0.02)
 
 
-@pytest.mark.xfail(strict=True, reason="BUG: MomentumObserver.update keeps views of the caller's y "
-                   "(check_measurement does not copy float arrays), so a reused measurement buffer corrupts "
-                   "the previous sample")
 def test_momentum_observer_is_robust_to_a_reused_input_buffer(model):
     ys, us = rk4_plant(model, 30, 2, np.zeros(6), fault_from=1.0)
     ys = ys + np.r_[np.zeros(6), np.linspace(0.1, 0.6, 6)]     # moving arm, so consecutive samples differ

@@ -31,7 +31,8 @@ def resolve_asset(path: str | Path) -> Path:
 
 @dataclass(frozen=True)
 class ModelMismatch:
-    """Deliberate errors of the nominal parameters, as relative 1-sigma errors drawn with ``seed``.
+    """Deliberate errors of the nominal parameters, as relative 1-sigma errors drawn with ``seed``
+    (normal draws truncated at ±2σ, so with σ < 0.5 every parameter keeps its sign).
 
     mass: link masses (and the rotational inertias scale with them); inertia: extra error on the
     rotational inertias; damping: viscous friction coefficients; armature: rotor inertias.
@@ -83,13 +84,17 @@ class ManipulatorModel:
     @staticmethod
     def _perturb(model: pin.Model, mm: ModelMismatch) -> None:
         rng = np.random.default_rng(mm.seed)
+
+        def factor(sigma, size=None):
+            return 1.0 + sigma * np.clip(rng.standard_normal(size), -2.0, 2.0)
+
         for i in range(1, model.njoints):
             inert = model.inertias[i]
-            ks = 1.0 + mm.mass * rng.standard_normal()
-            ki = ks * (1.0 + mm.inertia * rng.standard_normal())
+            ks = factor(mm.mass)
+            ki = ks * factor(mm.inertia)
             model.inertias[i] = pin.Inertia(inert.mass * ks, inert.lever.copy(), inert.inertia * ki)
-        model.damping = model.damping * (1.0 + mm.damping * rng.standard_normal(model.nv))
-        model.armature = model.armature * (1.0 + mm.armature * rng.standard_normal(model.nv))
+        model.damping = model.damping * factor(mm.damping, model.nv)
+        model.armature = model.armature * factor(mm.armature, model.nv)
 
     def check_joints(self, names: list[str]) -> None:
         """Raise if the simulator's joints differ from the model's (by name and order)."""

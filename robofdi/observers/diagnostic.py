@@ -270,7 +270,7 @@ class DiagnosticObserver:
         if x is None or self._x_prev is None:
             if x is not None:
                 self._x_prev, self.x_hat, self._e_prev = x, x.copy(), np.zeros(2 * n)
-            return Residual(np.zeros(2 * n), np.zeros(2 * n))
+            return Residual(np.zeros(2 * n), np.zeros(2 * n), state_residual=np.zeros(2 * n))
         est = self.estimator
         est.prepare(self._x_prev, u)           # η̂(k−1) with x̄(k−1), ū(k−1)
         eta_prev = est.eta_hat

@@ -21,7 +21,7 @@ class Residual:
 
 def check_measurement(v, size: int, field: str) -> np.ndarray:
     """Return v as a float vector of ``size`` entries; NaN/inf or a wrong shape raise naming the field."""
-    a = np.asarray(v, dtype=float)
+    a = np.array(v, dtype=float)  # a copy: diagnosers keep past samples, callers may reuse their buffers
     if a.shape != (size,):
         raise RobofdiError(f"diagnoser input {field!r} must be a vector of {size} values, got shape {a.shape}")
     if not np.all(np.isfinite(a)):
