@@ -101,7 +101,7 @@ class DiagnosisRunner:
         self._inputs.append(u_prev)
         if j % self.rates.ratio:
             return
-        u = np.mean(self._inputs, axis=0) if self.rates.input_hold == "mean" else self._inputs[0]
+        u = sum(self._inputs) / len(self._inputs) if self.rates.input_hold == "mean" else self._inputs[0]
         self._inputs = []
         res = self.diagnosis.diagnoser.update(y, u)
         decision = self.diagnosis.decision

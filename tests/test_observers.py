@@ -455,3 +455,22 @@ def test_bad_measurement_or_input_names_the_field(model, scheme, space, started)
                 obs.update(y, u)
         with pytest.raises(RobofdiError, match="'u'"):
             obs.update(y, bad(u))
+
+
+def test_adaptive_diagonal_fast_path_equals_the_printed_update():
+    """With a diagonal Q the row-by-row update is eqs. (37)–(39) exactly (Z Zᵀ is diagonal for eq. (50))."""
+    rng = np.random.default_rng(5)
+    model = RippleModel(6, torque_scale=rng.uniform(50, 400, 6))
+    theta0 = rng.normal(size=48)
+    q = rng.uniform(5, 200, 12)
+    fast, full = Adaptive(model, q, theta0), Adaptive(model, np.diag(q) + 1e-300 * np.eye(12)[::-1], theta0)
+    assert fast._q is not None and full._q is None
+    for est in (fast, full):
+        est.reset(12)
+    for _ in range(20):
+        x, u, r = rng.normal(size=12), rng.normal(size=6) * 100, rng.normal(size=12) * 1e-3
+        for est in (fast, full):
+            est.prepare(x, u)
+            est.update(r, r, x, u)
+        np.testing.assert_allclose(fast.eta_hat, full.eta_hat, rtol=1e-10, atol=1e-14)
+        np.testing.assert_allclose(fast.theta, full.theta, rtol=1e-10, atol=1e-14)

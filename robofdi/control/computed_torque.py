@@ -24,7 +24,7 @@ class ComputedTorque:
         q, v = y[:n], y[n:]
         qd, vd, ad = reference
         a = ad + self.kd * (vd - v) + self.kp * (qd - q)
-        tau = self.model.mass_matrix(q) @ a + self.model.bias(q, v)
+        tau = self.model.inverse_dynamics(q, v, a)
         if self.torque_limit is not None:
             tau = np.clip(tau, -self.torque_limit, self.torque_limit)
         return tau

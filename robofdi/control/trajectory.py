@@ -23,6 +23,8 @@ class Quintic:
     def __post_init__(self):
         object.__setattr__(self, "q0", tuple(float(v) for v in self.q0))
         object.__setattr__(self, "dq", tuple(float(v) for v in self.dq))
+        object.__setattr__(self, "_q0", np.array(self.q0))
+        object.__setattr__(self, "_dq", np.array(self.dq))
         if len(self.q0) != len(self.dq):
             raise RobofdiError(f"Quintic: fields 'q0' and 'dq' must have the same length ({len(self.q0)} vs {len(self.dq)})")
         if not np.all(np.isfinite(self.q0 + self.dq)):
@@ -40,13 +42,13 @@ class Quintic:
 
     def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(q_d, q̇_d, q̈_d) at time t."""
-        s = float(np.clip((t - self.start) / self.duration, 0.0, 1.0))
+        s = min(max((t - self.start) / self.duration, 0.0), 1.0)
         d = self.duration
         p = 10 * s**3 - 15 * s**4 + 6 * s**5
         dp = (30 * s**2 - 60 * s**3 + 30 * s**4) / d
         ddp = (60 * s - 180 * s**2 + 120 * s**3) / d**2
-        dq = np.asarray(self.dq)
-        return np.asarray(self.q0) + p * dq, dp * dq, ddp * dq
+        dq = self._dq
+        return self._q0 + p * dq, dp * dq, ddp * dq
 
 
 @dataclass(frozen=True)

@@ -39,5 +39,7 @@ class Identification:
             i = self._index.get(name)
             if i is not None:
                 self._on[i] = True
+        if not self._on.any():
+            return np.zeros(len(self.components))
         self._sum = np.where(self._on & self._increment, self._sum + candidates, 0.0)
         return np.where(self._on, np.where(self._increment, self._sum, candidates), 0.0)

@@ -80,6 +80,7 @@ class ManipulatorModel:
         self.n = model.nv
         self.damping = np.array(model.damping, dtype=float)
         self.torque_limit = _motor_limits(self.path, self.joint_names)
+        self._lower = np.tril_indices(self.n, -1)
 
     @staticmethod
     def _perturb(model: pin.Model, mm: ModelMismatch) -> None:
@@ -105,12 +106,17 @@ class ManipulatorModel:
 
     def mass_matrix(self, q: np.ndarray) -> np.ndarray:
         """M̂(q), symmetric, armature included."""
-        M = pin.crba(self.model, self.data, q)
-        return np.triu(M) + np.triu(M, 1).T
+        M = pin.crba(self.model, self.data, q).copy()   # crba fills the upper triangle only
+        M[self._lower] = M.T[self._lower]
+        return M
 
     def bias(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """n̂(q, q̇) = C(q, q̇) q̇ + g(q) + D̂ q̇."""
         return pin.nonLinearEffects(self.model, self.data, q, v) + self.damping * v
+
+    def inverse_dynamics(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> np.ndarray:
+        """τ = M̂(q) q̈ + n̂(q, q̇) (RNEA, armature included, plus viscous friction)."""
+        return pin.rnea(self.model, self.data, q, v, a) + self.damping * v
 
     def gravity(self, q: np.ndarray) -> np.ndarray:
         return pin.computeGeneralizedGravity(self.model, self.data, q)

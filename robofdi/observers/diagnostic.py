@@ -49,6 +49,11 @@ class EulerArmModel:
         n = self.n
         self.A = np.block([[np.eye(n), T * np.eye(n)], [np.zeros((n, n)), np.eye(n)]])
 
+    def apply_A(self, x: np.ndarray) -> np.ndarray:
+        """A x = [x1 + T x2; x2] without the matrix product."""
+        n = self.n
+        return np.concatenate([x[:n] + self.T * x[n:], x[n:]])
+
     def predict(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
         """A x + h(x) + B(x) u."""
         n, T = self.n, self.T
@@ -125,6 +130,10 @@ class RippleModel:
         if not np.all(np.isfinite(scale) & (scale > 0)):
             raise RobofdiError(f"RippleModel: field 'torque_scale' must be {self.n} finite values > 0, got {self.torque_scale!r}")
         self._inv_scale = 1.0 / scale
+        n = self.n
+        # where the 7 columns of each velocity row sit in Z (row n+i, columns n+7i … n+7i+6)
+        self._rows = np.repeat(np.arange(n, 2 * n), 7)
+        self._cols = (n + 7 * np.arange(n)[:, None] + np.arange(7)).ravel()
 
     @property
     def p(self) -> int:
@@ -134,23 +143,33 @@ class RippleModel:
         n = self.n
         return theta[:n], theta[n:].reshape(n, 7).T  # (a, b, c, d, e, f, g) rows, each (n,)
 
-    def eta(self, theta: np.ndarray, x1: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    def evaluate(self, theta: np.ndarray, x1: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """η(θ) and the non-zero part of Z: row n+i of Z is ∂η_{n+i}/∂(θ_a … θ_g of joint i), an (n × 7)
+        array (position row i of Z is the unit vector on θ_i)."""
         tau = tau * self._inv_scale
         pos, (a, b, c, d, e, f, g) = self.split(theta)
-        return np.concatenate([pos, a + b * np.sin(c * x1 + d) + tau * e * np.sin(f * x1 + g)])
+        arg1, arg2 = c * x1 + d, f * x1 + g
+        s1, c1, s2, c2 = np.sin(arg1), np.cos(arg1), np.sin(arg2), np.cos(arg2)
+        G = np.empty((self.n, 7))
+        G[:, 0] = 1.0
+        G[:, 1] = s1
+        G[:, 3] = b * c1
+        G[:, 2] = G[:, 3] * x1
+        G[:, 4] = tau * s2
+        G[:, 6] = tau * e * c2
+        G[:, 5] = G[:, 6] * x1
+        return np.concatenate([pos, a + b * s1 + e * G[:, 4]]), G
+
+    def eta(self, theta: np.ndarray, x1: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """η(k, x, u, θ) of eq. (50)."""
+        return self.evaluate(theta, x1, tau)[0]
 
     def jacobian(self, theta: np.ndarray, x1: np.ndarray, tau: np.ndarray) -> np.ndarray:
-        """Z = ∂η/∂θ — eq. (38), a (2n × 8n) matrix."""
+        """Z = ∂η/∂θ — eq. (38), a (2n × 8n) matrix; each row has its own parameters, so Z Zᵀ is diagonal."""
         n = self.n
-        tau = tau * self._inv_scale
-        _, (a, b, c, d, e, f, g) = self.split(theta)
-        s1, c1 = np.sin(c * x1 + d), np.cos(c * x1 + d)
-        s2, c2 = np.sin(f * x1 + g), np.cos(f * x1 + g)
         Z = np.zeros((2 * n, 8 * n))
         Z[np.arange(n), np.arange(n)] = 1.0
-        cols = np.stack([np.ones(n), s1, b * x1 * c1, b * c1, tau * s2, tau * e * x1 * c2, tau * e * c2], axis=1)
-        for i in range(n):
-            Z[n + i, n + 7 * i : n + 7 * i + 7] = cols[i]
+        Z[self._rows, self._cols] = self.evaluate(theta, x1, tau)[1].ravel()
         return Z
 
 
@@ -167,6 +186,7 @@ class Adaptive(_Estimating):
         if Q.shape != (dim, dim) or not np.allclose(Q, Q.T) or np.min(np.linalg.eigvalsh(Q)) <= 0:
             raise RobofdiError(f"Adaptive: field 'Q' must be a symmetric positive definite {dim}x{dim} matrix")
         self.Q = Q
+        self._q = np.diag(Q).copy() if np.count_nonzero(Q - np.diag(np.diag(Q))) == 0 else None
         theta0 = np.zeros(model.p) if theta0 is None else np.asarray(theta0, dtype=float)
         if theta0.shape != (model.p,) or not np.all(np.isfinite(theta0)):
             raise RobofdiError(f"Adaptive: field 'theta0' must be {model.p} finite values")
@@ -179,16 +199,24 @@ class Adaptive(_Estimating):
 
     def prepare(self, x, u):
         n = self.ripple.n
-        self._Z = self.ripple.jacobian(self.theta, x[:n], u)
-        self.eta_hat = self.ripple.eta(self.theta, x[:n], u)
+        self.eta_hat, G = self.ripple.evaluate(self.theta, x[:n], u)
+        self._Z = G if self._q is not None else self.ripple.jacobian(self.theta, x[:n], u)
 
     def gain(self, Z: np.ndarray) -> np.ndarray:
         """Γ_θ = 2 (Z Zᵀ + Q)⁻¹ — eq. (39); ``step`` replaces the factor 2."""
         return self.step * np.linalg.inv(Z @ Z.T + self.Q)
 
     def update(self, r, r_model, x, u):
-        if self._Z is not None:
-            self.theta = self.theta + self._Z.T @ (self.gain(self._Z) @ r)
+        if self._Z is None:
+            return
+        if self._q is None:                      # eqs. (37), (39) as printed
+            Z = self._Z
+            self.theta = self.theta + Z.T @ (self.step * np.linalg.solve(Z @ Z.T + self.Q, r))
+            return
+        # Same update with Q diagonal: Z Zᵀ + Q is diagonal (|z_j|² + q_j), so Γ_θ acts row by row.
+        n, G, q = self.ripple.n, self._Z, self._q
+        w = self.step * r / (np.concatenate([np.ones(n), np.einsum("ij,ij->i", G, G)]) + q)
+        self.theta = self.theta + np.concatenate([w[:n], (G * w[n:, None]).ravel()])
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -277,10 +305,11 @@ class DiagnosticObserver:
         x_model = self.euler.predict(self._x_prev, u)
         r_model = x - x_model                   # eq. (20)
         if self.eval_at == "measured":          # A x̂ + h(x̄) + B(x̄)ū = A(x̂ − x̄) + predict(x̄)
-            base = self.euler.A @ (self.x_hat - self._x_prev) + x_model
+            base = self.euler.apply_A(self.x_hat - self._x_prev) + x_model
         else:
             base = self.euler.predict(self.x_hat, u)
-        self.x_hat = base + self.Ko @ self._e_prev + eta_prev   # eq. (23)
+        e_prev = self._e_prev                   # K_o e = [K1 e1 + T e2; K2 e2], eq. (24)
+        self.x_hat = base + np.concatenate([self.K1 * e_prev[:n] + self.T * e_prev[n:], self.K2 * e_prev[n:]]) + eta_prev  # eq. (23)
         e = x - self.x_hat
         r = e - self.F * self._e_prev          # eq. (26)
         est.update(r, r_model, self._x_prev, u)
