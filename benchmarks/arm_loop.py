@@ -54,7 +54,7 @@ import numpy as np
 import pinocchio as pin
 
 import robofdi
-from robofdi.control import ComputedTorque, Quintic
+from robofdi.control import ComputedTorque
 from robofdi.decision import ThresholdDecision
 from robofdi.faults import FaultInjector
 from robofdi.loop import ClosedLoop, Diagnosis, DiagnosisRunner, diagnose_record
@@ -229,7 +229,7 @@ def main(argv=None) -> int:
     t_sim = bench(lambda i: sim.step(u_rec[i]), 400, R, sim_setup)
     rows.append(("piece/ArmSimulator.step (2 mj_step + ripple)", t_sim, ""))
     t_ctrl = bench(lambda i: ctrl.update(ys[i], refs[i]), 1000, R)
-    rows.append(("piece/ComputedTorque.update (crba + nle)", t_ctrl, ""))
+    rows.append(("piece/ComputedTorque.update (rnea)", t_ctrl, ""))
     t_ref = bench(lambda i: ref_fn(ts[i]), 1000, R)
     rows.append(("piece/Quintic reference(t)", t_ref, ""))
     t_inj = bench(lambda i: (inj.sense(ts[i], ys[i]), inj.actuate(ts[i], u_rec[i])), 1000, R)
@@ -250,7 +250,7 @@ def main(argv=None) -> int:
         "c": ("loop (c) all six + decisions", build_loop(scenario, SCHEMES, theta0)),
     }
     t_loop = time_loops({key: loop for key, (_, loop) in loops.items()}, Q0, LR)
-    for key, (label, loop) in loops.items():
+    for key, (label, _loop) in loops.items():
         rows.append((label + ", per tick", t_loop[key], f"RTF {1e3 / t_loop[key]:5.2f}"))
 
     # ---- report ----------------------------------------------------------------------------------------
@@ -311,13 +311,13 @@ def profile_loop(loop: ClosedLoop, top: int = 8) -> None:
     print(f"cProfile of loop (b), {ticks:g} ticks (profiler overhead inflates everything); top {top} robofdi "
           f"functions by cumulative time:")
     print(f"  {'cum ms':>8} {'µs/tick':>8} {'calls':>7}  function")
-    for (file, line, fn), (cc, nc, tt, ct, callers) in entries[:top]:
+    for (file, line, fn), (_cc, nc, _tt, ct, _callers) in entries[:top]:
         short = file[file.rfind("robofdi"):]
         print(f"  {ct * 1e3:8.1f} {ct / ticks * 1e6:8.2f} {nc:7d}  {short}:{line}({fn})")
     print()
     print("  top 12 functions overall by own (tottime) time:")
     flat = sorted(stats.stats.items(), key=lambda e: e[1][2], reverse=True)[:12]
-    for (file, line, fn), (cc, nc, tt, ct, callers) in flat:
+    for (file, line, fn), (_cc, nc, tt, _ct, _callers) in flat:
         short = file[file.rfind("robofdi"):] if "robofdi" in file else file.split("/")[-1]
         print(f"  {tt * 1e3:8.1f} ms {nc:7d}  {short}:{line}({fn})")
     print()

@@ -82,7 +82,8 @@ def reproduction(name: str, summary: dict, record, fault_free) -> list[dict]:
     diag = summary["diagnosers"]
     detected = {d: {x["fault"]: x for x in diag[d]["detections"]} for d in diag}
     if name == "ch3-actuator":
-        td, rec = _peak_ratio(record, "time_delayed", summary["faults"][1]), _peak_ratio(record, "recursive", summary["faults"][1])
+        tau5 = summary["faults"][1]
+        td, rec = _peak_ratio(record, "time_delayed", tau5), _peak_ratio(record, "recursive", tau5)
         out.append({"quantity": "tau5 (incipient) peak |r|/threshold: time_delayed < recursive (TD weak on incipient faults)",
                     "paper": "time-delayed low sensitivity to the incipient fault (Figs. 2, 4)",
                     "ours": {"time_delayed": td, "recursive": rec}, "tolerance": None, "pass": bool(td < rec)})
@@ -105,7 +106,8 @@ def run(name: str, out: str | Path = "runs", seed: int = 0, progress: bool = Tru
     sc = scenario(name, seed, **overrides)
     run_dir = Path(out) / f"{name}-seed{seed}"
     run_dir.mkdir(parents=True, exist_ok=True)
-    steps = int(sum(r.end for r in calibration_trajectories(sc).values()) * sc.rates.control_hz) + int(2 * sc.duration * sc.rates.control_hz)
+    sim_time = sum(r.end for r in calibration_trajectories(sc).values()) + 2 * sc.duration
+    steps = int(sim_time * sc.rates.control_hz)
     with tqdm(total=steps, desc=f"{name}: simulate", unit="step", disable=not progress, leave=False) as bar:
         records = calibration_records(sc, progress=bar.update)
         bar.set_description(f"{name}: calibrate thresholds")
@@ -116,7 +118,8 @@ def run(name: str, out: str | Path = "runs", seed: int = 0, progress: bool = Tru
         record = run_scenario(sc, cal, progress=bar.update)
     faults = [f.to_dict() for f in sc.faults]
     summary = summarize(record, name, faults)
-    summary["fault_free_false_alarms"] = {d: summarize(fault_free, name, [])["diagnosers"][d]["false_alarms"] for d in fault_free.diagnosers}
+    fault_free_summary = summarize(fault_free, name, [])["diagnosers"]
+    summary["fault_free_false_alarms"] = {d: s["false_alarms"] for d, s in fault_free_summary.items()}
     summary["injection"] = sc.injection
     summary["thresholds"] = {
         "calibrated": {k: v.tolist() for k, v in cal.thresholds.items()},

@@ -69,7 +69,9 @@ def _cmd_view(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="robofdi", description="Model-based fault diagnosis and fault-tolerant control of simulated robots.")
+    p = argparse.ArgumentParser(
+        prog="robofdi", description="Model-based fault diagnosis and fault-tolerant control of simulated robots."
+    )
     p.add_argument("--version", action="version", version=f"robofdi {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
     sub.add_parser("list", help="list the experiments").set_defaults(func=_cmd_list)

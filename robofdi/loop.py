@@ -236,7 +236,8 @@ class ClosedLoop:
                 if progress is not None:
                     progress(1)
         except KeyboardInterrupt:
-            raise RunAborted(f"run interrupted at t = {rows['time'][-1] if rows['time'] else 0.0:.3f} s", _trim(record())) from None
+            t_stop = rows["time"][-1] if rows["time"] else 0.0
+            raise RunAborted(f"run interrupted at t = {t_stop:.3f} s", _trim(record())) from None
         except Exception as exc:
             t_fail = rows["time"][-1] if rows["time"] else 0.0
             raise RunAborted(f"run failed at t = {t_fail:.3f} s: {exc}", _trim(record())) from exc

@@ -181,7 +181,7 @@ def run(fault, times=TIMES, nominal=None):
     names = JOINTS if act else SENSORS
     ch = names.index(fault.target)
     outs, labels, noms = [], [], []
-    for k, t in enumerate(times):
+    for _k, t in enumerate(times):
         x = (U if act else Y).copy() if nominal is None else nominal(t)
         before = x.copy()
         out = inj.actuate(t, x) if act else inj.sense(t, x)

@@ -38,7 +38,8 @@ def test_record_round_trip_is_exact(ch3, tmp_path):
     _, cal = ch3
     rec = run_scenario(_short(), cal)
     back = load(rec.save(tmp_path / "run.h5"))
-    assert (back.system, back.scenario, back.seed, back.rates, back.meta) == (rec.system, rec.scenario, rec.seed, rec.rates, rec.meta)
+    for attr in ("system", "scenario", "seed", "rates", "meta"):
+        assert getattr(back, attr) == getattr(rec, attr), attr
     np.testing.assert_array_equal(back.time, rec.time)
     np.testing.assert_array_equal(back.truth_state, rec.truth_state)
     for k in rec.signals:

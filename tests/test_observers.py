@@ -373,7 +373,7 @@ def rk4_plant(model, n_samples, substeps, torque_fault, fault_from):
         us.append(u)
         tau = u + (torque_fault if k * T >= fault_from else 0.0)
 
-        def deriv(q_, v_):
+        def deriv(q_, v_, tau=tau):
             return v_, model.acceleration(q_, v_, tau)
 
         for _ in range(substeps):
@@ -439,16 +439,18 @@ BAD_U = [
 @pytest.mark.parametrize("space", ["state", "torque"])
 @pytest.mark.parametrize("started", [False, True])
 def test_bad_measurement_or_input_names_the_field(model, scheme, space, started):
-    make = lambda: arm_schemes(model, ArmSchemeSettings(residual_space=space), schemes=[scheme])[scheme]
+    def make():
+        return arm_schemes(model, ArmSchemeSettings(residual_space=space), schemes=[scheme])[scheme]
+
     y, u = np.r_[Q0, 0.1 * np.ones(6)], model.gravity(Q0)
-    for label, bad in BAD_Y:
+    for _label, bad in BAD_Y:
         obs = make()
         if started:
             for _ in range(3):
                 obs.update(y, u)
         with pytest.raises(RobofdiError, match="'y'"):
             obs.update(bad(y), u)
-    for label, bad in BAD_U:
+    for _label, bad in BAD_U:
         obs = make()
         if started:
             for _ in range(3):

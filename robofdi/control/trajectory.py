@@ -62,7 +62,7 @@ class Sequence:
             raise RobofdiError("Sequence: field 'segments' must not be empty")
 
     @classmethod
-    def through(cls, waypoints, durations, start: float = 0.0) -> "Sequence":
+    def through(cls, waypoints, durations, start: float = 0.0) -> Sequence:
         wps = [np.asarray(w, dtype=float) for w in waypoints]
         if len(durations) != len(wps) - 1:
             raise RobofdiError("Sequence.through: need one duration per segment (len(waypoints) - 1)")

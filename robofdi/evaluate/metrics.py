@@ -34,7 +34,7 @@ class FaultWindow:
             raise RobofdiError(f"fault {self.name!r} end: expected None or a time > onset {self.onset}, got {self.end}")
 
     @classmethod
-    def from_spec(cls, spec: Mapping) -> "FaultWindow":
+    def from_spec(cls, spec: Mapping) -> FaultWindow:
         """Build from a fault-spec dict with at least name, kind, target, onset, end."""
         if not isinstance(spec, Mapping):
             raise RobofdiError(f"faults: expected dicts with name, kind, target, onset, end; got {type(spec).__name__}")

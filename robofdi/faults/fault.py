@@ -3,7 +3,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, fields
-from typing import Any, Mapping
+from typing import Any
+from collections.abc import Mapping
 
 from robofdi import RobofdiError
 from robofdi.faults.profiles import Profile, Step, profile_from_dict
@@ -150,7 +151,7 @@ class Fault:
         }
 
     @classmethod
-    def from_dict(cls, d: Mapping[str, Any]) -> "Fault":
+    def from_dict(cls, d: Mapping[str, Any]) -> Fault:
         """Build from a plain dict (e.g. parsed JSON); ``profile`` may be a dict with a ``type`` key."""
         if not isinstance(d, Mapping):
             raise RobofdiError(f"Fault: expected a mapping, got {type(d).__name__}")

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -62,6 +62,7 @@ class FaultInjector:
             ss = np.random.SeedSequence(f.seed) if f.seed is not None else np.random.SeedSequence([root, i])
             channels = self.actuators if f.family == "actuator" else self.sensors
             self._effects.append((make_effect(f, ss), channels.index(f.target)))
+        self._by_family = {fam: [(e, ch) for e, ch in self._effects if e.fault.family == fam] for fam in ("actuator", "sensor")}
         self.labels: dict[str, tuple[bool, float]] = {}
         self.reset()
 
@@ -96,12 +97,10 @@ class FaultInjector:
             raise RobofdiError(
                 f"FaultInjector: field '{field_name}' must be a 1-D array of length {n}, got shape {out.shape}"
             )
-        if not np.all(np.isfinite(out)):
+        if not math.isfinite(out.sum()):  # NaN and inf propagate through the sum: one reduction per call
             raise RobofdiError(f"FaultInjector: field '{field_name}' must be finite, got {out.tolist()}")
-        for effect, ch in self._effects:
+        for effect, ch in self._by_family[family]:
             f = effect.fault
-            if f.family != family:
-                continue
             before = float(out[ch])
             effect.observe(t, before)
             if f.active(t):

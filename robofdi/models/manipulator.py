@@ -66,7 +66,8 @@ def _motor_limits(path: Path, joints: list[str]) -> np.ndarray:
 class ManipulatorModel:
     """M̂(q), n̂(q, q̇) of an n-joint serial arm — the nominal model of eq. (3)."""
 
-    def __init__(self, mjcf: str | Path, mismatch: ModelMismatch = ModelMismatch()):
+    def __init__(self, mjcf: str | Path, mismatch: ModelMismatch | None = None):
+        mismatch = mismatch or ModelMismatch()
         self.path = resolve_asset(mjcf)
         try:
             model = pin.buildModelFromMJCF(str(self.path))

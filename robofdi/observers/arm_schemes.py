@@ -46,7 +46,9 @@ def arm_schemes(model: ManipulatorModel, settings: ArmSchemeSettings = ArmScheme
         "simple": lambda: DiagnosticObserver(model, s.T, None, **common),
         "time_delayed": lambda: DiagnosticObserver(model, s.T, TimeDelayed(), **common),
         "recursive": lambda: DiagnosticObserver(model, s.T, Recursive(gamma), **common),
-        "adaptive": lambda: DiagnosticObserver(model, s.T, Adaptive(RippleModel(n, model.torque_limit), 2.0 / gamma, theta0, step=s.adaptive_step), **common),
+        "adaptive": lambda: DiagnosticObserver(
+            model, s.T, Adaptive(RippleModel(n, model.torque_limit), 2.0 / gamma, theta0, step=s.adaptive_step), **common
+        ),
         "position_only": lambda: DiagnosticObserver(model, s.T, Recursive(gamma), velocity="backward_difference", **common),
         "momentum": lambda: MomentumObserver(model, s.T, s.momentum_gain),
     }

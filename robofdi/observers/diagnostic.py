@@ -102,7 +102,9 @@ class Recursive(_Estimating):
     def reset(self, dim):
         g = np.asarray(self.gain, dtype=float)
         if g.shape != (dim,) or not np.all((g > 0) & (g < 2)):
-            raise RobofdiError(f"Recursive: field 'gain' must be {dim} values in (0, 2) (eig(I − Γ_η) inside the unit circle), got {self.gain!r}")
+            raise RobofdiError(
+                f"Recursive: field 'gain' must be {dim} values in (0, 2) (eig(I − Γ_η) inside the unit circle), got {self.gain!r}"
+            )
         self.gamma = g
         super().reset(dim)
 
@@ -251,9 +253,13 @@ class DiagnosticObserver:
         K2 = np.broadcast_to(np.asarray(K2, dtype=float), (n,)).copy()
         for name, K in (("K1", K1), ("K2", K2)):
             if not np.all((K > 0) & (K < 2)):
-                raise RobofdiError(f"DiagnosticObserver: field {name!r} must be diagonal gains in (0, 2) (F = I − K stable), got {K}")
+                raise RobofdiError(
+                    f"DiagnosticObserver: field {name!r} must be diagonal gains in (0, 2) (F = I − K stable), got {K}"
+                )
         if velocity not in ("measured", "backward_difference"):
-            raise RobofdiError(f"DiagnosticObserver: field 'velocity' must be 'measured' or 'backward_difference', got {velocity!r}")
+            raise RobofdiError(
+                f"DiagnosticObserver: field 'velocity' must be 'measured' or 'backward_difference', got {velocity!r}"
+            )
         if eval_at not in ("measured", "estimate"):
             raise RobofdiError(f"DiagnosticObserver: field 'eval_at' must be 'measured' or 'estimate', got {eval_at!r}")
         if residual_space not in ("state", "torque"):
@@ -309,7 +315,8 @@ class DiagnosticObserver:
         else:
             base = self.euler.predict(self.x_hat, u)
         e_prev = self._e_prev                   # K_o e = [K1 e1 + T e2; K2 e2], eq. (24)
-        self.x_hat = base + np.concatenate([self.K1 * e_prev[:n] + self.T * e_prev[n:], self.K2 * e_prev[n:]]) + eta_prev  # eq. (23)
+        Ko_e = np.concatenate([self.K1 * e_prev[:n] + self.T * e_prev[n:], self.K2 * e_prev[n:]])
+        self.x_hat = base + Ko_e + eta_prev    # eq. (23)
         e = x - self.x_hat
         r = e - self.F * self._e_prev          # eq. (26)
         est.update(r, r_model, self._x_prev, u)

@@ -36,7 +36,10 @@ def ripple_initial_parameters(positions: np.ndarray, velocity_residual: np.ndarr
     x = np.asarray(positions, dtype=float)
     r = np.asarray(velocity_residual, dtype=float)
     if x.ndim != 2 or x.shape != r.shape or len(x) < 16:
-        raise RobofdiError(f"ripple_initial_parameters: 'positions' and 'velocity_residual' must be equal (N, n) arrays with N >= 16, got {x.shape} and {r.shape}")
+        raise RobofdiError(
+            "ripple_initial_parameters: 'positions' and 'velocity_residual' must be equal (N, n) arrays with N >= 16, "
+            f"got {x.shape} and {r.shape}"
+        )
     if not (np.all(np.isfinite(x)) and np.all(np.isfinite(r))):
         raise RobofdiError("ripple_initial_parameters: inputs must be finite")
     n = x.shape[1]

@@ -168,8 +168,8 @@ class ArmSimulator:
             v += s.velocity_noise * self._rng.standard_normal(self.n)
         return np.concatenate([q, v])
 
-    def nominal_model(self, mismatch: ModelMismatch = ModelMismatch()) -> ManipulatorModel:
+    def nominal_model(self, mismatch: ModelMismatch | None = None) -> ManipulatorModel:
         """The belief: a Pinocchio model read from the same MJCF file, with deliberate parameter errors."""
-        model = ManipulatorModel(self.path, mismatch)
+        model = ManipulatorModel(self.path, mismatch or ModelMismatch())
         model.check_joints(self.joint_names)
         return model
