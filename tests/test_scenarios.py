@@ -78,6 +78,16 @@ def test_joint5_position_sensor_fault_isolated_to_its_position_component(ch3_run
         assert abs(est - 0.004) < 0.0006, (scheme, est)
 
 
+def test_position_only_scheme_isolates_sensor_and_actuator_faults(ch3_runs):
+    """With backward-difference velocities a position fault also raises its velocity row (eq. (48)); the
+    sensor signature requires both, so the incipient δx₁,₅ is not taken for an actuator fault."""
+    det, _ = _detection(ch3_runs["sensor"], "position_only", "x5", FAULTS["ch3-sensor"])
+    assert det["isolated"] == "joint5_pos"
+    for fault, target in (("tau3", "joint3"), ("tau5", "joint5")):
+        det, _ = _detection(ch3_runs["actuator"], "position_only", fault, FAULTS["ch3-actuator"])
+        assert det["isolated"] == target
+
+
 def test_momentum_baseline_cannot_see_position_sensor_faults(ch3_runs):
     """The momentum observer uses q only through M, C, g: a 6 mrad position fault stays below its thresholds."""
     det, _ = _detection(ch3_runs["sensor"], "momentum", "x3", FAULTS["ch3-sensor"])

@@ -61,7 +61,8 @@ class ThresholdDecision:
 
     At each sample the alarmed components are explained greedily: among signatures whose required components
     all alarm (and which explain a still unexplained one), pick the one with the largest
-    max_{j in required} |r_j| / threshold_j, mark its required ∪ allowed components explained, repeat.
+    max_{j in required} |r_j| / threshold_j (on a tie, the one with more required components), mark its
+    required ∪ allowed components explained, repeat.
     Finally a pick is dropped when the other picks already explain all its required components
     (parsimony: a sensor fault that may raise every torque residual wins over the actuator faults it explains).
     With ``latch`` an isolated fault stays isolated for the rest of the run.
@@ -142,7 +143,8 @@ class ThresholdDecision:
             ]
             if not candidates:
                 break
-            best = max(candidates, key=lambda s: max(ratio[self._index[c]] for c in s.required))
+            # strongest evidence first; on a tie the more specific signature (more required components) wins
+            best = max(candidates, key=lambda s: (max(ratio[self._index[c]] for c in s.required), len(s.required)))
             picks.append(best)
             unexplained -= best.explains
         for s in list(picks):

@@ -348,7 +348,10 @@ class DiagnosticObserver:
         upper, lower = frozenset(self.components[:n]), frozenset(self.components[n:])
         coupled = lower if self.residual_space == "state" else frozenset()   # M̂⁻¹ couples the velocity rows
         sigs = [Signature(names[i], frozenset([self.components[n + i]]), upper | coupled) for i in range(n)]
-        sigs += [Signature(f"{names[i]}_pos", frozenset([self.components[i]]), lower) for i in range(n)]
+        for i in range(n):
+            # eq. (48): with backward-difference velocities a position fault necessarily enters velocity row i
+            required = {self.components[i]} | ({self.components[n + i]} if self.velocity == "backward_difference" else set())
+            sigs.append(Signature(f"{names[i]}_pos", frozenset(required), lower))
         return sigs
 
     @property

@@ -98,7 +98,7 @@ def calibration_trajectories(scenario: ArmScenario) -> dict[str, Sequence]:
 def _loop(scenario: ArmScenario, reference, faults=(), diagnoses=None, sim=None, model=None) -> ClosedLoop:
     sim = sim or scenario.simulator()
     model = model or sim.nominal_model(replace(scenario.mismatch, seed=scenario.seed))
-    controller = ComputedTorque(model, torque_limit=sim.torque_limit)
+    controller = ComputedTorque(model, torque_limit=model.torque_limit)
     injector = FaultInjector(list(faults), sim.actuators, sim.sensor_channels, seed=scenario.seed)
     return ClosedLoop(sim, controller, reference, injector, diagnoses or {}, scenario.rates, scenario.injection)
 
