@@ -164,8 +164,8 @@ def main(argv=None) -> int:
     n, T = model.n, scenario.settings.T
     skip = int(np.ceil(0.010 / T))
     simple = diagnose_record(record, Diagnosis(DiagnosticObserver(model, T, residual_space="state")))
-    theta0 = ripple_initial_parameters(record.signals["y_diag"][::ratio][skip:, :n], simple.residual[skip:, n:])
-    y_all, u_all = record.signals["y_diag"], record.signals["u_diag"]
+    theta0 = ripple_initial_parameters(record.signals["y_meas"][::ratio][skip:, :n], simple.residual[skip:, n:])
+    y_all, u_all = record.signals["y_meas"], record.signals["u_diag"]
     # diagnoser samples k: y = y(k·ratio), ū = mean of the commands over the interval that just ended
     feed = [(y_all[j], np.mean(u_all[j - ratio:j], axis=0)) for j in range(ratio, len(y_all), ratio)]
 

@@ -134,10 +134,10 @@ class DiagnosisRunner:
 
 
 def diagnose_record(record: Record, diagnosis: Diagnosis, rates: Rates | None = None) -> DiagnoserTrace:
-    """Run a diagnosis offline over a record's diagnoser view (signals ``y_diag`` and ``u_diag``)."""
+    """Run a diagnosis offline over a record's diagnoser view (signals ``y_meas`` — the measurement after sensor faults — and ``u_diag``)."""
     rates = rates or Rates(**{k: record.rates[k] for k in ("control_hz", "diagnosis_hz", "input_hold")})
     runner = DiagnosisRunner(diagnosis, rates)
-    y, u = record.signals["y_diag"], record.signals["u_diag"]
+    y, u = record.signals["y_meas"], record.signals["u_diag"]
     for j, t in enumerate(record.time):
         runner.push(j, float(t), y[j], u[j - 1] if j else np.zeros_like(u[0]))
     return runner.trace()
@@ -186,7 +186,7 @@ class ClosedLoop:
         sim, inj = self.simulator, self.injector
         runners = {name: DiagnosisRunner(d, self.rates) for name, d in self.diagnoses.items()}
         inj.reset()
-        rows: dict[str, list] = {k: [] for k in ("time", "state", "u_cmd", "u", "y_true", "y_diag", "u_diag", "q_ref")}
+        rows: dict[str, list] = {k: [] for k in ("time", "state", "u_cmd", "u", "y_true", "y_meas", "u_diag", "q_ref")}
         labels: dict[str, tuple[list, list]] = {name: ([], []) for name in inj.label_names}
 
         def record() -> Record:
@@ -224,7 +224,7 @@ class ClosedLoop:
                 rows["u_cmd"].append(u_cmd)
                 rows["u"].append(u_plant)
                 rows["y_true"].append(y)
-                rows["y_diag"].append(y_faulty)
+                rows["y_meas"].append(y_faulty)
                 rows["u_diag"].append(u_diag)
                 rows["q_ref"].append(ref[0])
                 for name, (active, value) in inj.labels.items():

@@ -59,9 +59,9 @@ def test_same_seed_same_record_other_seed_other_record(ch3):
     noisy = dict(sensors=replace(_short().sensors, velocity_noise=1e-4))
     a, b = (run_scenario(_short(seed=3, **noisy), cal) for _ in range(2))
     c = run_scenario(_short(seed=4, **noisy), cal)
-    np.testing.assert_array_equal(a.signals["y_diag"], b.signals["y_diag"])
+    np.testing.assert_array_equal(a.signals["y_meas"], b.signals["y_meas"])
     np.testing.assert_array_equal(a.diagnosers["recursive"].residual, b.diagnosers["recursive"].residual)
-    assert not np.array_equal(a.signals["y_diag"], c.signals["y_diag"])
+    assert not np.array_equal(a.signals["y_meas"], c.signals["y_meas"])
 
 
 class _BrokenEncoder(ArmSimulator):

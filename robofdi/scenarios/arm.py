@@ -142,7 +142,7 @@ def calibrate(scenario: ArmScenario, records: dict[str, Record]) -> Calibration:
     ratio = scenario.rates.ratio
     first = next(iter(records.values()))
     simple = diagnose_record(first, Diagnosis(DiagnosticObserver(model, T, residual_space="state")))
-    theta0 = ripple_initial_parameters(first.signals["y_diag"][::ratio][skip:, :n], simple.residual[skip:, n:])
+    theta0 = ripple_initial_parameters(first.signals["y_meas"][::ratio][skip:, :n], simple.residual[skip:, n:])
     thresholds = {}
     for name in scenario.schemes:
         residuals = []
