@@ -134,7 +134,8 @@ class DiagnosisRunner:
 
 
 def diagnose_record(record: Record, diagnosis: Diagnosis, rates: Rates | None = None) -> DiagnoserTrace:
-    """Run a diagnosis offline over a record's diagnoser view (signals ``y_meas`` — the measurement after sensor faults — and ``u_diag``)."""
+    """Run a diagnosis offline over a record's diagnoser view: signals ``y_meas`` (the measurement after
+    sensor faults) and ``u_diag`` (the input the diagnosers are told)."""
     rates = rates or Rates(**{k: record.rates[k] for k in ("control_hz", "diagnosis_hz", "input_hold")})
     runner = DiagnosisRunner(diagnosis, rates)
     y, u = record.signals["y_meas"], record.signals["u_diag"]
