@@ -159,6 +159,15 @@ class ClosedLoop:
     def __post_init__(self):
         if self.injection not in ("online", "offline"):
             raise RobofdiError(f"ClosedLoop: field 'injection' must be 'online' or 'offline', got {self.injection!r}")
+        joints = getattr(self.simulator, "joint_names", None)
+        owners = [("controller", self.controller)] + [(f"diagnoser {k!r}", d.diagnoser) for k, d in self.diagnoses.items()]
+        for owner, part in owners:
+            model = getattr(part, "model", None)
+            if joints is not None and hasattr(model, "check_joints"):
+                try:
+                    model.check_joints(joints)
+                except RobofdiError as exc:
+                    raise RobofdiError(f"ClosedLoop: {owner}: {exc}") from None
         sim_dt = getattr(self.simulator, "control_dt", None)
         if sim_dt is not None and abs(sim_dt * self.rates.control_hz - 1.0) > 1e-9:
             raise RobofdiError(

@@ -88,6 +88,20 @@ def test_a_failing_run_keeps_what_it_recorded(ch3):
     assert len(rec.diagnosers["recursive"].time) >= 240
 
 
+def test_a_diagnoser_on_a_model_of_another_arm_is_rejected(ch3, tmp_path):
+    """A nominal model whose joints differ from the simulator's is refused when the loop is built."""
+    from robofdi import ASSETS
+    from robofdi.models import ManipulatorModel
+    from robofdi.observers import DiagnosticObserver
+
+    other = tmp_path / "other_arm.xml"
+    other.write_text((ASSETS / "arm6.xml").read_text().replace('"joint4"', '"wrist_roll"'))
+    wrong = DiagnosticObserver(ManipulatorModel(other), 0.002)
+    sc = _short()
+    with pytest.raises(RobofdiError, match="wrist_roll"):
+        _loop(sc, sc.reference(), diagnoses={"recursive": Diagnosis(wrong)})
+
+
 def test_fault_on_a_joint_the_arm_does_not_have_is_rejected():
     sc = _short(faults=(Fault("tau7", "actuator_additive", "joint7", onset=1.0, magnitude=10.0),))
     with pytest.raises(RobofdiError, match="joint7"):
