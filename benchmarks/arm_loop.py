@@ -47,7 +47,6 @@ import gc
 import statistics
 import sys
 import time
-from dataclasses import replace
 
 import mujoco
 import numpy as np
@@ -102,7 +101,7 @@ def bench(fn, number: int, repeats: int, setup=None) -> Timing:
 def build_loop(scenario: ArmScenario, diagnoser_names=(), theta0=None) -> ClosedLoop:
     """The loop of ``scenarios.arm._loop`` / ``run_scenario``: fault-free, online injection."""
     sim = scenario.simulator()
-    model = sim.nominal_model(replace(scenario.mismatch, seed=scenario.seed))
+    model = scenario.nominal_model(sim)
     controller = ComputedTorque(model, torque_limit=sim.torque_limit)
     injector = FaultInjector([], sim.actuators, sim.sensor_channels, seed=scenario.seed)
     diagnoses = {}

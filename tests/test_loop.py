@@ -28,7 +28,7 @@ def _short(seed=0, **kw):
 def test_offline_replay_of_a_record_equals_the_online_diagnosis(ch3):
     sc, cal = ch3
     rec = run_scenario(replace(_short(), faults=sc.faults), cal)
-    model = sc.simulator().nominal_model(replace(sc.mismatch, seed=sc.seed))
+    model = sc.nominal_model(sc.simulator())
     for name in ("recursive", "momentum"):
         offline = diagnose_record(rec, Diagnosis(arm_schemes(model, sc.settings, cal.theta0, [name])[name]))
         np.testing.assert_array_equal(offline.residual, rec.diagnosers[name].residual)

@@ -212,8 +212,7 @@ class Adaptive(_Estimating):
         if self._Z is None:
             return
         if self._q is None:                      # eqs. (37), (39) as printed
-            Z = self._Z
-            self.theta = self.theta + Z.T @ (self.step * np.linalg.solve(Z @ Z.T + self.Q, r))
+            self.theta = self.theta + self._Z.T @ (self.gain(self._Z) @ r)
             return
         # Same update with Q diagonal: Z Zᵀ + Q is diagonal (|z_j|² + q_j), so Γ_θ acts row by row.
         n, G, q = self.ripple.n, self._Z, self._q

@@ -21,7 +21,7 @@ from robofdi.control import ComputedTorque, Quintic, Sequence
 from robofdi.decision import ThresholdDecision, calibrate_thresholds
 from robofdi.faults import Fault, FaultInjector
 from robofdi.loop import ClosedLoop, Diagnosis, Rates, diagnose_record
-from robofdi.models import ModelMismatch
+from robofdi.models import ManipulatorModel, ModelMismatch
 from robofdi.observers import DiagnosticObserver
 from robofdi.observers.arm_schemes import SCHEMES, ArmSchemeSettings, arm_schemes
 from robofdi.observers.spectral import ripple_initial_parameters
@@ -74,6 +74,10 @@ class ArmScenario:
             payload=self.payload,
         )
 
+    def nominal_model(self, sim: ArmSimulator) -> ManipulatorModel:
+        """The diagnosers' belief: the simulator's MJCF read by Pinocchio, with this scenario's seeded errors."""
+        return sim.nominal_model(replace(self.mismatch, seed=self.seed))
+
     def reference(self) -> Quintic:
         return Quintic(self.q0, self.dq, self.motion_time)
 
@@ -97,7 +101,7 @@ def calibration_trajectories(scenario: ArmScenario) -> dict[str, Sequence]:
 
 def _loop(scenario: ArmScenario, reference, faults=(), diagnoses=None, sim=None, model=None) -> ClosedLoop:
     sim = sim or scenario.simulator()
-    model = model or sim.nominal_model(replace(scenario.mismatch, seed=scenario.seed))
+    model = model or scenario.nominal_model(sim)
     controller = ComputedTorque(model, torque_limit=model.torque_limit)
     injector = FaultInjector(list(faults), sim.actuators, sim.sensor_channels, seed=scenario.seed)
     return ClosedLoop(sim, controller, reference, injector, diagnoses or {}, scenario.rates, scenario.injection)
@@ -135,8 +139,7 @@ class Calibration:
 
 def calibrate(scenario: ArmScenario, records: dict[str, Record]) -> Calibration:
     """θ₀ from the first calibration run's simple residual, then thresholds per scheme (skip the first 10 ms)."""
-    sim = scenario.simulator()
-    model = sim.nominal_model(replace(scenario.mismatch, seed=scenario.seed))
+    model = scenario.nominal_model(scenario.simulator())
     n, T = model.n, scenario.settings.T
     skip = int(np.ceil(0.010 / T))
     ratio = scenario.rates.ratio
@@ -163,7 +166,7 @@ def calibrate(scenario: ArmScenario, records: dict[str, Record]) -> Calibration:
 def run_scenario(scenario: ArmScenario, calibration: Calibration, progress: Callable[[int], None] | None = None) -> Record:
     """The scenario's closed-loop run with every scheme and its threshold decision in the loop."""
     sim = scenario.simulator()
-    model = sim.nominal_model(replace(scenario.mismatch, seed=scenario.seed))
+    model = scenario.nominal_model(sim)
     diagnoses = {}
     for name, diagnoser in arm_schemes(model, scenario.settings, calibration.theta0, scenario.schemes).items():
         decision = ThresholdDecision(diagnoser.components, calibration.thresholds[name], diagnoser.signatures())
