@@ -7,5 +7,4 @@ __version__ = "0.1.0"
 ASSETS = Path(__file__).resolve().parents[1] / "assets"
 
 
-class RobofdiError(ValueError):
-    """Invalid input: the message names the field (or joint, file) and what was expected."""
+from robofdi.errors import RobofdiError  # noqa: E402

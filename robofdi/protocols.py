@@ -1,0 +1,120 @@
+"""The few interfaces everything plugs into (ARCHITECTURE.md, "The small set of interfaces").
+
+Truth and belief never mix: a :class:`Simulator` is the truth; a :class:`Diagnoser` is built from the
+simulator's ``nominal_model()`` (the belief) and sees only commands and measurements. :class:`robofdi.loop.ClosedLoop`
+is the only place where the two meet::
+
+    reference ─► Controller ─► u_cmd ─► Accommodation ─► u ─► actuator faults ─► Simulator.step (saturates,
+         ▲                                   ▲                                    reports u_applied)
+         │                                   └── Health (one diagnosis sample late, or the named oracle)
+         └──── y_meas ◄── sensor faults ◄── Simulator measurement
+                  └──► Diagnoser.update(y, u) ─► Residual ─► Decision.update ─► Alarms (+ identification)
+
+Every name a simulator exposes (actuators, sensor channels, components, state columns) is a fault target or a
+record column, and ``units`` gives the physical unit of each column, so the record and summary carry units.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+__all__ = ["Simulator", "Controller", "Reference", "Accommodation", "Diagnoser", "Decision", "Health"]
+
+
+@runtime_checkable
+class Simulator(Protocol):
+    """The plant (truth). One ``step`` advances one control period ``control_dt`` with u held (zero-order hold)."""
+
+    system: str                          # label of the plant, e.g. the MJCF model name
+    actuators: list[str]                 # names of the entries of u (actuator-fault targets)
+    sensor_channels: list[str]           # names of the entries of y (sensor-fault targets)
+    components: list[str]                # component-fault targets (e.g. "joint3", "payload")
+    component_kinds: Mapping[str, Sequence[str]]   # component fault kind -> the targets it may act on
+    state_names: list[str]               # names of the entries of ``state``
+    units: Mapping[str, Sequence[str]]   # "state", "u", "y" -> unit of each entry
+    control_dt: float                    # [s]
+    physics_dt: float                    # [s], from the model file
+    u_applied: np.ndarray                # what the plant really received in the last step (after saturation)
+    state: np.ndarray                    # the true state now
+
+    def reset(self, initial_state: Any = None, seed: np.random.SeedSequence | int | None = None) -> np.ndarray:
+        """Start a run (``initial_state`` None: the plant's own default); ``seed`` drives this run's sensor
+        noise. Returns the first measurement y."""
+
+    def step(self, u: np.ndarray) -> np.ndarray:
+        """Apply u (saturated to the actuator limits) for one control period; return the measurement y."""
+
+    def saturate(self, u: np.ndarray) -> np.ndarray:
+        """What the actuators can deliver of the command u (the static part of ``step``'s saturation)."""
+
+    def apply_component_fault(self, kind: str, target: str, value: float) -> None:
+        """Change component ``target`` by ``value`` (in the kind's unit) from its nominal value; 0 restores it."""
+
+    def nominal_model(self, mismatch: Any = None) -> Any:
+        """The belief a diagnoser gets: built from the model file, never from this simulator's state."""
+
+
+class Reference(Protocol):
+    """A reference signal: ``reference(t)`` is an array or a tuple of arrays (e.g. q_d, q̇_d, q̈_d)."""
+
+    def __call__(self, t: float) -> np.ndarray | tuple[np.ndarray, ...]: ...
+
+
+class Controller(Protocol):
+    """The nominal controller: measurement y and reference in, commanded input u_cmd out."""
+
+    def update(self, y: np.ndarray, reference: Any) -> np.ndarray: ...
+
+
+@dataclass(frozen=True)
+class Health:
+    """What the diagnosis believes about the plant at one diagnosis sample (or, for the oracle, the truth).
+
+    ``isolated``: the fault hypotheses isolated so far (actuator / sensor / component names);
+    ``estimate``: identified fault magnitude per isolated target, in the fault's own unit.
+    """
+
+    time: float = 0.0
+    isolated: tuple[str, ...] = ()
+    estimate: Mapping[str, float] = field(default_factory=dict)
+    source: str = ""
+
+
+HEALTHY = Health()
+
+
+class Accommodation(Protocol):
+    """Between controller and actuators: allocation, compensation, reconfiguration (identity when none)."""
+
+    def reset(self) -> None: ...
+
+    def update(self, u_cmd: np.ndarray, health: Health) -> np.ndarray: ...
+
+
+class Diagnoser(Protocol):
+    """A residual generator stepped sample by sample: ``update(y, u)`` with y = x̄(k) measured now and u = ū(k−1),
+    the input held over the interval that ended at sample k (no look-ahead)."""
+
+    components: list[str]                # names of the residual entries
+    estimate_components: list[str]       # names of the identification candidates (fault targets)
+    estimate_modes: list[str]            # per estimate entry: "level" or "increment"
+    units: Mapping[str, Sequence[str]]   # "residual", "estimate" -> unit of each entry
+
+    def reset(self) -> None: ...
+
+    def update(self, y: np.ndarray, u: np.ndarray) -> Any: ...          # -> robofdi.observers.Residual
+
+    def signatures(self) -> Sequence[Any]: ...                          # -> robofdi.decision.Signature
+
+
+class Decision(Protocol):
+    """Residual evaluation: alarms per component and the isolated hypothesis."""
+
+    threshold: np.ndarray
+
+    def reset(self) -> None: ...
+
+    def update(self, residual: np.ndarray) -> Any: ...                  # -> robofdi.decision.Alarms
