@@ -98,6 +98,8 @@ class Diagnoser(Protocol):
     """A residual generator stepped sample by sample: ``update(y, u)`` with y = x̄(k) measured now and u = ū(k−1),
     the input held over the interval that ended at sample k (no look-ahead)."""
 
+    inputs: list[str]                    # names of the entries of u it expects (the simulator's actuators)
+    measurements: list[str]              # names of the entries of y it expects (the simulator's sensor channels)
     components: list[str]                # names of the residual entries
     estimate_components: list[str]       # names of the identification candidates (fault targets)
     estimate_modes: list[str]            # per estimate entry: "level" or "increment"
