@@ -2,37 +2,46 @@
 
 One control tick j at time t_j = j / control_hz::
 
-    y_j ─► sensor faults ─► ȳ_j ─► controller (online) ─► u_cmd_j ─► actuator faults ─► u_j ─► plant (ZOH)
-                             └──► diagnosers every control_hz/diagnosis_hz ticks, with ū = the commands held
-                                  over the diagnosis interval that just ended (mean, or first, of them)
+    y_j ─► sensor faults ─► ȳ_j ─► controller ─► u_cmd_j ─► accommodation(health) ─► u_j ─► actuator faults ─► plant
+                             │                                   ▲                               (saturates: u_applied)
+                             └──► diagnosers every control_hz/diagnosis_hz ticks, with ū = the inputs u held over
+                                  the diagnosis interval that just ended (mean, or first, of them) ─► health,
+                                  used by the accommodation from the next diagnosis sample on (one sample late)
 
-``injection="online"``: faults act in the loop (the plant gets the faulty torque, the controller sees the
-faulty measurement). ``injection="offline"``: the run is fault-free and only the diagnosers' view is
-corrupted — the emulation of Caccavale & Villani Sec. 7 — with an actuator fault δu seen as
-ū = u − δu, so that u = ū + δu as in eq. (14).
+``injection="online"``: faults act in the loop (the plant gets the faulty input, the controller sees the faulty
+measurement, component faults change the plant). ``injection="offline"``: the run is fault-free and only the
+diagnosers' view is corrupted — the emulation of Caccavale & Villani Sec. 7. It is exact only where the actuator
+fault is invertible (the diagnosers are told ū with faulty(ū) = u, :meth:`FaultInjector.emulate`), so other kinds
+are refused at construction.
 
-The same :class:`DiagnosisRunner` steps a diagnoser online here and offline over a record
-(:func:`diagnose_record`), so both give the same residuals.
+Labels come from what the plant received: an actuator fault's value is its effect after saturation.
+The same :class:`DiagnosisRunner` steps a diagnoser online here and offline over a record (:func:`diagnose_record`).
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
-from robofdi import RobofdiError
 from robofdi.decision import Identification, ThresholdDecision
-from robofdi.faults import FaultInjector
+from robofdi.errors import RobofdiError
+from robofdi.faults import FAULT_KINDS, Fault, FaultInjector
+from robofdi.protocols import HEALTHY, Accommodation, Controller, Health, Reference, Simulator
 from robofdi.record import DiagnoserTrace, FaultLabels, Record
+from robofdi.seeding import stream
 
-__all__ = ["Rates", "Diagnosis", "DiagnosisRunner", "ClosedLoop", "RunAborted", "diagnose_record"]
+__all__ = ["Rates", "Diagnosis", "DiagnosisRunner", "ClosedLoop", "RunAborted", "diagnose_record", "ORACLE"]
+
+#: ``health_source`` of the oracle accommodation: health read from the fault labels (a bound, never a diagnosis).
+ORACLE = "oracle"
 
 
 @dataclass(frozen=True)
 class Rates:
     """Control and diagnosis rates [Hz]; the physics rate is the simulator's. ``input_hold``: how ū of a
-    diagnosis interval is formed from the control commands in it ("mean" or "first")."""
+    diagnosis interval is formed from the inputs in it ("mean" or "first")."""
 
     control_hz: float = 1000.0
     diagnosis_hz: float = 500.0
@@ -49,6 +58,12 @@ class Rates:
         if self.input_hold not in ("mean", "first"):
             raise RobofdiError(f"Rates: field 'input_hold' must be 'mean' or 'first', got {self.input_hold!r}")
 
+    @classmethod
+    def for_simulator(cls, sim: Simulator, diagnosis_hz: float | None = None, input_hold: str = "mean") -> Rates:
+        """The simulator's control rate, and ``diagnosis_hz`` (default: the control rate)."""
+        control_hz = 1.0 / sim.control_dt
+        return cls(control_hz, control_hz if diagnosis_hz is None else diagnosis_hz, input_hold)
+
     @property
     def ratio(self) -> int:
         return int(round(self.control_hz / self.diagnosis_hz))
@@ -62,10 +77,9 @@ class Rates:
 
 @dataclass
 class Diagnosis:
-    """A diagnoser (anything with ``update(y, u) -> Residual``, ``components``, ``estimate_components``,
-    ``estimate_modes``) and, optionally, its decision."""
+    """A diagnoser (:class:`robofdi.protocols.Diagnoser`) and, optionally, its decision."""
 
-    diagnoser: object
+    diagnoser: Any
     decision: ThresholdDecision | None = None
 
 
@@ -78,10 +92,10 @@ class RunAborted(RuntimeError):
 
 
 class DiagnosisRunner:
-    """Steps one diagnosis at the diagnosis rate from control-rate samples and keeps its trace."""
+    """Steps one diagnosis at the diagnosis rate from control-rate samples, keeps its trace and its health."""
 
-    def __init__(self, diagnosis: Diagnosis, rates: Rates):
-        self.diagnosis, self.rates = diagnosis, rates
+    def __init__(self, diagnosis: Diagnosis, rates: Rates, name: str = ""):
+        self.diagnosis, self.rates, self.name = diagnosis, rates, name
         d = diagnosis.diagnoser
         self.identification = Identification(d.estimate_components, d.estimate_modes)
         self.reset()
@@ -92,15 +106,16 @@ class DiagnosisRunner:
         if d.decision is not None:
             d.decision.reset()
         self.identification.reset()
+        self.health = HEALTHY
         self._inputs: list[np.ndarray] = []
         self._rows: dict[str, list] = {k: [] for k in ("time", "residual", "alarm", "isolated", "estimate")}
 
-    def push(self, j: int, t: float, y: np.ndarray, u_prev: np.ndarray) -> None:
-        """Control tick j at time t: y measured now, u_prev the command held over the tick that just ended
-        (zeros at the first tick, which only initialises the diagnoser)."""
+    def push(self, j: int, t: float, y: np.ndarray, u_prev: np.ndarray) -> bool:
+        """Control tick j at time t: y measured now, u_prev the input held over the tick that just ended
+        (zeros at the first tick, which only initialises the diagnoser). True when a diagnosis sample was taken."""
         self._inputs.append(u_prev)
         if j % self.rates.ratio:
-            return
+            return False
         u = sum(self._inputs) / len(self._inputs) if self.rates.input_hold == "mean" else self._inputs[0]
         self._inputs = []
         res = self.diagnosis.diagnoser.update(y, u)
@@ -110,12 +125,18 @@ class DiagnosisRunner:
             alarm, isolated = alarms.alarm, alarms.isolated
         else:
             alarm, isolated = np.zeros(res.r.size, dtype=bool), ()
+        estimate = self.identification.update(res.estimate, isolated)
         rows = self._rows
         rows["time"].append(t)
         rows["residual"].append(res.r)
         rows["alarm"].append(alarm)
         rows["isolated"].append("+".join(isolated))
-        rows["estimate"].append(self.identification.update(res.estimate, isolated))
+        rows["estimate"].append(estimate)
+        if isolated:
+            components = self.identification.components
+            self.health = Health(t, tuple(isolated), {c: float(estimate[i]) for i, c in enumerate(components)
+                                                      if c in isolated}, self.name)
+        return True
 
     def trace(self) -> DiagnoserTrace:
         d, rows = self.diagnosis, self._rows
@@ -130,6 +151,7 @@ class DiagnosisRunner:
             estimate=np.asarray(rows["estimate"], dtype=float).reshape(-1, e),
             components=list(d.diagnoser.components),
             estimate_components=list(d.diagnoser.estimate_components),
+            units={k: list(v) for k, v in getattr(d.diagnoser, "units", {}).items()},
         )
 
 
@@ -144,105 +166,158 @@ def diagnose_record(record: Record, diagnosis: Diagnosis, rates: Rates | None = 
     return runner.trace()
 
 
+def _label_unit(fault: Fault, sim: Simulator) -> str:
+    """Unit of a fault's label value: the kind's unit, "target" replaced by the target channel's unit."""
+    unit = FAULT_KINDS[fault.kind].unit
+    if "target" not in unit:
+        return unit
+    names, units = ((sim.actuators, sim.units.get("u")) if fault.family == "actuator"
+                    else (sim.sensor_channels, sim.units.get("y")))
+    target_unit = units[list(names).index(fault.target)] if units is not None else ""
+    return unit.replace("target", target_unit)
+
+
+def _flat(reference) -> np.ndarray:
+    if isinstance(reference, tuple):
+        return np.concatenate([np.atleast_1d(np.asarray(r, dtype=float)) for r in reference])
+    return np.atleast_1d(np.asarray(reference, dtype=float))
+
+
 @dataclass
 class ClosedLoop:
-    """Wires simulator, reference, controller, fault injector and diagnoses for one scenario."""
+    """Wires simulator, reference, controller, accommodation, faults and diagnoses for one scenario.
 
-    simulator: object
-    controller: object
-    reference: Callable[[float], tuple]
-    injector: FaultInjector
+    ``rates``: None = the simulator's control rate, diagnosis at the same rate. ``accommodation``: between the
+    controller and the actuator faults (None = identity). ``health_source``: whose health the accommodation
+    gets — a name in ``diagnoses``, or :data:`ORACLE` (the fault labels: a bound, not a diagnosis).
+    ``reference_columns`` / ``reference_units`` name the entries of the flattened reference in the record.
+    """
+
+    simulator: Simulator
+    controller: Controller
+    reference: Reference
+    faults: Sequence[Fault] = ()
     diagnoses: Mapping[str, Diagnosis] = field(default_factory=dict)
-    rates: Rates = field(default_factory=Rates)
+    rates: Rates | None = None
     injection: str = "online"
+    accommodation: Accommodation | None = None
+    health_source: str | None = None
+    reference_columns: Sequence[str] | None = None
+    reference_units: Sequence[str] | None = None
 
     def __post_init__(self):
+        sim = self.simulator
         if self.injection not in ("online", "offline"):
             raise RobofdiError(f"ClosedLoop: field 'injection' must be 'online' or 'offline', got {self.injection!r}")
-        joints = getattr(self.simulator, "joint_names", None)
-        owners = [("controller", self.controller)] + [(f"diagnoser {k!r}", d.diagnoser) for k, d in self.diagnoses.items()]
-        for owner, part in owners:
-            model = getattr(part, "model", None)
-            if joints is not None and hasattr(model, "check_joints"):
-                try:
-                    model.check_joints(joints)
-                except RobofdiError as exc:
-                    raise RobofdiError(f"ClosedLoop: {owner}: {exc}") from None
-        sim_dt = getattr(self.simulator, "control_dt", None)
-        if sim_dt is not None and abs(sim_dt * self.rates.control_hz - 1.0) > 1e-9:
+        if self.rates is None:
+            self.rates = Rates.for_simulator(sim)
+        if abs(sim.control_dt * self.rates.control_hz - 1.0) > 1e-9:
             raise RobofdiError(
-                f"ClosedLoop: rates.control_hz={self.rates.control_hz} does not match the simulator's control_dt={sim_dt}"
+                f"ClosedLoop: rates.control_hz={self.rates.control_hz} does not match the simulator's "
+                f"control period {sim.control_dt} s"
             )
+        for name, d in self.diagnoses.items():
+            for attr, names in (("inputs", sim.actuators), ("measurements", sim.sensor_channels)):
+                expected = getattr(d.diagnoser, attr, None)
+                if expected is not None and list(expected) != list(names):
+                    raise RobofdiError(
+                        f"ClosedLoop: diagnoser {name!r} expects {attr} {list(expected)}, the simulator has {list(names)}"
+                    )
+        if self.health_source is not None and self.health_source != ORACLE and self.health_source not in self.diagnoses:
+            raise RobofdiError(
+                f"ClosedLoop: field 'health_source' must be {ORACLE!r} or one of the diagnoses "
+                f"{sorted(self.diagnoses)}, got {self.health_source!r}"
+            )
+        # validates targets and kinds now, not after the first seconds of a run
+        injector = self._injector(0)
+        if self.injection == "offline":
+            injector.check_offline()
+
+    def _injector(self, seed) -> FaultInjector:
+        sim = self.simulator
+        return FaultInjector(self.faults, sim.actuators, sim.sensor_channels, stream(seed, "faults"),
+                             component_kinds=sim.component_kinds, saturate=sim.saturate)
 
     def run(
         self,
         duration: float,
-        q0: np.ndarray,
+        initial_state: Any = None,
         *,
-        system: str = "",
-        scenario: str = "",
         seed: int | None = None,
+        scenario: str = "",
         meta: dict | None = None,
-        progress: Callable[[int], None] | None = None,
+        progress=None,
     ) -> Record:
-        """Simulate ``duration`` seconds from rest at q0; return the labelled record.
+        """Simulate ``duration`` seconds from ``initial_state`` (None: the plant's default); return the record.
 
+        ``seed`` drives everything random in this run through independent streams (:mod:`robofdi.seeding`):
+        the sensors' noise (``stream(seed, "sensors")``) and each fault (``stream(seed, "faults")``).
         If anything fails part-way, :class:`RunAborted` carries the record of what was done so far.
         """
         if not (np.isfinite(duration) and duration > 0):
             raise RobofdiError(f"run: field 'duration' must be > 0 s, got {duration}")
-        dt = 1.0 / self.rates.control_hz
+        sim, rates = self.simulator, self.rates
+        dt = 1.0 / rates.control_hz
         steps = int(round(duration / dt))
-        sim, inj = self.simulator, self.injector
-        runners = {name: DiagnosisRunner(d, self.rates) for name, d in self.diagnoses.items()}
-        inj.reset()
-        rows: dict[str, list] = {k: [] for k in ("time", "state", "u_cmd", "u", "y_true", "y_meas", "u_diag", "q_ref")}
+        inj = self._injector(seed)
+        runners = {name: DiagnosisRunner(d, rates, name) for name, d in self.diagnoses.items()}
+        health_runner = runners.get(self.health_source)
+        oracle = self.health_source == ORACLE
+        accommodation = self.accommodation
+        if accommodation is not None and hasattr(accommodation, "reset"):
+            accommodation.reset()
+        online = self.injection == "online"
+        keys = ("time", "state", "u_applied", "reference", "u_cmd", "u", "u_diag", "y_true", "y_meas")
+        rows: dict[str, list] = {k: [] for k in keys}
         labels: dict[str, tuple[list, list]] = {name: ([], []) for name in inj.label_names}
+        fault_by_name = {f.name: f for f in self.faults}
 
         def record() -> Record:
-            return Record(
-                system=system,
-                scenario=scenario,
-                seed=seed,
-                rates=self.rates.as_dict(getattr(sim, "physics_dt", None)),
-                time=np.asarray(rows["time"], dtype=float),
-                truth_state=np.asarray(rows["state"], dtype=float),
-                faults={k: FaultLabels(np.asarray(a, dtype=bool), np.asarray(v, dtype=float)) for k, (a, v) in labels.items()},
-                signals={k: np.asarray(rows[k], dtype=float) for k in rows if k not in ("time", "state")},
-                diagnosers={name: r.trace() for name, r in runners.items()},
-                meta={"injection": self.injection, "duration": duration, **(meta or {})},
-            )
+            return self._record(rows, labels, runners, scenario, seed, duration, meta)
 
+        health = pending = HEALTHY
         try:
-            y = sim.reset(q0, seed=seed)
+            y = sim.reset(initial_state, seed=stream(seed, "sensors"))
             u_prev_diag = np.zeros(len(sim.actuators))
             for j in range(steps + 1):
                 t = j * dt
                 y_faulty = inj.sense(t, y)
-                y_ctrl = y_faulty if self.injection == "online" else y
+                sampled = False
                 for runner in runners.values():
-                    runner.push(j, t, y_faulty, u_prev_diag)
+                    sampled |= runner.push(j, t, y_faulty, u_prev_diag)
+                if sampled:      # health moves on one diagnosis sample late: no algebraic loop
+                    health = pending
+                    if health_runner is not None:
+                        pending = health_runner.health
+                if oracle:
+                    health = Health(t, tuple(fault_by_name[n].target for n, (a, _) in inj.labels.items() if a),
+                                    {fault_by_name[n].target: v for n, (a, v) in inj.labels.items() if a}, ORACLE)
                 ref = self.reference(t)
-                u_cmd = self.controller.update(y_ctrl, ref)
-                u_faulty = inj.actuate(t, u_cmd)
-                if self.injection == "online":
-                    u_plant, u_diag = u_faulty, u_cmd
+                u_cmd = self.controller.update(y_faulty if online else y, ref)
+                u = accommodation.update(u_cmd, health) if accommodation is not None else u_cmd
+                if online:
+                    u_plant, u_diag = inj.actuate(t, u), u
+                    for kind, target, value in inj.components(t):
+                        sim.apply_component_fault(kind, target, value)
                 else:
-                    u_plant, u_diag = u_cmd, 2.0 * u_cmd - u_faulty
+                    u_plant, u_diag = u, inj.emulate(t, u)
                 rows["time"].append(t)
                 rows["state"].append(sim.state)
+                rows["reference"].append(_flat(ref))
                 rows["u_cmd"].append(u_cmd)
-                rows["u"].append(u_plant)
+                rows["u"].append(u)
+                rows["u_diag"].append(u_diag)
                 rows["y_true"].append(y)
                 rows["y_meas"].append(y_faulty)
-                rows["u_diag"].append(u_diag)
-                rows["q_ref"].append(ref[0])
                 for name, (active, value) in inj.labels.items():
                     labels[name][0].append(active)
                     labels[name][1].append(value)
                 u_prev_diag = u_diag
                 if j < steps:
                     y = sim.step(u_plant)
+                    rows["u_applied"].append(sim.u_applied.copy())
+                else:
+                    rows["u_applied"].append(sim.saturate(u_plant))
                 if progress is not None:
                     progress(1)
         except KeyboardInterrupt:
@@ -253,13 +328,52 @@ class ClosedLoop:
             raise RunAborted(f"run failed at t = {t_fail:.3f} s: {exc}", _trim(record())) from exc
         return record()
 
+    def _record(self, rows, labels, runners, scenario, seed, duration, meta) -> Record:
+        sim = self.simulator
+        u_cols, u_units = list(sim.actuators), list(sim.units.get("u", [""] * len(sim.actuators)))
+        y_cols, y_units = list(sim.sensor_channels), list(sim.units.get("y", [""] * len(sim.sensor_channels)))
+        width = len(rows["reference"][0]) if rows["reference"] else 0
+        ref_cols = list(self.reference_columns) if self.reference_columns else [f"reference[{i}]" for i in range(width)]
+        columns = {"truth/state": list(sim.state_names), "truth/u_applied": u_cols, "signals/reference": ref_cols}
+        units = {"truth/state": list(sim.units.get("state", [])), "truth/u_applied": u_units,
+                 "signals/reference": list(self.reference_units or [""] * len(ref_cols))}
+        for key in ("u_cmd", "u", "u_diag"):
+            columns[f"signals/{key}"], units[f"signals/{key}"] = u_cols, u_units
+        for key in ("y_true", "y_meas"):
+            columns[f"signals/{key}"], units[f"signals/{key}"] = y_cols, y_units
+        faults = {f.name: f for f in self.faults}
+        n_u, n_y, n_x = len(u_cols), len(y_cols), len(sim.state_names)
+
+        def array(key, width):
+            return np.asarray(rows[key], dtype=float).reshape(-1, width)
+
+        return Record(
+            system=sim.system,
+            scenario=scenario,
+            seed=seed,
+            rates=self.rates.as_dict(sim.physics_dt),
+            time=np.asarray(rows["time"], dtype=float),
+            truth_state=array("state", n_x),
+            u_applied=array("u_applied", n_u),
+            faults={k: FaultLabels(np.asarray(a, dtype=bool), np.asarray(v, dtype=float), _label_unit(faults[k], sim))
+                    for k, (a, v) in labels.items()},
+            signals={"reference": array("reference", width), "u_cmd": array("u_cmd", n_u), "u": array("u", n_u),
+                     "u_diag": array("u_diag", n_u), "y_true": array("y_true", n_y), "y_meas": array("y_meas", n_y)},
+            diagnosers={name: r.trace() for name, r in runners.items()},
+            meta={"injection": self.injection, "duration": duration, "faults": [f.to_dict() for f in self.faults],
+                  "accommodation": type(self.accommodation).__name__ if self.accommodation is not None else None,
+                  "health_source": self.health_source, **(meta or {})},
+            columns=columns,
+            units=units,
+        )
+
 
 def _trim(rec: Record) -> Record:
     """Cut every series of a partial record to the length that all of them reached."""
-    n = min([len(rec.time), len(rec.truth_state)] + [len(v) for v in rec.signals.values()]
-            + [len(l.active) for l in rec.faults.values()] + [len(l.value) for l in rec.faults.values()])
-    rec.time, rec.truth_state = rec.time[:n], rec.truth_state[:n]
+    n = min([len(rec.time), len(rec.truth_state), len(rec.u_applied)] + [len(v) for v in rec.signals.values()]
+            + [len(lab.active) for lab in rec.faults.values()] + [len(lab.value) for lab in rec.faults.values()])
+    rec.time, rec.truth_state, rec.u_applied = rec.time[:n], rec.truth_state[:n], rec.u_applied[:n]
     rec.signals = {k: v[:n] for k, v in rec.signals.items()}
-    rec.faults = {k: FaultLabels(l.active[:n], l.value[:n]) for k, l in rec.faults.items()}
+    rec.faults = {k: FaultLabels(lab.active[:n], lab.value[:n], lab.unit) for k, lab in rec.faults.items()}
     rec.meta["aborted"] = True
     return rec

@@ -1,27 +1,29 @@
 """The run record: labelled time series of one closed-loop run, saved as HDF5.
 
-Layout (readable with plain h5py)::
+Layout (readable with plain h5py; every dataset carries ``units`` and ``columns`` attributes, JSON lists)::
 
-    /                      attrs: system, scenario, seed, rates (JSON), robofdi version, created, meta (JSON)
+    /                      attrs: system, scenario, seed, rates (JSON), robofdi version, meta (JSON)
     /time                  (N,)              control-rate time stamps [s]
     /truth/state           (N, nx)           true simulator state
-    /truth/faults/<name>/{active, value}     ground-truth labels per fault
-    /signals/<name>        (N, k)            u_cmd, u, y_meas, y_true, reference, ...
+    /truth/u_applied       (N, nu)           what the plant really received (after saturation)
+    /truth/faults/<name>/{active, value}     ground-truth labels per fault (value in the fault's unit)
+    /signals/<name>        (N, k)            reference, u_cmd, u, u_diag, y_meas, y_true
     /diagnosers/<name>/{time, residual, threshold, alarm, isolated, estimate}
-                           attrs: components (JSON list), estimate_components (JSON list)
 
 Diagnosers run at their own rate, so each carries its own ``time``.
-``load(path)`` returns a :class:`Record` equal to the one that was saved (round trip exact).
+``load(path)`` returns a :class:`Record` equal to the one that was saved (round trip exact). The file holds no
+wall-clock time, so the same seed gives a byte-identical file.
 """
 from __future__ import annotations
 
-import datetime as _dt
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import h5py
 import numpy as np
+
+from robofdi.errors import RobofdiError
 
 __all__ = ["FaultLabels", "DiagnoserTrace", "Record", "load"]
 
@@ -32,6 +34,7 @@ class FaultLabels:
 
     active: np.ndarray
     value: np.ndarray
+    unit: str = ""
 
 
 @dataclass
@@ -46,11 +49,16 @@ class DiagnoserTrace:
     estimate: np.ndarray                 # (M, e) identified fault magnitudes (0 before isolation)
     components: list[str] = field(default_factory=list)
     estimate_components: list[str] = field(default_factory=list)
+    units: dict[str, list[str]] = field(default_factory=dict)   # "residual", "estimate" -> unit per entry
 
 
 @dataclass
 class Record:
-    """One run: metadata, time, truth, signals and every diagnoser's output."""
+    """One run: metadata, time, truth, signals and every diagnoser's output.
+
+    ``columns`` and ``units`` map a dataset path ("truth/state", "truth/u_applied", "signals/u", ...) to the
+    name and the unit of each of its columns.
+    """
 
     system: str
     scenario: str
@@ -62,16 +70,32 @@ class Record:
     signals: dict[str, np.ndarray] = field(default_factory=dict)
     diagnosers: dict[str, DiagnoserTrace] = field(default_factory=dict)
     meta: dict = field(default_factory=dict)
+    u_applied: np.ndarray | None = None
+    columns: dict[str, list[str]] = field(default_factory=dict)
+    units: dict[str, list[str]] = field(default_factory=dict)
     version: str = ""
-    created: str = ""
 
     def __post_init__(self):
         if not self.version:
             from robofdi import __version__
 
             self.version = __version__
-        if not self.created:
-            self.created = _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+
+    def column(self, dataset: str, name: str) -> np.ndarray:
+        """One column of a dataset by name, e.g. ``record.column("signals/u", "joint3")``."""
+        names = self.columns.get(dataset)
+        if names is None or name not in names:
+            raise RobofdiError(f"record: dataset {dataset!r} has no column {name!r}; columns: {names}")
+        return self._dataset(dataset)[:, names.index(name)]
+
+    def _dataset(self, path: str) -> np.ndarray:
+        if path == "truth/state":
+            return self.truth_state
+        if path == "truth/u_applied":
+            return self.u_applied
+        if path.startswith("signals/"):
+            return self.signals[path.split("/", 1)[1]]
+        raise RobofdiError(f"record: unknown dataset {path!r}")
 
     def save(self, path: str | Path) -> Path:
         """Write the record to an HDF5 file (parents are created); returns the path."""
@@ -84,47 +108,74 @@ class Record:
                 seed=-1 if self.seed is None else int(self.seed),
                 rates=json.dumps(self.rates),
                 version=self.version,
-                created=self.created,
                 meta=json.dumps(self.meta),
             )
-            _put(f, "time", self.time)
-            _put(f, "truth/state", self.truth_state)
+            _put(f, "time", self.time, ["time"], ["s"])
+            for key in ("truth/state", "truth/u_applied") + tuple(f"signals/{k}" for k in self.signals):
+                data = self._dataset(key)
+                if data is not None:
+                    _put(f, key, data, self.columns.get(key), self.units.get(key))
             for name, lab in self.faults.items():
-                _put(f, f"truth/faults/{name}/active", lab.active)
-                _put(f, f"truth/faults/{name}/value", lab.value)
-            for name, arr in self.signals.items():
-                _put(f, f"signals/{name}", arr)
+                _put(f, f"truth/faults/{name}/active", lab.active, [name], ["1"])
+                _put(f, f"truth/faults/{name}/value", lab.value, [name], [lab.unit])
             for name, tr in self.diagnosers.items():
                 g = f.create_group(f"diagnosers/{name}")
-                for key in ("time", "residual", "threshold", "alarm", "estimate"):
-                    _put(g, key, getattr(tr, key))
+                ru, eu = tr.units.get("residual"), tr.units.get("estimate")
+                _put(g, "time", tr.time, ["time"], ["s"])
+                _put(g, "residual", tr.residual, tr.components, ru)
+                _put(g, "threshold", tr.threshold, tr.components, ru)
+                _put(g, "alarm", tr.alarm, tr.components, ["1"] * len(tr.components))
+                _put(g, "estimate", tr.estimate, tr.estimate_components, eu)
                 g["isolated"] = np.asarray(tr.isolated, dtype=object).astype(h5py.string_dtype())
+                g["isolated"].attrs.update(columns=json.dumps(["isolated"]), units=json.dumps([""]))
                 g.attrs["components"] = json.dumps(list(tr.components))
                 g.attrs["estimate_components"] = json.dumps(list(tr.estimate_components))
         return path
 
 
-def _put(group, name: str, data) -> None:
-    """Write one array, losslessly compressed when it is large enough to matter."""
+def _put(group, name: str, data, columns=None, units=None) -> None:
+    """Write one array with its column names and units, losslessly compressed when large enough to matter."""
     data = np.asarray(data)
     if data.size >= 1024:
-        group.create_dataset(name, data=data, compression="gzip", compression_opts=4, shuffle=True)
+        ds = group.create_dataset(name, data=data, compression="gzip", compression_opts=4, shuffle=True)
     else:
         group[name] = data
+        ds = group[name]
+    if not columns:
+        width = data.shape[1] if data.ndim == 2 else 1
+        columns = [f"{name.rsplit('/', 1)[-1]}[{i}]" for i in range(width)]
+    units = list(units) if units else [""] * len(columns)
+    ds.attrs["columns"] = json.dumps(list(columns))
+    ds.attrs["units"] = json.dumps(units)
+
+
+def _attr_list(ds, key: str) -> list[str]:
+    return json.loads(ds.attrs[key]) if key in ds.attrs else []
 
 
 def load(path: str | Path) -> Record:
     """Read a record written by :meth:`Record.save`."""
     path = Path(path)
     if not path.is_file():
-        raise FileNotFoundError(f"record file {str(path)!r} does not exist")
-    with h5py.File(path, "r") as f:
+        raise RobofdiError(f"record file {str(path)!r} does not exist")
+    try:
+        f = h5py.File(path, "r")
+    except OSError as exc:
+        raise RobofdiError(f"record file {str(path)!r} is not a readable HDF5 file: {exc}") from None
+    with f:
         seed = int(f.attrs["seed"])
         faults = {
-            name: FaultLabels(active=g["active"][()], value=g["value"][()])
+            name: FaultLabels(active=g["active"][()], value=g["value"][()], unit=(_attr_list(g["value"], "units") or [""])[0])
             for name, g in f.get("truth/faults", {}).items()
         }
-        signals = {name: ds[()] for name, ds in f.get("signals", {}).items()}
+        columns, units = {}, {}
+        datasets = {"truth/state": f["truth/state"]}
+        if "truth/u_applied" in f:
+            datasets["truth/u_applied"] = f["truth/u_applied"]
+        for name, ds in f.get("signals", {}).items():
+            datasets[f"signals/{name}"] = ds
+        for key, ds in datasets.items():
+            columns[key], units[key] = _attr_list(ds, "columns"), _attr_list(ds, "units")
         diagnosers = {}
         for name, g in f.get("diagnosers", {}).items():
             diagnosers[name] = DiagnoserTrace(
@@ -136,6 +187,7 @@ def load(path: str | Path) -> Record:
                 estimate=g["estimate"][()],
                 components=json.loads(g.attrs["components"]),
                 estimate_components=json.loads(g.attrs["estimate_components"]),
+                units={"residual": _attr_list(g["residual"], "units"), "estimate": _attr_list(g["estimate"], "units")},
             )
         return Record(
             system=str(f.attrs["system"]),
@@ -145,9 +197,11 @@ def load(path: str | Path) -> Record:
             time=f["time"][()],
             truth_state=f["truth/state"][()],
             faults=faults,
-            signals=signals,
+            signals={name: ds[()] for name, ds in f.get("signals", {}).items()},
             diagnosers=diagnosers,
             meta=json.loads(f.attrs["meta"]),
+            u_applied=f["truth/u_applied"][()] if "truth/u_applied" in f else None,
+            columns=columns,
+            units=units,
             version=str(f.attrs["version"]),
-            created=str(f.attrs["created"]),
         )

@@ -1,6 +1,7 @@
 """Residual evaluation: fixed thresholds calibrated on fault-free runs, and isolation by fault signatures."""
 from robofdi.decision.thresholds import calibrate_thresholds
 from robofdi.decision.identification import Identification
-from robofdi.decision.isolation import Alarms, Signature, ThresholdDecision
+from robofdi.decision.isolation import STARTUP_BLANKING, Alarms, Signature, ThresholdDecision, startup_samples
 
-__all__ = ["Identification", "calibrate_thresholds", "Signature", "Alarms", "ThresholdDecision"]
+__all__ = ["Identification", "calibrate_thresholds", "Signature", "Alarms", "ThresholdDecision", "STARTUP_BLANKING",
+           "startup_samples"]

@@ -8,7 +8,19 @@ import numpy as np
 
 from robofdi import RobofdiError
 
-__all__ = ["Signature", "Alarms", "ThresholdDecision"]
+__all__ = ["Signature", "Alarms", "ThresholdDecision", "STARTUP_BLANKING", "startup_samples"]
+
+#: Default start-up blanking [s]: no alarm, and no calibration sample, in the first 10 ms of a run.
+STARTUP_BLANKING = 0.010
+
+
+def startup_samples(sample_time: float, blanking: float = STARTUP_BLANKING) -> int:
+    """Number of diagnosis samples of period ``sample_time`` [s] inside the start-up blanking [s]."""
+    if not (np.isfinite(sample_time) and sample_time > 0):
+        raise RobofdiError(f"sample_time: expected a positive sample time in s, got {sample_time}")
+    if not (np.isfinite(blanking) and blanking >= 0):
+        raise RobofdiError(f"blanking: expected a duration >= 0 s, got {blanking}")
+    return int(np.ceil(blanking / sample_time - 1e-9))
 
 
 def _component_set(value: Iterable[str], name: str) -> frozenset[str]:
@@ -66,12 +78,18 @@ class ThresholdDecision:
     Finally a pick is dropped when the other picks already explain all its required components
     (parsimony: a sensor fault that may raise every torque residual wins over the actuator faults it explains).
     With ``latch`` an isolated fault stays isolated for the rest of the run.
+
+    Start-up blanking: the first ``blanking`` samples after :meth:`reset` raise no alarm — the observer's
+    start-up transient. Calibration ignores the same samples (``calibrate_thresholds(skip=blanking)``), so the
+    threshold is never tested on samples it was not designed on; :func:`startup_samples` converts the
+    duration (default :data:`STARTUP_BLANKING` = 10 ms) into samples for both.
     """
 
     components: Sequence[str]
     threshold: np.ndarray
     signatures: Sequence[Signature]
     latch: bool = True
+    blanking: int = 0
     _isolated: list[str] = field(default_factory=list, init=False, repr=False)
 
     def __post_init__(self):
@@ -104,12 +122,15 @@ class ThresholdDecision:
                     f"signature {sig.fault!r}: component {unknown[0]!r} is not a residual component; "
                     f"expected one of {list(self.components)}"
                 )
+        if isinstance(self.blanking, bool) or not isinstance(self.blanking, (int, np.integer)) or self.blanking < 0:
+            raise RobofdiError(f"blanking: expected an integer number of samples >= 0, got {self.blanking!r}")
         self._index = {c: j for j, c in enumerate(self.components)}
         self.reset()
 
     def reset(self) -> None:
         """Forget everything isolated so far (start of a new run)."""
         self._isolated = []
+        self._samples = 0
 
     def update(self, residual: np.ndarray) -> Alarms:
         """One residual sample (m,) in, alarms and isolation out."""
@@ -122,6 +143,9 @@ class ThresholdDecision:
             j = bad[0]
             raise RobofdiError(f"residual: expected finite values, got {r[j]} at component {j} ({self.components[j]!r})")
         ratio = np.abs(r) / self.threshold
+        self._samples += 1
+        if self._samples <= self.blanking:
+            return Alarms(alarm=np.zeros(m, dtype=bool), isolated=tuple(self._isolated))
         alarm = ratio > 1.0
         picks = self._isolate(ratio, alarm)
         previous = list(self._isolated)

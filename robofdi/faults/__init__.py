@@ -1,5 +1,5 @@
-"""Fault models: time profiles, fault descriptions and the injector that applies them to u and y."""
-from robofdi.faults.fault import FAULT_KINDS, Fault
+"""Fault models: time profiles, fault descriptions and the injector that applies them to u, y and plant components."""
+from robofdi.faults.fault import FAULT_KINDS, Fault, FaultKind
 from robofdi.faults.injector import FaultInjector
 from robofdi.faults.profiles import (
     PROFILE_TYPES,
@@ -23,5 +23,6 @@ __all__ = [
     "profile_from_dict",
     "Fault",
     "FAULT_KINDS",
+    "FaultKind",
     "FaultInjector",
 ]

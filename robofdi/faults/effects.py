@@ -6,10 +6,9 @@ histories, random generator) until :meth:`Effect.reset`.
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
+from robofdi.errors import RobofdiError
 from robofdi.faults.fault import Fault
 
 __all__ = ["Effect", "make_effect"]
@@ -34,6 +33,10 @@ class Effect:
         """Faulty value at time t (only called while the fault is active)."""
         raise NotImplementedError
 
+    def inverse(self, t: float, y: float) -> float:
+        """The value x with apply(t, x) = y (offline emulation; only invertible kinds define it)."""
+        raise RobofdiError(f"Fault {self.fault.name!r}: kind {self.fault.kind!r} cannot be emulated offline")
+
     def p(self, t: float) -> float:
         return self.fault.profile(t - self.fault.onset)
 
@@ -45,11 +48,18 @@ class Additive(Effect):
         return x + self.fault.magnitude * self.p(t)
 
 
+    def inverse(self, t, y):
+        return y - self.fault.magnitude * self.p(t)
+
+
 class Drift(Effect):
-    """x + m*(t - onset) (actuator_drift, sensor_drift)."""
+    """x + m*(t - onset) (actuator_drift, sensor_drift; Step profile only)."""
 
     def apply(self, t, x):
         return x + self.fault.magnitude * (t - self.fault.onset)
+
+    def inverse(self, t, y):
+        return y - self.fault.magnitude * (t - self.fault.onset)
 
 
 class Gain(Effect):
@@ -62,9 +72,15 @@ class Gain(Effect):
     def apply(self, t, x):
         return x * (1.0 + self.sign * self.fault.magnitude * self.p(t))
 
+    def inverse(self, t, y):
+        gain = 1.0 + self.sign * self.fault.magnitude * self.p(t)
+        if gain <= 0.0:
+            raise RobofdiError(f"Fault {self.fault.name!r}: a total loss of effectiveness cannot be emulated offline")
+        return y / gain
+
 
 class Hold(Effect):
-    """Held at the value of the first active step (actuator_lock_in_place, sensor_freeze)."""
+    """Blends toward the value of the first active step: (1 − p)·x + p·x(onset) (actuator_lock_in_place, sensor_freeze)."""
 
     def reset(self):
         super().reset()
@@ -73,65 +89,29 @@ class Hold(Effect):
     def apply(self, t, x):
         if self.held is None:
             self.held = x
-        return self.held
+        p = self.p(t)
+        return x + p * (self.held - x)
 
 
 class Zero(Effect):
-    """Output 0 (actuator_float, sensor_dropout)."""
+    """Output (1 − p)·x, zero for a step (actuator_float, sensor_dropout)."""
 
     def apply(self, t, x):
-        return 0.0
+        return (1.0 - self.p(t)) * x
 
 
 class HardOver(Effect):
-    """Slews from the value at the first active step toward params['limit'] at params['rate'] units/s."""
+    """From the value at the first active step x₀ toward params['limit']: x₀ + p·(limit − x₀); a Ramp profile
+    gives the rate-limited slew of a real hard-over, a Step the jump."""
 
     def reset(self):
         super().reset()
-        self.value: float | None = None
-        self.t_last = self.fault.onset
+        self.start: float | None = None
 
     def apply(self, t, x):
-        limit = self.fault.params["limit"]
-        rate = self.fault.params.get("rate", math.inf)
-        if self.value is None:
-            self.value = x
-        dt = max(t - self.t_last, 0.0)
-        self.t_last = max(t, self.t_last)
-        if math.isinf(rate):
-            self.value = limit
-        else:
-            step = rate * dt
-            gap = limit - self.value
-            self.value = limit if abs(gap) <= step else self.value + math.copysign(step, gap)
-        return self.value
-
-
-class IntermittentAdd(Effect):
-    """x + m while on. Periodic pattern from params period/duty, or seeded random episodes if the fault has a seed."""
-
-    def reset(self):
-        super().reset()
-        self.period = self.fault.params.get("period", 0.5)
-        self.duty = self.fault.params.get("duty", 0.5)
-        self.random = self.fault.seed is not None
-        self.on = True
-        self.next_switch = self.fault.onset + self._draw(True) if self.random else math.inf
-
-    def _draw(self, on: bool) -> float:
-        mean = self.period * (self.duty if on else 1.0 - self.duty)
-        return float(self.rng.exponential(mean)) if mean > 0 else 0.0
-
-    def is_on(self, t: float) -> bool:
-        if not self.random:
-            return math.fmod(t - self.fault.onset, self.period) < self.duty * self.period
-        while t >= self.next_switch:
-            self.on = not self.on
-            self.next_switch += self._draw(self.on)
-        return self.on
-
-    def apply(self, t, x):
-        return x + self.fault.magnitude if self.is_on(t) else x
+        if self.start is None:
+            self.start = x
+        return self.start + self.p(t) * (self.fault.params["limit"] - self.start)
 
 
 class Noise(Effect):
@@ -142,16 +122,16 @@ class Noise(Effect):
 
 
 class Outliers(Effect):
-    """With probability params['probability'] per step, x ± m (random sign), seeded."""
+    """With probability params['probability'] per step, x ± m·p (random sign), seeded."""
 
     def apply(self, t, x):
         hit = self.rng.random() < self.fault.params["probability"]
         sign = 1.0 if self.rng.random() < 0.5 else -1.0  # drawn every step: stream independent of hits
-        return x + sign * self.fault.magnitude if hit else x
+        return x + sign * self.fault.magnitude * self.p(t) if hit else x
 
 
 class Delay(Effect):
-    """x(t - params['delay']), linearly interpolated in the recorded history; oldest sample before enough history."""
+    """x(t − delay·p), linearly interpolated in the recorded history; oldest sample before enough history."""
 
     def reset(self):
         super().reset()
@@ -165,7 +145,7 @@ class Delay(Effect):
                 self.values.pop()
         self.times.append(t)
         self.values.append(x)
-        # drop samples no longer needed: keep the last one at or before t - delay
+        # drop samples no longer needed: keep the last one at or before t - delay (the longest delay)
         horizon = t - self.fault.params["delay"]
         k = 0
         while k + 1 < len(self.times) and self.times[k + 1] <= horizon:
@@ -174,7 +154,14 @@ class Delay(Effect):
             del self.times[:k], self.values[:k]
 
     def apply(self, t, x):
-        return float(np.interp(t - self.fault.params["delay"], self.times, self.values))
+        return float(np.interp(t - self.fault.params["delay"] * self.p(t), self.times, self.values))
+
+
+class Level(Effect):
+    """The component's change from nominal, m·p (component faults; the simulator applies it)."""
+
+    def apply(self, t, x):
+        return x + self.fault.magnitude * self.p(t)
 
 
 _EFFECTS = {
@@ -184,7 +171,6 @@ _EFFECTS = {
     "actuator_lock_in_place": Hold,
     "actuator_float": Zero,
     "actuator_hard_over": HardOver,
-    "actuator_intermittent": IntermittentAdd,
     "sensor_bias": Additive,
     "sensor_drift": Drift,
     "sensor_freeze": Hold,
@@ -193,6 +179,8 @@ _EFFECTS = {
     "sensor_noise": Noise,
     "sensor_delay": Delay,
     "sensor_outliers": Outliers,
+    "component_friction": Level,
+    "component_mass": Level,
 }
 
 

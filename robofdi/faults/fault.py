@@ -9,7 +9,7 @@ from collections.abc import Mapping
 from robofdi import RobofdiError
 from robofdi.faults.profiles import Profile, Step, profile_from_dict
 
-__all__ = ["Fault", "FAULT_KINDS"]
+__all__ = ["Fault", "FaultKind", "FAULT_KINDS"]
 
 
 @dataclass(frozen=True)
@@ -22,29 +22,48 @@ class _ParamSpec:
 
 
 _LIMIT = _ParamSpec(lambda v: True, "a finite number", required=True)
-_RATE = _ParamSpec(lambda v: v > 0, "a finite number > 0 (units/s)")
-_PERIOD = _ParamSpec(lambda v: v > 0, "a finite number > 0 (s)")
-_DUTY = _ParamSpec(lambda v: 0 < v <= 1, "a finite number in (0, 1]")
 _DELAY = _ParamSpec(lambda v: v > 0, "a finite number > 0 (s)", required=True)
 _PROBABILITY = _ParamSpec(lambda v: 0 < v <= 1, "a finite number in (0, 1]", required=True)
 
-#: Fault kind -> allowed ``params`` (name -> spec). The prefix before "_" is the family.
-FAULT_KINDS: dict[str, dict[str, _ParamSpec]] = {
-    "actuator_additive": {},
-    "actuator_drift": {},
-    "actuator_loss_of_effectiveness": {},
-    "actuator_lock_in_place": {},
-    "actuator_float": {},
-    "actuator_hard_over": {"limit": _LIMIT, "rate": _RATE},
-    "actuator_intermittent": {"period": _PERIOD, "duty": _DUTY},
-    "sensor_bias": {},
-    "sensor_drift": {},
-    "sensor_freeze": {},
-    "sensor_dropout": {},
-    "sensor_scale": {},
-    "sensor_noise": {},
-    "sensor_delay": {"delay": _DELAY},
-    "sensor_outliers": {"probability": _PROBABILITY},
+
+@dataclass(frozen=True)
+class FaultKind:
+    """What a fault kind accepts and how it can be emulated.
+
+    profiles: "any" profile; "unit" — only profiles with p(s) in [0, 1] (the kind blends the nominal value into
+    the faulty one, out = (1 − p)·x + p·x_fault); "step" — only Step (the kind has its own time law).
+    offline: the effect on an actuator command is invertible, so a fault-free run can emulate it exactly
+    (the diagnosers are told ū with faulty(ū) = u).
+    unit: unit of ``magnitude`` ("target" = the unit of the target channel).
+    """
+
+    params: Mapping[str, _ParamSpec] = field(default_factory=dict)
+    profiles: str = "any"
+    offline: bool = False
+    unit: str = "target"
+    description: str = ""
+
+
+#: Fault kind -> its :class:`FaultKind`. The prefix before "_" is the family: actuator, sensor or component.
+FAULT_KINDS: dict[str, FaultKind] = {
+    "actuator_additive": FaultKind(offline=True, description="u + m·p (bias; intermittent with an Intermittent profile)"),
+    "actuator_drift": FaultKind(profiles="step", offline=True, unit="target/s", description="u + m·(t − onset)"),
+    "actuator_loss_of_effectiveness": FaultKind(profiles="unit", offline=True, unit="1",
+                                                description="u·(1 − m·p), m in [0, 1]"),
+    "actuator_lock_in_place": FaultKind(profiles="unit", description="held at its value at onset"),
+    "actuator_float": FaultKind(profiles="unit", description="zero output (1 − p)·u"),
+    "actuator_hard_over": FaultKind({"limit": _LIMIT}, profiles="unit",
+                                    description="u₀ + p·(limit − u₀); a Ramp profile rate-limits it"),
+    "sensor_bias": FaultKind(description="y + m·p"),
+    "sensor_drift": FaultKind(profiles="step", unit="target/s", description="y + m·(t − onset)"),
+    "sensor_freeze": FaultKind(profiles="unit", description="held at its value at onset"),
+    "sensor_dropout": FaultKind(profiles="unit", description="reads zero (1 − p)·y"),
+    "sensor_scale": FaultKind(unit="1", description="y·(1 + m·p)"),
+    "sensor_noise": FaultKind(description="y + N(0, (m·p)²), loss of accuracy"),
+    "sensor_delay": FaultKind({"delay": _DELAY}, profiles="unit", description="y(t − delay·p)"),
+    "sensor_outliers": FaultKind({"probability": _PROBABILITY}, description="y ± m·p with the given probability per sample"),
+    "component_friction": FaultKind(unit="1", description="joint friction × (1 + m·p) (friction rise)"),
+    "component_mass": FaultKind(unit="kg", description="m·p kg added to a body (damage, payload change)"),
 }
 
 
@@ -54,10 +73,11 @@ def _finite(x: Any) -> bool:
 
 @dataclass(frozen=True)
 class Fault:
-    """One fault on one actuator or sensor channel, active on [onset, end).
+    """One fault on one actuator, sensor channel or plant component, active on [onset, end).
 
     ``magnitude`` m and ``profile`` p(t - onset) set the size; ``params`` holds kind-specific
-    settings (see :data:`FAULT_KINDS`); ``seed`` fixes its randomness (None: derived from the injector seed).
+    settings (see :data:`FAULT_KINDS`); ``seed`` fixes its randomness (None: derived from the run's seed).
+    Every kind honours its profile or rejects, at construction, a profile it cannot use.
     """
 
     name: str
@@ -94,6 +114,17 @@ class Fault:
             )
         if not isinstance(self.profile, Profile):
             raise RobofdiError(f"{who}: field 'profile' must be a Profile, got {self.profile!r}")
+        accepts = FAULT_KINDS[self.kind].profiles
+        if accepts == "step" and not isinstance(self.profile, Step):
+            raise RobofdiError(
+                f"{who}: field 'profile' must be step for {self.kind} (it grows linearly by itself); "
+                f"for another shape use {self.family}_{'additive' if self.family == 'actuator' else 'bias'} with that profile"
+            )
+        if accepts == "unit" and not self.profile.unit_range:
+            raise RobofdiError(
+                f"{who}: field 'profile' must stay in [0, 1] for {self.kind} (step, exponential_rise, ramp or "
+                f"intermittent), got {self.profile.type_name}"
+            )
         if self.seed is not None and (not isinstance(self.seed, int) or isinstance(self.seed, bool) or self.seed < 0):
             raise RobofdiError(f"{who}: field 'seed' must be None or an integer >= 0, got {self.seed!r}")
         self._check_params(who)
@@ -107,7 +138,7 @@ class Fault:
     def _check_params(self, who: str) -> None:
         if not isinstance(self.params, Mapping):
             raise RobofdiError(f"{who}: field 'params' must be a mapping, got {self.params!r}")
-        specs = FAULT_KINDS[self.kind]
+        specs = FAULT_KINDS[self.kind].params
         unknown = sorted(set(self.params) - set(specs))
         if unknown:
             raise RobofdiError(
@@ -129,7 +160,7 @@ class Fault:
 
     @property
     def family(self) -> str:
-        """"actuator" or "sensor"."""
+        """"actuator", "sensor" or "component"."""
         return self.kind.split("_", 1)[0]
 
     def active(self, t: float) -> bool:

@@ -34,6 +34,7 @@ class Profile:
     """Base class: a shape p(s) of the fault over the elapsed time s >= 0 since onset."""
 
     type_name = ""  # serialised name, set by subclasses (class attribute, not a field)
+    unit_range = True  # p(s) stays in [0, 1] (class attribute)
 
     def __call__(self, s: float) -> float:  # pragma: no cover - abstract
         raise NotImplementedError
@@ -88,6 +89,7 @@ class Sinusoid(Profile):
     frequency: float
     phase: float = 0.0
     type_name = "sinusoid"
+    unit_range = False
 
     def __post_init__(self):
         _positive("Sinusoid", "frequency", self.frequency)

@@ -269,10 +269,17 @@ class DiagnosticObserver:
         self.estimator = estimator if estimator is not None else NoEstimate()
         self.velocity, self.eval_at, self.residual_space = velocity, eval_at, residual_space
         names = model.joint_names
+        self.inputs = list(names)
+        self.measurements = [f"{j}_pos" for j in names] + [f"{j}_vel" for j in names]
         self.components = [f"{j}_pos" for j in names] + (
             list(names) if residual_space == "torque" else [f"{j}_vel" for j in names]
         )
-        self.estimate_components = list(names) + [f"{j}_pos" for j in names]
+        # same order as the residual: the position-sensor candidates first, then the joint torques
+        self.estimate_components = [f"{j}_pos" for j in names] + list(names)
+        self.units = {
+            "residual": ["rad"] * n + (["N·m"] * n if residual_space == "torque" else ["rad/s"] * n),
+            "estimate": ["rad"] * n + ["N·m"] * n,
+        }
         self.reset()
 
     def reset(self) -> None:
@@ -332,7 +339,7 @@ class DiagnosticObserver:
             out = r
         # Position faults: f_s1(k) = δx1(k+1) − δx1(k) (eq. (19)), so the position rows of r₂₀ summed from the
         # isolation sample estimate δx1 (instead of x̄1 − x1d, which needs the reference; spec erratum 2–4).
-        return Residual(out, np.concatenate([tau_hat, r_model[:n]]), state_residual=r)
+        return Residual(out, np.concatenate([r_model[:n], tau_hat]), state_residual=r)
 
     def signatures(self):
         """Fault signatures of the residual: sensor i raises its position component and may raise the
@@ -356,4 +363,4 @@ class DiagnosticObserver:
     @property
     def estimate_modes(self) -> list[str]:
         """'level' components are read as they are; 'increment' ones are summed from the isolation sample."""
-        return ["level"] * self.n + ["increment"] * self.n
+        return ["increment"] * self.n + ["level"] * self.n

@@ -25,9 +25,12 @@ class MomentumObserver:
         if not (np.isfinite(gain) and 0 < gain * T < 1):
             raise RobofdiError(f"MomentumObserver: field 'gain' must be in (0, 1/T) = (0, {1 / T:g}), got {gain}")
         self.model, self.T, self.gain, self.n = model, float(T), float(gain), model.n
+        self.inputs = list(model.joint_names)
+        self.measurements = [f"{j}_pos" for j in model.joint_names] + [f"{j}_vel" for j in model.joint_names]
         self.components = list(model.joint_names)
         self.estimate_components = list(model.joint_names)
         self.estimate_modes = ["level"] * self.n
+        self.units = {"residual": ["N·m"] * self.n, "estimate": ["N·m"] * self.n}
         self.reset()
 
     def reset(self) -> None:
