@@ -244,6 +244,7 @@ class ClosedLoop:
         initial_state: Any = None,
         *,
         seed: int | None = None,
+        run_key: str = "run",
         scenario: str = "",
         meta: dict | None = None,
         progress=None,
@@ -251,7 +252,8 @@ class ClosedLoop:
         """Simulate ``duration`` seconds from ``initial_state`` (None: the plant's default); return the record.
 
         ``seed`` drives everything random in this run through independent streams (:mod:`robofdi.seeding`):
-        the sensors' noise (``stream(seed, "sensors")``) and each fault (``stream(seed, "faults")``).
+        the sensors' noise (``stream(seed, run_key, "sensors")``) and each fault (``stream(seed, run_key,
+        "faults")``). Runs with different ``run_key`` (e.g. calibration runs and test runs) never share noise.
         If anything fails part-way, :class:`RunAborted` carries the record of what was done so far.
         """
         if not (np.isfinite(duration) and duration > 0):
@@ -259,7 +261,7 @@ class ClosedLoop:
         sim, rates = self.simulator, self.rates
         dt = 1.0 / rates.control_hz
         steps = int(round(duration / dt))
-        inj = self._injector(seed)
+        inj = self._injector(stream(seed, run_key))
         runners = {name: DiagnosisRunner(d, rates, name) for name, d in self.diagnoses.items()}
         health_runner = runners.get(self.health_source)
         oracle = self.health_source == ORACLE
@@ -273,11 +275,11 @@ class ClosedLoop:
         fault_by_name = {f.name: f for f in self.faults}
 
         def record() -> Record:
-            return self._record(rows, labels, runners, scenario, seed, duration, meta)
+            return self._record(rows, labels, runners, scenario, seed, run_key, duration, meta)
 
         health = pending = HEALTHY
         try:
-            y = sim.reset(initial_state, seed=stream(seed, "sensors"))
+            y = sim.reset(initial_state, seed=stream(seed, run_key, "sensors"))
             u_prev_diag = np.zeros(len(sim.actuators))
             for j in range(steps + 1):
                 t = j * dt
@@ -328,7 +330,7 @@ class ClosedLoop:
             raise RunAborted(f"run failed at t = {t_fail:.3f} s: {exc}", _trim(record())) from exc
         return record()
 
-    def _record(self, rows, labels, runners, scenario, seed, duration, meta) -> Record:
+    def _record(self, rows, labels, runners, scenario, seed, run_key, duration, meta) -> Record:
         sim = self.simulator
         u_cols, u_units = list(sim.actuators), list(sim.units.get("u", [""] * len(sim.actuators)))
         y_cols, y_units = list(sim.sensor_channels), list(sim.units.get("y", [""] * len(sim.sensor_channels)))
@@ -362,7 +364,7 @@ class ClosedLoop:
             diagnosers={name: r.trace() for name, r in runners.items()},
             meta={"injection": self.injection, "duration": duration, "faults": [f.to_dict() for f in self.faults],
                   "accommodation": type(self.accommodation).__name__ if self.accommodation is not None else None,
-                  "health_source": self.health_source, **(meta or {})},
+                  "health_source": self.health_source, "run_key": run_key, **(meta or {})},
             columns=columns,
             units=units,
         )

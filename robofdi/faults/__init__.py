@@ -1,6 +1,7 @@
 """Fault models: time profiles, fault descriptions and the injector that applies them to u, y and plant components."""
 from robofdi.faults.fault import FAULT_KINDS, Fault, FaultKind
 from robofdi.faults.injector import FaultInjector
+from robofdi.faults.spec import SPEC_FORMAT, parse_fault_spec, parse_fault_specs
 from robofdi.faults.profiles import (
     PROFILE_TYPES,
     ExponentialRise,
@@ -25,4 +26,7 @@ __all__ = [
     "FAULT_KINDS",
     "FaultKind",
     "FaultInjector",
+    "SPEC_FORMAT",
+    "parse_fault_spec",
+    "parse_fault_specs",
 ]
