@@ -21,10 +21,13 @@ from pathlib import Path
 
 import numpy as np
 
-from robofdi.evaluate import results_table, summarize, write_summary
-from robofdi.evaluate.figures import plot_estimates, plot_residuals
+from robofdi.control import Quintic, Sequence
+from robofdi.errors import RobofdiError
+from robofdi.evaluate import results_table, summarize
+from robofdi.evaluate.run_folder import prepare_run_dir, write_run_folder
 from robofdi.faults import ExponentialRise, Fault
-from robofdi.scenarios.arm import ArmScenario, calibrate, calibration_records, calibration_trajectories, run_scenario
+from robofdi.loop import Rates
+from robofdi.scenarios.arm import ArmScenario, calibration, calibration_steps, check_faults, run_scenario
 
 Q0 = (np.pi / 2, -2 * np.pi / 3, np.pi / 6, -np.pi / 2, np.pi / 2, 0.0)
 DQ = (np.pi / 4, np.pi / 4, -np.pi / 4, 0.0, -np.pi / 2, np.pi / 2)
@@ -47,15 +50,33 @@ EXPERIMENTS = {
 BOOK_SCHEMES = ("time_delayed", "recursive", "adaptive")
 
 
-def scenario(name: str, seed: int = 0, **overrides) -> ArmScenario:
-    """The book's scenario ``name`` ("ch3-actuator" or "ch3-sensor"); keyword overrides go to ArmScenario."""
-    if name not in FAULTS:
-        from robofdi import RobofdiError
+def book_calibration(q0=Q0, dq=DQ, slow: float = 20.0) -> dict[str, Sequence]:
+    """The book's worst-case fault-free runs around the start pose (Sec. 6): low velocity q₀ → q₀ + Δq/4 and
+    back, ``slow`` s each way; high acceleration q₀ → q₀ + [−π/2, π/4, −π/3, π/2, −π/2, 0.9π] and back, 1.5 s
+    each. The book trajectory itself is not among them: the fault-free run then tests the thresholds."""
+    q0 = np.asarray(q0)
+    wide = np.array([-np.pi / 2, np.pi / 4, -np.pi / 3, np.pi / 2, -np.pi / 2, 0.9 * np.pi])
+    return {
+        "low_velocity": Sequence.through([q0, q0 + 0.25 * np.asarray(dq), q0], [slow, slow]),
+        "high_acceleration": Sequence.through([q0, q0 + wide, q0], [1.5, 1.5]),
+    }
 
+
+def scenario(name: str, seed: int = 0, calibration_low_velocity_time: float = 20.0, **overrides) -> ArmScenario:
+    """The book's scenario ``name`` ("ch3-actuator" or "ch3-sensor"); keyword overrides go to ArmScenario and
+    are checked at once (unknown fields, invalid values, fault targets)."""
+    if name not in FAULTS:
         raise RobofdiError(f"unknown experiment {name!r}; expected one of {sorted(FAULTS)}")
-    base = dict(q0=Q0, dq=DQ, duration=4.0, motion_time=4.0, faults=FAULTS[name], injection="offline", seed=seed)
+    fields = set(ArmScenario.__dataclass_fields__) - {"name"}
+    unknown = sorted(set(overrides) - fields)
+    if unknown:
+        raise RobofdiError(f"{name}: unknown override(s) {', '.join(unknown)}; expected ArmScenario fields {', '.join(sorted(fields))}")
+    base = dict(motion=Quintic(Q0, DQ, 4.0), duration=4.0, faults=FAULTS[name], injection="offline", seed=seed,
+                rates=Rates(1000.0, 500.0), calibration=book_calibration(slow=calibration_low_velocity_time))
     base.update(overrides)
-    return ArmScenario(name, **base)
+    sc = ArmScenario(name, **base)
+    check_faults(sc)
+    return sc
 
 
 def _fault_free_rms(record, name: str) -> float:
@@ -100,20 +121,20 @@ def reproduction(name: str, summary: dict, record, fault_free) -> list[dict]:
 
 
 def run(name: str, out: str | Path = "runs", seed: int = 0, progress: bool = True, replay: bool = True, **overrides):
-    """Calibrate, run fault-free and faulty, evaluate, plot; returns (summary, run folder)."""
+    """Calibrate (cached), run fault-free and faulty, evaluate, plot; returns (summary, run folder)."""
     from tqdm.auto import tqdm
 
     sc = scenario(name, seed, **overrides)
-    run_dir = Path(out) / f"{name}-seed{seed}"
-    run_dir.mkdir(parents=True, exist_ok=True)
-    sim_time = sum(r.end for r in calibration_trajectories(sc).values()) + 2 * sc.duration
-    steps = int(sim_time * sc.rates.control_hz)
-    with tqdm(total=steps, desc=f"{name}: simulate", unit="step", disable=not progress, leave=False) as bar:
-        records = calibration_records(sc, progress=bar.update)
-        bar.set_description(f"{name}: calibrate thresholds")
-        cal = calibrate(sc, records)
+    run_dir = prepare_run_dir(out, name, seed)
+    calibration_time = sum(r.end for r in sc.calibration.values())
+    rates = sc.rates
+    steps = calibration_steps(sc, calibration_time, rates) + int(2 * sc.run_duration * rates.control_hz)
+    with tqdm(total=steps, desc=f"{name}: calibrate", unit="step", disable=not progress, leave=False) as bar:
+        cal, cached = calibration(sc, progress=bar.update)
+        if cached:
+            bar.update(calibration_steps(sc, calibration_time, rates))
         bar.set_description(f"{name}: fault-free run")
-        fault_free = run_scenario(replace(sc, faults=()), cal, progress=bar.update)
+        fault_free = run_scenario(replace(sc, faults=()), cal, progress=bar.update, run_key="fault_free")
         bar.set_description(f"{name}: faulty run")
         record = run_scenario(sc, cal, progress=bar.update)
     faults = [f.to_dict() for f in sc.faults]
@@ -125,20 +146,12 @@ def run(name: str, out: str | Path = "runs", seed: int = 0, progress: bool = Tru
         "calibrated": {k: v.tolist() for k, v in cal.thresholds.items()},
         "state_space": {k: v.tolist() for k, v in cal.state_thresholds.items()},
         "book": BOOK_THRESHOLDS,
+        "units": {"calibrated": "rad (position rows), N·m (torque rows)",
+                  "state_space": "rad, rad/s per sample", "book": "rad, rad/s per sample"},
+        "calibration_cached": cached,
     }
     summary["reproduction"] = reproduction(name, summary, record, fault_free)
-    record.save(run_dir / "record.h5")
-    fault_free.save(run_dir / "fault_free.h5")
-    write_summary(summary, run_dir / "summary.json")
-    figures = run_dir / "figures"
-    figures.mkdir(exist_ok=True)
-    for d in record.diagnosers:
-        plot_residuals(record, d, figures / f"residuals_{d}.png")
-    plot_estimates(record, figures / "estimates.png")
-    if replay:
-        from viz import write_replay_html
-
-        write_replay_html(record, run_dir / "replay.html")
+    write_run_folder(run_dir, record, summary, {"fault_free": fault_free}, replay=replay)
     return summary, run_dir
 
 

@@ -155,14 +155,18 @@ class DiagnosisRunner:
         )
 
 
-def diagnose_record(record: Record, diagnosis: Diagnosis, rates: Rates | None = None) -> DiagnoserTrace:
+def diagnose_record(record: Record, diagnosis: Diagnosis, rates: Rates | None = None, progress=None) -> DiagnoserTrace:
     """Run a diagnosis offline over a record's diagnoser view: signals ``y_meas`` (the measurement after
-    sensor faults) and ``u_diag`` (the input the diagnosers are told)."""
+    sensor faults) and ``u_diag`` (the input the diagnosers are told). ``progress(k)`` is told every 1000 ticks."""
     rates = rates or Rates(**{k: record.rates[k] for k in ("control_hz", "diagnosis_hz", "input_hold")})
     runner = DiagnosisRunner(diagnosis, rates)
     y, u = record.signals["y_meas"], record.signals["u_diag"]
     for j, t in enumerate(record.time):
         runner.push(j, float(t), y[j], u[j - 1] if j else np.zeros_like(u[0]))
+        if progress is not None and j % 1000 == 999:
+            progress(1000)
+    if progress is not None:
+        progress(len(record.time) % 1000)
     return runner.trace()
 
 

@@ -74,7 +74,7 @@ def test_fault_dict_round_trip_and_json():
          "profile": {"type": "exponential_rise", "tau": 0.002}}
     f = Fault.from_dict(d)
     assert f.profile == ExponentialRise(0.002) and f.magnitude == 60.0
-    g = Fault("h", "actuator_hard_over", "joint1", onset=0.5, end=2.0, params={"limit": 5, "rate": 2}, seed=3)
+    g = Fault("h", "actuator_hard_over", "joint1", onset=0.5, end=2.0, profile=Ramp(0.5), params={"limit": 5}, seed=3)
     for x in (f, g):
         assert Fault.from_dict(json.loads(json.dumps(x.to_dict()))) == x
     assert hash(g) == hash(Fault.from_dict(g.to_dict()))
@@ -109,7 +109,10 @@ def test_params_are_copied():
         (dict(params={"limit": 1.0}), "params"),
         (dict(kind="actuator_hard_over"), "limit"),
         (dict(kind="actuator_hard_over", params={"limit": float("nan")}), "limit"),
-        (dict(kind="actuator_hard_over", params={"limit": 1.0, "rate": 0.0}), "rate"),
+        (dict(kind="actuator_hard_over", params={"limit": 1.0, "rate": 2.0}), "rate"),
+        (dict(kind="actuator_drift", profile=ExponentialRise(1.0)), "profile"),
+        (dict(kind="actuator_lock_in_place", profile=Sinusoid(1.0)), "profile"),
+        (dict(kind="sensor_delay", target="q1", params={"delay": 0.1}, profile=Sinusoid(2.0)), "profile"),
         (dict(kind="sensor_outliers", target="q1", params={"probability": 0.0}), "probability"),
         (dict(kind="sensor_delay", target="q1"), "delay"),
         (dict(seed=-1), "seed"),
@@ -236,8 +239,8 @@ def test_lock_and_freeze_hold_onset_value(kind, target):
     assert labels[2][1] == pytest.approx(10.0 * ONSET - 15.0)
 
 
-def test_hard_over_slews_at_rate_to_limit():
-    f = Fault("h", "actuator_hard_over", "joint1", onset=1.0, params={"limit": 5.0, "rate": 2.0})
+def test_hard_over_slews_along_a_ramp_to_limit():
+    f = Fault("h", "actuator_hard_over", "joint1", onset=1.0, profile=Ramp(2.0), params={"limit": 5.0})
     inj = injector(f)
     times = np.arange(0.0, 4.0001, 0.01)
     out = np.array([inj.actuate(t, U)[0] for t in times])  # U[0] = 1
@@ -246,30 +249,29 @@ def test_hard_over_slews_at_rate_to_limit():
     np.testing.assert_allclose(out[slewing], 1.0 + 2.0 * (times[slewing] - 1.0), atol=1e-9)
     assert np.all(out[times >= 3.0 - 1e-9] == 5.0)
     assert inj.labels["h"] == (True, 4.0)
-    # without rate: jumps to the limit at once; works downwards too
+    # with a step: jumps to the limit at once; works downwards too
     g = Fault("g", "actuator_hard_over", "joint1", onset=1.0, params={"limit": -3.0})
     inj = injector(g)
     assert inj.actuate(0.9, U)[0] == 1.0 and inj.actuate(1.0, U)[0] == -3.0
 
 
 def test_hard_over_recovers_after_end():
-    f = Fault("h", "actuator_hard_over", "joint1", onset=ONSET, end=END, params={"limit": 5.0, "rate": 1.0})
+    f = Fault("h", "actuator_hard_over", "joint1", onset=ONSET, end=END, profile=Ramp(4.0), params={"limit": 5.0})
     outs, labels, noms = run(f)
     check_window(outs, labels, noms)
     assert outs[2] == pytest.approx(1.5)
 
 
-def test_intermittent_periodic_pattern():
-    f = Fault("i", "actuator_intermittent", "joint1", onset=1.0, magnitude=2.0, params={"period": 0.4, "duty": 0.25})
+def test_intermittent_is_a_profile():
+    f = Fault("i", "actuator_additive", "joint1", onset=1.0, magnitude=2.0, profile=Intermittent(0.4, 0.25))
     inj = injector(f)
     for t in (0.5, 1.0, 1.05, 1.15, 1.3, 1.41, 1.55):
         out = inj.actuate(t, U)[0]
         on = t >= 1.0 and ((t - 1.0) % 0.4) < 0.1
         assert out == pytest.approx(U[0] + (2.0 if on else 0.0)), t
         assert inj.labels["i"][1] == pytest.approx(2.0 if on else 0.0)
-    default = Fault("d", "actuator_intermittent", "joint1", onset=0.0, magnitude=1.0)
-    inj = injector(default)  # period 0.5, duty 0.5
-    assert [inj.actuate(t, U)[0] - U[0] for t in (0.0, 0.2, 0.3, 0.5, 0.8)] == pytest.approx([1, 1, 0, 1, 0])
+    with pytest.raises(RobofdiError, match="unknown kind 'actuator_intermittent'"):
+        Fault("d", "actuator_intermittent", "joint1", onset=0.0, magnitude=1.0)
 
 
 def _series(fault, seed=0, n=400, dt=0.01):
@@ -282,8 +284,6 @@ def _series(fault, seed=0, n=400, dt=0.01):
 STOCHASTIC = [
     dict(name="n", kind="sensor_noise", target="q2", onset=1.0, magnitude=0.05),
     dict(name="o", kind="sensor_outliers", target="q2", onset=1.0, magnitude=1.0, params={"probability": 0.2}),
-    dict(name="i", kind="actuator_intermittent", target="joint2", onset=1.0, magnitude=1.0,
-         params={"period": 0.3, "duty": 0.4}),
 ]
 
 
@@ -319,9 +319,6 @@ def test_noise_and_outlier_statistics():
     assert set(np.round(np.unique(d), 12)) <= {-1.0, 0.0, 1.0}
     assert np.mean(d != 0) == pytest.approx(0.2, abs=0.03)
     assert np.any(d > 0) and np.any(d < 0)
-    i, _ = _series(Fault("i", "actuator_intermittent", "joint2", onset=0.0, magnitude=1.0,
-                         params={"period": 0.2, "duty": 0.3}, seed=1), n=20000)
-    assert np.mean(i - U[1]) == pytest.approx(0.3, abs=0.06)
 
 
 def test_sensor_delay_returns_delayed_value():
@@ -364,6 +361,100 @@ def test_reset_clears_held_values_and_labels():
 
 def test_every_kind_is_covered():
     covered = {"actuator_additive", "actuator_drift", "actuator_loss_of_effectiveness", "actuator_lock_in_place",
-               "actuator_float", "actuator_hard_over", "actuator_intermittent", "sensor_bias", "sensor_drift",
-               "sensor_freeze", "sensor_dropout", "sensor_scale", "sensor_noise", "sensor_delay", "sensor_outliers"}
+               "actuator_float", "actuator_hard_over", "sensor_bias", "sensor_drift",
+               "sensor_freeze", "sensor_dropout", "sensor_scale", "sensor_noise", "sensor_delay", "sensor_outliers",
+               "component_friction", "component_mass"}
     assert set(FAULT_KINDS) == covered
+
+
+# --- profiles honoured by every kind, offline emulation, saturation, components ----------------------------
+
+@pytest.mark.parametrize(
+    "kind, target, expected",
+    [
+        ("actuator_lock_in_place", "joint2", lambda x, x0, p: x + p * (x0 - x)),
+        ("actuator_float", "joint2", lambda x, x0, p: (1 - p) * x),
+        ("sensor_freeze", "q3", lambda x, x0, p: x + p * (x0 - x)),
+        ("sensor_dropout", "q3", lambda x, x0, p: (1 - p) * x),
+        ("actuator_loss_of_effectiveness", "joint2", lambda x, x0, p: x * (1 - 0.8 * p)),
+    ],
+)
+def test_blending_kinds_follow_their_profile(kind, target, expected):
+    """A seizing joint or a fading sensor: the nominal value blends into the faulty one along p(t − onset)."""
+    tau = 0.2
+    f = Fault("f", kind, target, onset=1.0, magnitude=0.8 if "effectiveness" in kind else 0.0, profile=ExponentialRise(tau))
+    ramp = lambda t: np.full(6, 3.0 + 2.0 * t)  # noqa: E731 - nominal changes every step
+    times = [0.5, 1.0, 1.1, 1.3, 2.0]
+    outs, _, noms = run(f, times=times, nominal=ramp)
+    x0 = 3.0 + 2.0 * 1.0
+    for k, t in enumerate(times):
+        p = 1 - math.exp(-(t - 1.0) / tau) if t >= 1.0 else None
+        assert outs[k] == pytest.approx(noms[k] if p is None else expected(noms[k], x0, p)), t
+
+
+def test_delay_grows_with_its_profile_and_outliers_scale():
+    f = Fault("d", "sensor_delay", "q1", onset=1.0, profile=Ramp(1.0), params={"delay": 0.2})
+    inj = injector(f)
+    for k in range(300):
+        t = k * 0.01
+        out = inj.sense(t, np.full(6, 2.0 * t))[0]
+    # at t = 2.99 the delay is 0.2 (ramp complete); at 1.5 it was 0.1
+    assert out == pytest.approx(2.0 * (2.99 - 0.2))
+    g = Fault("o", "sensor_outliers", "q1", onset=0.0, magnitude=1.0, profile=Ramp(10.0), params={"probability": 1.0}, seed=2)
+    inj = injector(g)
+    d = [abs(inj.sense(t, Y)[0] - Y[0]) for t in (1.0, 5.0)]
+    assert d == pytest.approx([0.1, 0.5])
+
+
+@pytest.mark.parametrize("kind, magnitude, profile", [
+    ("actuator_additive", 7.0, ExponentialRise(0.05)),
+    ("actuator_drift", -3.0, Step()),
+    ("actuator_loss_of_effectiveness", 0.6, Ramp(0.5)),
+])
+def test_offline_emulation_is_exact_for_invertible_kinds(kind, magnitude, profile):
+    """Told ū, a plant with the fault would receive faulty(ū) = u, the command the fault-free plant really got."""
+    f = Fault("f", kind, "joint3", onset=1.0, magnitude=magnitude, profile=profile)
+    emulator, online = injector(f), injector(f)
+    for t in np.arange(0.0, 3.0, 0.01):
+        u = U * (1 + t)
+        u_diag = emulator.emulate(t, u)
+        np.testing.assert_allclose(online.actuate(t, u_diag), u, rtol=1e-12, atol=1e-12)
+        assert emulator.labels["f"][1] == pytest.approx(u[2] - u_diag[2])
+        assert emulator.labels["f"][0] == (t >= 1.0)
+
+
+@pytest.mark.parametrize("kind", ["actuator_lock_in_place", "actuator_float", "actuator_hard_over", "component_mass"])
+def test_offline_refuses_what_it_cannot_emulate(kind):
+    params = {"limit": 1.0} if kind == "actuator_hard_over" else {}
+    target = "link3" if kind.startswith("component") else "joint3"
+    f = Fault("f", kind, target, onset=1.0, params=params)
+    inj = FaultInjector([f], JOINTS, SENSORS, component_kinds={"component_mass": ["link3"]})
+    with pytest.raises(RobofdiError, match=f"'f'.*{kind}.*offline.*online"):
+        inj.check_offline()
+
+
+def test_actuator_labels_measure_what_the_saturated_plant_received():
+    limit = np.full(6, 4.0)
+    f = Fault("f", "actuator_additive", "joint3", onset=0.0, magnitude=10.0)
+    inj = FaultInjector([f], JOINTS, SENSORS, saturate=lambda u: np.clip(u, -limit, limit))
+    out = inj.actuate(0.1, U)              # U[2] = 3: 3 + 10 clips to 4, so the plant got only +1
+    assert out[2] == 13.0                   # the faulty command itself is not clipped by the injector
+    assert inj.labels["f"] == (True, pytest.approx(1.0))
+    g = Fault("g", "actuator_additive", "joint3", onset=0.0, magnitude=-2.0)
+    inj = FaultInjector([g], JOINTS, SENSORS, saturate=lambda u: np.clip(u, -limit, limit))
+    inj.actuate(0.1, U)
+    assert inj.labels["g"] == (True, pytest.approx(-2.0))
+
+
+def test_component_faults_give_their_change_and_labels():
+    kinds = {"component_friction": ["joint2", "joint3"], "component_mass": ["link6", "payload"]}
+    f = Fault("fr", "component_friction", "joint3", onset=1.0, end=2.0, magnitude=1.5, profile=Ramp(0.5))
+    m = Fault("m", "component_mass", "payload", onset=0.5, magnitude=2.0)
+    inj = FaultInjector([f, m], JOINTS, SENSORS, component_kinds=kinds)
+    assert inj.components(0.2) == [("component_friction", "joint3", 0.0), ("component_mass", "payload", 0.0)]
+    assert inj.components(1.25) == [("component_friction", "joint3", pytest.approx(0.75)),
+                                    ("component_mass", "payload", 2.0)]
+    assert inj.labels == {"fr": (True, pytest.approx(0.75)), "m": (True, 2.0)}
+    assert inj.components(2.5)[0] == ("component_friction", "joint3", 0.0) and inj.labels["fr"] == (False, 0.0)
+    with pytest.raises(RobofdiError, match="'link9'.*link6, payload"):
+        FaultInjector([Fault("x", "component_mass", "link9", onset=0.0)], JOINTS, SENSORS, component_kinds=kinds)

@@ -39,7 +39,8 @@ def plot_residuals(record: Record, diagnoser: str, path: str | Path) -> Path:
         if hit.any():
             ax.plot(tr.time[hit], r[hit], ".", ms=2, color="C3")
         _onsets(ax, faults)
-        ax.set_ylabel(comp, fontsize=7)
+        unit = (tr.units.get("residual") or [""] * m)[j]
+        ax.set_ylabel(f"|{comp}| [{unit}]" if unit else comp, fontsize=7)
         ax.tick_params(labelsize=7)
         ax.set_yscale("log")
         ax.set_ylim(floor, max(r.max(), thr) * 2)
@@ -67,6 +68,7 @@ def plot_estimates(record: Record, path: str | Path, diagnosers=None) -> Path:
                 est = tr.estimate[:, tr.estimate_components.index(f["target"])]
                 ax.plot(tr.time, est, lw=0.9, color=f"C{i}", label=name)
         ax.set_title(f"{f['name']} ({f['kind']} on {f['target']})", fontsize=9)
+        ax.set_ylabel(f"fault [{lab.unit}]" if lab.unit else "fault", fontsize=8)
         ax.set_xlim(f["onset"] - 0.2, record.time[-1])
         ax.tick_params(labelsize=7)
         ax.legend(fontsize=7, ncol=3)

@@ -41,7 +41,7 @@ def summarize(
         raise RobofdiError(f"experiment: expected a non-empty name such as 'ch3-actuator', got {experiment!r}")
     windows = fault_windows(faults)
     names = list(record.diagnosers) if diagnosers is None else list(diagnosers)
-    clash = sorted(set(extra) & {"experiment", "system", "seed", "duration", "faults", "diagnosers"})
+    clash = sorted(set(extra) & {"experiment", "system", "seed", "duration", "faults", "diagnosers", "units"})
     if clash:
         raise RobofdiError(f"extra: {clash[0]!r} is a contract key of summary.json and cannot be overridden")
     summary = {
@@ -51,6 +51,11 @@ def summarize(
         "duration": _duration(record),
         "faults": [w.as_dict() for w in windows],
         "diagnosers": {n: evaluate_diagnoser(record, n, faults) for n in names},
+        "units": {
+            "duration": "s", "onset": "s", "end": "s", "time": "s", "delay": "s", "time_to_isolation": "s",
+            "first_false_alarm_time": "s", "false_alarms": "alarm episodes",
+            "estimate_rmse": {w.name: record.faults[w.name].unit if w.name in record.faults else "" for w in windows},
+        },
     }
     summary.update(extra)
     return summary

@@ -2,25 +2,34 @@
 
 The steps a scenario runs (each usable on its own):
 
-1. :func:`calibration_records` — fault-free closed-loop runs on worst-case trajectories (Caccavale & Villani
-   Sec. 6: very low velocities; high accelerations and wide displacements), checked to stay inside the
-   joint and torque limits.
+1. :func:`calibration_records` — fault-free closed-loop runs on worst-case motions (Caccavale & Villani Sec. 6:
+   very low velocities; high accelerations and wide displacements), derived from the robot's joint ranges and
+   torque limits (:func:`robofdi.control.calibration_motions`) unless the scenario gives its own, and checked to
+   stay inside the joint and torque limits. Their sensor noise comes from streams of their own (run keys
+   ``calibration/<name>``), never the test run's.
 2. :func:`calibrate` — the adaptive scheme's ripple parameters by spectral analysis, then per scheme the
-   thresholds ρ_i = margin · max |r_i| over the calibration runs (each diagnoser replayed offline).
-3. :func:`run_scenario` — the faulty closed-loop run with every diagnosis in the loop.
+   thresholds ρ_i = margin · max |r_i| over the calibration runs (each diagnoser replayed offline), ignoring the
+   same start-up samples the in-loop decision blanks. :func:`calibration` caches the result per robot and seed.
+3. :func:`run_scenario` — the scenario's closed-loop run with every diagnosis in the loop, optionally with
+   fault compensation fed by a diagnoser's health (or by the oracle, for a bound).
 """
 from __future__ import annotations
 
-from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+import hashlib
+import json
+import os
+from collections.abc import Callable, Mapping
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
-from robofdi import RobofdiError
-from robofdi.control import ComputedTorque, Quintic, Sequence
-from robofdi.decision import ThresholdDecision, calibrate_thresholds
+from robofdi.control import ComputedTorque, MotionLimits, calibration_motions
+from robofdi.decision import STARTUP_BLANKING, ThresholdDecision, calibrate_thresholds, startup_samples
+from robofdi.errors import RobofdiError
 from robofdi.faults import Fault, FaultInjector
-from robofdi.loop import ClosedLoop, Diagnosis, Rates, diagnose_record
+from robofdi.ftc import FaultCompensation
+from robofdi.loop import ORACLE, ClosedLoop, Diagnosis, Rates, diagnose_record
 from robofdi.models import ManipulatorModel, ModelMismatch
 from robofdi.observers import DiagnosticObserver
 from robofdi.observers.arm_schemes import SCHEMES, ArmSchemeSettings, arm_schemes
@@ -28,24 +37,36 @@ from robofdi.observers.spectral import ripple_initial_parameters
 from robofdi.record import Record
 from robofdi.sims import ArmSimulator, SensorModel, TorqueRipple
 
-__all__ = ["ArmScenario", "Calibration", "calibration_trajectories", "calibration_records", "calibrate", "run_scenario"]
+__all__ = ["ArmScenario", "Calibration", "calibration_trajectories", "calibration_records", "calibrate",
+           "calibration", "run_scenario", "cache_dir"]
+
+ACCOMMODATIONS = (None, "compensation")
 
 
 @dataclass(frozen=True)
 class ArmScenario:
-    """Everything that defines one arm run. ``seed`` draws the ripple phases, the nominal-model errors and
-    the sensor noise; the same seed gives the same record."""
+    """Everything that defines one arm run.
+
+    ``motion``: the reference, a trajectory giving (q_d, q̇_d, q̈_d) with an ``end`` [s]; the run starts at rest
+    at its first pose. ``duration`` None = motion end + 1 s. ``seed`` draws the robot's ripple phases and the
+    nominal-model errors, and the runs' sensor noise (each from its own stream); the same seed gives the same
+    record. ``rates`` None: control at the simulator's control period (≈ 1 kHz, a multiple of the physics step
+    of the file), diagnosis at 500 Hz where that divides the control rate, else at the control rate.
+    ``calibration``: fault-free calibration motions by name; None derives them from the robot.
+    ``accommodation``: None or "compensation" (subtract the identified actuator fault after isolation) with
+    health from ``health_source`` (a scheme name or "oracle").
+    """
 
     name: str
-    q0: tuple
-    dq: tuple
-    duration: float = 4.0
-    motion_time: float = 4.0
+    motion: object
+    duration: float | None = None
     faults: tuple = ()
     injection: str = "online"
     mjcf: str = "arm6.xml"
+    joints: tuple | None = None
+    torque_motors: bool = False
     seed: int = 0
-    rates: Rates = field(default_factory=Rates)
+    rates: Rates | None = None
     schemes: tuple = SCHEMES
     settings: ArmSchemeSettings = field(default_factory=ArmSchemeSettings)
     mismatch: ModelMismatch = field(default_factory=lambda: ModelMismatch(mass=0.02, inertia=0.02, damping=0.05))
@@ -53,133 +74,235 @@ class ArmScenario:
     sensors: SensorModel = field(default_factory=SensorModel)
     payload: float = 0.0
     threshold_margin: float = 1.2
-    calibration_low_velocity_time: float = 20.0
+    startup_blanking: float = STARTUP_BLANKING
+    calibration: Mapping | None = None
+    accommodation: str | None = None
+    health_source: str | None = None
 
     def __post_init__(self):
         if not all(isinstance(f, Fault) for f in self.faults):
             raise RobofdiError("ArmScenario: field 'faults' must hold Fault objects")
-        if int(self.seed) != self.seed or self.seed < 0:
+        object.__setattr__(self, "faults", tuple(self.faults))
+        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or self.seed < 0:
             raise RobofdiError(f"ArmScenario: field 'seed' must be an integer >= 0, got {self.seed!r}")
-        if abs(1.0 / self.rates.diagnosis_hz - self.settings.T) > 1e-12:
-            raise RobofdiError(
-                f"ArmScenario: settings.T={self.settings.T} must equal 1/rates.diagnosis_hz={1 / self.rates.diagnosis_hz}"
-            )
+        if not callable(self.motion) or not hasattr(self.motion, "end"):
+            raise RobofdiError("ArmScenario: field 'motion' must be a trajectory (callable t -> (q, q̇, q̈), with .end)")
+        if self.duration is not None and not (np.isfinite(self.duration) and self.duration > 0):
+            raise RobofdiError(f"ArmScenario: field 'duration' must be None or > 0 s, got {self.duration}")
+        unknown = [s for s in self.schemes if s not in SCHEMES]
+        if unknown:
+            raise RobofdiError(f"ArmScenario: field 'schemes' has unknown scheme(s) {unknown}; expected a subset of {list(SCHEMES)}")
+        if self.accommodation not in ACCOMMODATIONS:
+            raise RobofdiError(f"ArmScenario: field 'accommodation' must be one of {list(ACCOMMODATIONS)}, got {self.accommodation!r}")
+        if self.accommodation and self.health_source not in (*self.schemes, ORACLE):
+            raise RobofdiError(f"ArmScenario: field 'health_source' must be one of {[*self.schemes, ORACLE]} for "
+                               f"accommodation, got {self.health_source!r}")
+        for f in self.faults:
+            if f.onset >= self.run_duration:
+                raise RobofdiError(f"Fault {f.name!r}: onset {f.onset} s is not inside the run (duration {self.run_duration:g} s)")
+
+    @property
+    def run_duration(self) -> float:
+        return float(self.duration) if self.duration is not None else float(self.motion.end) + 1.0
+
+    @property
+    def start_pose(self) -> np.ndarray:
+        return np.asarray(self.motion(0.0)[0], dtype=float)
 
     def simulator(self) -> ArmSimulator:
-        return ArmSimulator(
-            self.mjcf,
-            control_dt=1.0 / self.rates.control_hz,
-            ripple=TorqueRipple(self.ripple_mode, seed=self.seed),
-            sensors=replace(self.sensors, seed=self.seed),
-            payload=self.payload,
-        )
+        """The truth: the MJCF in MuJoCo with this scenario's ripple, sensors and payload (robot seed)."""
+        control_dt = None if self.rates is None else 1.0 / self.rates.control_hz
+        return ArmSimulator(self.mjcf, joints=self.joints, control_dt=control_dt,
+                            ripple=TorqueRipple(self.ripple_mode), sensors=self.sensors, payload=self.payload,
+                            seed=self.seed, torque_motors=self.torque_motors)
 
     def nominal_model(self, sim: ArmSimulator) -> ManipulatorModel:
-        """The diagnosers' belief: the simulator's MJCF read by Pinocchio, with this scenario's seeded errors."""
+        """The diagnosers' belief: the same file read into Pinocchio, with this scenario's seeded errors."""
         return sim.nominal_model(replace(self.mismatch, seed=self.seed))
 
-    def reference(self) -> Quintic:
-        return Quintic(self.q0, self.dq, self.motion_time)
+    def loop_rates(self, sim: ArmSimulator) -> Rates:
+        if self.rates is not None:
+            return self.rates
+        control_hz = 1.0 / sim.control_dt
+        ratio = control_hz / 500.0
+        diagnosis_hz = 500.0 if ratio >= 1 and abs(ratio - round(ratio)) < 1e-9 else control_hz
+        return Rates(control_hz, diagnosis_hz)
+
+    def scheme_settings(self, rates: Rates) -> ArmSchemeSettings:
+        return replace(self.settings, T=1.0 / rates.diagnosis_hz)
 
 
-def calibration_trajectories(scenario: ArmScenario) -> dict[str, Sequence]:
-    """The worst-case fault-free trajectories of Sec. 6 around the scenario's start pose.
-
-    low-velocity: q0 → q0 + Δq/4 and back, each in ``calibration_low_velocity_time`` s;
-    high-acceleration: q0 → q0 + [−π/2, π/4, −π/3, π/2, −π/2, 0.9π] and back, 1.5 s each.
-    The scenario's own trajectory is deliberately not among them: the fault-free run then tests the thresholds.
-    """
-    q0 = np.asarray(scenario.q0)
-    n = len(q0)
-    wide = np.array([-np.pi / 2, np.pi / 4, -np.pi / 3, np.pi / 2, -np.pi / 2, 0.9 * np.pi])[:n]
-    slow = scenario.calibration_low_velocity_time
-    return {
-        "low_velocity": Sequence.through([q0, q0 + 0.25 * np.asarray(scenario.dq), q0], [slow, slow]),
-        "high_acceleration": Sequence.through([q0, q0 + wide, q0], [1.5, 1.5]),
-    }
-
-
-def _loop(scenario: ArmScenario, reference, faults=(), diagnoses=None, sim=None, model=None) -> ClosedLoop:
+def calibration_trajectories(scenario: ArmScenario, sim: ArmSimulator | None = None,
+                             model: ManipulatorModel | None = None) -> dict:
+    """The scenario's fault-free calibration motions: its own, or derived from the robot's ranges and limits."""
+    if scenario.calibration is not None:
+        return dict(scenario.calibration)
     sim = sim or scenario.simulator()
     model = model or scenario.nominal_model(sim)
-    controller = ComputedTorque(model, torque_limit=model.torque_limit)
-    injector = FaultInjector(list(faults), sim.actuators, sim.sensor_channels, seed=scenario.seed)
-    return ClosedLoop(sim, controller, reference, injector, diagnoses or {}, scenario.rates, scenario.injection)
+    limits = MotionLimits.from_ranges(sim.joint_range[:, 0], sim.joint_range[:, 1], model.torque_limit)
+    return calibration_motions(model, limits, scenario.seed)
+
+
+def _controller(model: ManipulatorModel) -> ComputedTorque:
+    return ComputedTorque(model, torque_limit=model.torque_limit)
 
 
 def _check_inside_limits(name: str, record: Record, sim: ArmSimulator) -> None:
-    n = sim.n
-    q = record.truth_state[:, :n]
+    q = record.truth_state[:, :sim.n]
     lo, hi = sim.joint_range.T
     if np.any(q < lo) or np.any(q > hi):
-        raise RobofdiError(f"calibration trajectory {name!r} leaves the joint range; thresholds would be meaningless")
-    if np.any(np.abs(record.signals["u_cmd"]) > sim.torque_limit + 1e-9):
-        raise RobofdiError(f"calibration trajectory {name!r} saturates the motors; thresholds would be meaningless")
+        raise RobofdiError(f"calibration motion {name!r} leaves the joint range; thresholds would be meaningless")
+    if np.any(np.abs(record.signals["u_cmd"]) >= sim.torque_limit):
+        raise RobofdiError(f"calibration motion {name!r} saturates the motors; thresholds would be meaningless")
 
 
 def calibration_records(scenario: ArmScenario, progress: Callable[[int], None] | None = None) -> dict[str, Record]:
-    """Fault-free closed-loop runs on the calibration trajectories (no diagnoser in the loop)."""
+    """Fault-free closed-loop runs on the calibration motions (no diagnoser in the loop)."""
+    sim = scenario.simulator()
+    model = scenario.nominal_model(sim)
+    rates = scenario.loop_rates(sim)
     records = {}
-    for name, ref in calibration_trajectories(scenario).items():
-        loop = _loop(scenario, ref)
-        records[name] = loop.run(ref.end, scenario.q0, system="arm6", scenario=f"calibration:{name}",
-                                 seed=scenario.seed, progress=progress)
-        _check_inside_limits(name, records[name], loop.simulator)
+    for name, ref in calibration_trajectories(scenario, sim, model).items():
+        loop = ClosedLoop(sim, _controller(model), ref, rates=rates)
+        records[name] = loop.run(ref.end, np.asarray(ref(0.0)[0]), seed=scenario.seed, run_key=f"calibration/{name}",
+                                 scenario=f"calibration:{name}", progress=progress)
+        _check_inside_limits(name, records[name], sim)
     return records
 
 
 @dataclass
 class Calibration:
-    """Calibrated thresholds per scheme (residual space of the scheme) and the adaptive model's θ₀."""
+    """Calibrated thresholds per scheme (residual space of the scheme), the adaptive model's θ₀, and the
+    start-up blanking [samples] used for both."""
 
     thresholds: dict[str, np.ndarray]
     theta0: np.ndarray
+    blanking: int
     state_thresholds: dict[str, np.ndarray] = field(default_factory=dict)
 
 
-def calibrate(scenario: ArmScenario, records: dict[str, Record]) -> Calibration:
-    """θ₀ from the first calibration run's simple residual, then thresholds per scheme (skip the first 10 ms)."""
-    model = scenario.nominal_model(scenario.simulator())
-    n, T = model.n, scenario.settings.T
-    skip = int(np.ceil(0.010 / T))
-    ratio = scenario.rates.ratio
-    first = next(iter(records.values()))
-    simple = diagnose_record(first, Diagnosis(DiagnosticObserver(model, T, residual_space="state")))
-    theta0 = ripple_initial_parameters(first.signals["y_meas"][::ratio][skip:, :n], simple.residual[skip:, n:])
-    thresholds = {}
-    for name in scenario.schemes:
-        residuals = []
-        for rec in records.values():
-            diagnoser = arm_schemes(model, scenario.settings, theta0, [name])[name]
-            residuals.append(diagnose_record(rec, Diagnosis(diagnoser)).residual)
-        thresholds[name] = calibrate_thresholds(residuals, scenario.threshold_margin, skip)
-    state = {}
-    state_settings = replace(scenario.settings, residual_space="state")
-    for name in ("time_delayed", "recursive"):
-        if name in scenario.schemes:
-            residuals = [diagnose_record(r, Diagnosis(arm_schemes(model, state_settings, theta0, [name])[name])).residual
-                         for r in records.values()]
-            state[name] = calibrate_thresholds(residuals, scenario.threshold_margin, skip)
-    return Calibration(thresholds, theta0, state)
-
-
-def run_scenario(scenario: ArmScenario, calibration: Calibration, progress: Callable[[int], None] | None = None) -> Record:
-    """The scenario's closed-loop run with every scheme and its threshold decision in the loop."""
+def calibrate(scenario: ArmScenario, records: dict[str, Record],
+              progress: Callable[[int], None] | None = None) -> Calibration:
+    """θ₀ from the first calibration run's simple residual, then thresholds per scheme (blanked start-up skipped)."""
     sim = scenario.simulator()
     model = scenario.nominal_model(sim)
+    rates = scenario.loop_rates(sim)
+    settings = scenario.scheme_settings(rates)
+    n, T = model.n, settings.T
+    skip = startup_samples(T, scenario.startup_blanking)
+    first = next(iter(records.values()))
+    simple = diagnose_record(first, Diagnosis(DiagnosticObserver(model, T, residual_space="state")), rates, progress)
+    theta0 = ripple_initial_parameters(first.signals["y_meas"][::rates.ratio][skip:, :n], simple.residual[skip:, n:])
+
+    def thresholds(scheme_settings, names):
+        out = {}
+        for name in names:
+            residuals = [diagnose_record(rec, Diagnosis(arm_schemes(model, scheme_settings, theta0, [name])[name]),
+                                         rates, progress).residual for rec in records.values()]
+            out[name] = calibrate_thresholds(residuals, scenario.threshold_margin, skip)
+        return out
+
+    state_schemes = [s for s in ("time_delayed", "recursive") if s in scenario.schemes]
+    return Calibration(thresholds(settings, scenario.schemes), theta0, skip,
+                       thresholds(replace(settings, residual_space="state"), state_schemes))
+
+
+def calibration_steps(scenario: ArmScenario, records_duration: float, rates: Rates) -> int:
+    """Progress units of :func:`calibration`: control ticks simulated plus ticks replayed per scheme."""
+    ticks = int(records_duration * rates.control_hz)
+    replays = 1 + len(scenario.schemes) + len([s for s in ("time_delayed", "recursive") if s in scenario.schemes])
+    return ticks * (1 + replays)
+
+
+def cache_dir() -> Path:
+    """Where calibrations are cached: $ROBOFDI_CACHE, else ~/.cache/robofdi."""
+    return Path(os.environ.get("ROBOFDI_CACHE") or Path.home() / ".cache" / "robofdi")
+
+
+def _calibration_key(scenario: ArmScenario, sim: ArmSimulator, trajectories: Mapping) -> str:
+    """Everything a calibration depends on: the compiled robot, its seed and harness, rates, schemes, motions."""
+    from robofdi import __version__
+
+    description = {
+        "robot": hashlib.sha256(sim.compiled_xml.encode()).hexdigest(),
+        "joints": list(sim.joint_names), "torque_motors": scenario.torque_motors, "seed": scenario.seed,
+        "ripple": scenario.ripple_mode, "sensors": repr(scenario.sensors), "payload": scenario.payload,
+        "mismatch": repr(scenario.mismatch), "rates": repr(scenario.loop_rates(sim)), "settings": repr(scenario.settings),
+        "schemes": list(scenario.schemes), "margin": scenario.threshold_margin, "blanking": scenario.startup_blanking,
+        "motions": {k: repr(v) for k, v in trajectories.items()}, "version": __version__,
+    }
+    return hashlib.sha256(json.dumps(description, sort_keys=True).encode()).hexdigest()[:20]
+
+
+def calibration(scenario: ArmScenario, progress: Callable[[int], None] | None = None,
+                cache: bool = True) -> tuple[Calibration, bool]:
+    """The scenario's calibration, computed once per robot, seed and settings and cached (:func:`cache_dir`).
+    Returns (calibration, True if it came from the cache). The motion under test plays no part in it."""
+    sim = scenario.simulator()
+    trajectories = calibration_trajectories(scenario, sim)
+    path = cache_dir() / f"calibration-{_calibration_key(scenario, sim, trajectories)}.npz"
+    if cache and path.is_file():
+        with np.load(path) as data:
+            cal = Calibration({k[3:]: data[k] for k in data.files if k.startswith("th_")}, data["theta0"],
+                              int(data["blanking"]), {k[3:]: data[k] for k in data.files if k.startswith("st_")})
+        if set(cal.thresholds) == set(scenario.schemes):
+            return cal, True
+    cal = calibrate(scenario, calibration_records(replace(scenario, calibration=trajectories), progress), progress)
+    if cache:
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            tmp = path.with_suffix(".tmp.npz")
+            np.savez(tmp, theta0=cal.theta0, blanking=cal.blanking, **{f"th_{k}": v for k, v in cal.thresholds.items()},
+                     **{f"st_{k}": v for k, v in cal.state_thresholds.items()})
+            tmp.replace(path)
+        except OSError:
+            pass  # a read-only cache only costs the next run its calibration
+    return cal, False
+
+
+def _diagnoses(scenario: ArmScenario, model: ManipulatorModel, cal: Calibration, settings: ArmSchemeSettings) -> dict:
     diagnoses = {}
-    for name, diagnoser in arm_schemes(model, scenario.settings, calibration.theta0, scenario.schemes).items():
-        decision = ThresholdDecision(diagnoser.components, calibration.thresholds[name], diagnoser.signatures())
+    for name, diagnoser in arm_schemes(model, settings, cal.theta0, scenario.schemes).items():
+        decision = ThresholdDecision(diagnoser.components, cal.thresholds[name], diagnoser.signatures(), blanking=cal.blanking)
         diagnoses[name] = Diagnosis(diagnoser, decision)
-    loop = _loop(scenario, scenario.reference(), scenario.faults, diagnoses, sim, model)
+    return diagnoses
+
+
+def build_loop(scenario: ArmScenario, cal: Calibration) -> ClosedLoop:
+    """The scenario's closed loop with every scheme and its threshold decision, and its accommodation."""
+    sim = scenario.simulator()
+    model = scenario.nominal_model(sim)
+    rates = scenario.loop_rates(sim)
+    accommodation = FaultCompensation(sim.actuators) if scenario.accommodation == "compensation" else None
+    n = sim.n
+    columns = [f"{j}_q_d" for j in sim.joint_names] + [f"{j}_qd_d" for j in sim.joint_names] + [f"{j}_qdd_d" for j in sim.joint_names]
+    units = sim.units["state"][:n] + sim.units["state"][n:] + [f"{u}/s" for u in sim.units["state"][n:]]
+    return ClosedLoop(sim, _controller(model), scenario.motion, scenario.faults,
+                      _diagnoses(scenario, model, cal, scenario.scheme_settings(rates)), rates, scenario.injection,
+                      accommodation, scenario.health_source if accommodation is not None else None, columns, units)
+
+
+def check_faults(scenario: ArmScenario) -> None:
+    """Raise now (before any calibration) if a fault names an unknown target or cannot be injected as asked."""
+    sim = scenario.simulator()
+    injector = FaultInjector(scenario.faults, sim.actuators, sim.sensor_channels, 0, component_kinds=sim.component_kinds)
+    if scenario.injection == "offline":
+        injector.check_offline()
+
+
+def run_scenario(scenario: ArmScenario, cal: Calibration, progress: Callable[[int], None] | None = None,
+                 run_key: str = "run") -> Record:
+    """The scenario's closed-loop run with every scheme and its threshold decision in the loop."""
+    loop = build_loop(scenario, cal)
+    sim = loop.simulator
     meta = {
-        "mjcf": scenario.mjcf,
-        "joint_names": sim.joint_names,
-        "faults": [f.to_dict() for f in scenario.faults],
-        "primary_diagnoser": "adaptive" if "adaptive" in diagnoses else next(iter(diagnoses), None),
+        "mjcf": str(sim.path),
+        "joint_names": list(sim.joint_names),
+        "primary_diagnoser": "adaptive" if "adaptive" in loop.diagnoses else next(iter(loop.diagnoses), None),
         "ripple_mode": scenario.ripple_mode,
+        "sensors": asdict(scenario.sensors),
         "mismatch": {k: getattr(scenario.mismatch, k) for k in ("mass", "inertia", "damping", "armature")},
         "payload": scenario.payload,
     }
-    return loop.run(scenario.duration, scenario.q0, system="arm6", scenario=scenario.name, seed=scenario.seed,
-                    meta=meta, progress=progress)
+    return loop.run(scenario.run_duration, scenario.start_pose, seed=scenario.seed, run_key=run_key,
+                    scenario=scenario.name, meta=meta, progress=progress)

@@ -1,0 +1,42 @@
+"""The run folder every experiment writes: record.h5, summary.json, figures/, replay.html."""
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+
+from robofdi.errors import RobofdiError
+from robofdi.evaluate.figures import plot_estimates, plot_residuals
+from robofdi.evaluate.summary import write_summary
+from robofdi.record import Record
+
+__all__ = ["prepare_run_dir", "write_run_folder"]
+
+
+def prepare_run_dir(out: str | Path, name: str, seed: int) -> Path:
+    """``out/name-seedN``, created; a path that cannot be created is one clear error naming it."""
+    run_dir = Path(out) / f"{name}-seed{seed}"
+    try:
+        run_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise RobofdiError(f"--out: cannot create the run folder {str(run_dir)!r}: {exc.strerror or exc}") from None
+    return run_dir
+
+
+def write_run_folder(run_dir: Path, record: Record, summary: Mapping, others: Mapping[str, Record] | None = None,
+                     replay: bool = True) -> Path:
+    """Save the record (and ``others`` as ``<key>.h5``), the summary, one residual figure per diagnoser, the
+    estimates figure and the self-contained Meshcat replay."""
+    record.save(run_dir / "record.h5")
+    for key, rec in (others or {}).items():
+        rec.save(run_dir / f"{key}.h5")
+    write_summary(summary, run_dir / "summary.json")
+    figures = run_dir / "figures"
+    figures.mkdir(exist_ok=True)
+    for d in record.diagnosers:
+        plot_residuals(record, d, figures / f"residuals_{d}.png")
+    plot_estimates(record, figures / "estimates.png")
+    if replay:
+        from robofdi.viz import write_replay_html
+
+        write_replay_html(record, run_dir / "replay.html")
+    return run_dir
