@@ -5,7 +5,7 @@ the first fault-tolerant control — compensation of the identified actuator fau
 
 SPEC = KIND:TARGET:MAGNITUDE@ONSET[-END][~PROFILE][;NAME=VALUE] (see :mod:`robofdi.faults.spec`), e.g.
 ``actuator_additive:joint2:20@1.0``. Without ``--fault``: a step of 25 % of the motor torque limit on a seeded
-random joint, at 40 % of the motion. The robot's calibration (thresholds, ripple initialisation) is computed once
+random joint, at 40 % of the motion (:func:`robofdi.scenarios.arm.arm_scenario`). The robot's calibration (thresholds, ripple initialisation) is computed once
 per robot and seed on motions derived from its joint ranges and torque limits, and cached; the motion under test
 is drawn from the seed and plays no part in it.
 
@@ -20,42 +20,14 @@ from pathlib import Path
 
 import numpy as np
 
-from robofdi.control import MotionLimits, random_point_to_point
 from robofdi.evaluate import summarize
 from robofdi.evaluate.run_folder import prepare_run_dir, write_run_folder
-from robofdi.faults import Fault, parse_fault_specs
 from robofdi.loop import ORACLE
 from robofdi.record import Record
-from robofdi.scenarios.arm import ArmScenario, calibration, calibration_steps, calibration_trajectories, check_faults, run_scenario
-from robofdi.seeding import rng
-from robofdi.sims import ArmSimulator
+from robofdi.scenarios.arm import arm_scenario, calibration, calibration_steps, calibration_trajectories, run_scenario
 
 EXPERIMENTS = {"arm": "Any MJCF arm (--robot, --fault SPEC): seeded motion, all arm diagnosers online, fault compensation"}
 HEALTH_SOURCE = "momentum"
-
-
-def _default_fault(sim: ArmSimulator, torque_limit: np.ndarray, motion_end: float, seed: int) -> Fault:
-    i = int(rng(seed, "experiment", "default_fault").integers(sim.n))
-    return Fault(f"{sim.joint_names[i]}_step", "actuator_additive", sim.joint_names[i], onset=round(0.4 * motion_end, 3),
-                 magnitude=round(0.25 * float(torque_limit[i]), 3))
-
-
-def scenario(robot: str | Path = "arm6.xml", faults=(), seed: int = 0, joints=None, torque_motors: bool = False,
-             **overrides) -> ArmScenario:
-    """The generic arm scenario; ``faults`` are Fault objects or SPEC strings. Checked at once, before calibration."""
-    faults = tuple(faults)
-    if all(isinstance(f, str) for f in faults):
-        faults = parse_fault_specs(faults)
-    sim = ArmSimulator(robot, joints=joints, torque_motors=torque_motors, seed=seed)
-    model = sim.nominal_model()          # the catalogue model plans the motion (belief, never the plant)
-    limits = MotionLimits.from_ranges(sim.joint_range[:, 0], sim.joint_range[:, 1], model.torque_limit)
-    motion = random_point_to_point(model, limits, seed)
-    if not faults:
-        faults = (_default_fault(sim, model.torque_limit, motion.end, seed),)
-    sc = ArmScenario(f"arm-{sim.system}", motion=motion, faults=faults, mjcf=str(robot), joints=tuple(sim.joint_names),
-                     torque_motors=torque_motors, seed=seed, **overrides)
-    check_faults(sc)
-    return sc
 
 
 def tracking_rms(record: Record, since: float) -> float:
@@ -71,7 +43,7 @@ def run(name: str = "arm", out: str | Path = "runs", seed: int = 0, progress: bo
     """Calibrate (cached), run without and with compensation, evaluate, plot; returns (summary, run folder)."""
     from tqdm.auto import tqdm
 
-    sc = scenario(robot, faults, seed, joints, torque_motors, **overrides)
+    sc = arm_scenario(robot, faults, seed, joints, torque_motors, **overrides)
     run_dir = prepare_run_dir(out, sc.name, seed)
     sim = sc.simulator()
     rates = sc.loop_rates(sim)

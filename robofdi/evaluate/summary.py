@@ -28,15 +28,17 @@ def _duration(record: Record) -> float:
 def summarize(
     record: Record,
     experiment: str,
-    faults: Sequence[Mapping],
+    faults: Sequence[Mapping] | None = None,
     diagnosers: Sequence[str] | None = None,
     **extra,
 ) -> dict:
     """The summary.json contract: experiment, system, seed, duration, faults and metrics per diagnoser.
 
-    ``diagnosers`` defaults to every diagnoser in the record; ``extra`` (e.g. ``reproduction=[...]``) is
-    merged at the top level.
+    ``faults`` defaults to the faults the record's run injected (``record.meta["faults"]``); ``diagnosers`` to
+    every diagnoser in the record; ``extra`` (e.g. ``reproduction=[...]``) is merged at the top level.
     """
+    if faults is None:
+        faults = record.meta.get("faults", [])
     if not isinstance(experiment, str) or not experiment:
         raise RobofdiError(f"experiment: expected a non-empty name such as 'ch3-actuator', got {experiment!r}")
     windows = fault_windows(faults)

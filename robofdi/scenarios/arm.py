@@ -24,10 +24,10 @@ from pathlib import Path
 
 import numpy as np
 
-from robofdi.control import ComputedTorque, MotionLimits, calibration_motions
+from robofdi.control import ComputedTorque, MotionLimits, calibration_motions, random_point_to_point
 from robofdi.decision import STARTUP_BLANKING, ThresholdDecision, calibrate_thresholds, startup_samples
 from robofdi.errors import RobofdiError
-from robofdi.faults import Fault, FaultInjector
+from robofdi.faults import Fault, FaultInjector, parse_fault_specs
 from robofdi.ftc import FaultCompensation
 from robofdi.loop import ORACLE, ClosedLoop, Diagnosis, Rates, diagnose_record
 from robofdi.models import ManipulatorModel, ModelMismatch
@@ -35,10 +35,11 @@ from robofdi.observers import DiagnosticObserver
 from robofdi.observers.arm_schemes import SCHEMES, ArmSchemeSettings, arm_schemes
 from robofdi.observers.spectral import ripple_initial_parameters
 from robofdi.record import Record
+from robofdi.seeding import rng
 from robofdi.sims import ArmSimulator, SensorModel, TorqueRipple
 
-__all__ = ["ArmScenario", "Calibration", "calibration_trajectories", "calibration_records", "calibrate",
-           "calibration", "run_scenario", "cache_dir"]
+__all__ = ["ArmScenario", "arm_scenario", "Calibration", "calibration_trajectories", "calibration_records", "calibrate",
+           "calibration", "run_scenario", "build_loop", "check_faults", "cache_dir"]
 
 ACCOMMODATIONS = (None, "compensation")
 
@@ -306,3 +307,31 @@ def run_scenario(scenario: ArmScenario, cal: Calibration, progress: Callable[[in
     }
     return loop.run(scenario.run_duration, scenario.start_pose, seed=scenario.seed, run_key=run_key,
                     scenario=scenario.name, meta=meta, progress=progress)
+
+
+def _default_fault(joint_names, torque_limit: np.ndarray, motion_end: float, seed: int) -> Fault:
+    """A step of 25 % of the motor torque limit on a seeded random joint, at 40 % of the motion."""
+    i = int(rng(seed, "scenario", "default_fault").integers(len(joint_names)))
+    return Fault(f"{joint_names[i]}_step", "actuator_additive", joint_names[i], onset=round(0.4 * motion_end, 3),
+                 magnitude=round(0.25 * float(torque_limit[i]), 3))
+
+
+def arm_scenario(robot: str | Path = "arm6.xml", faults=(), seed: int = 0, joints=None, torque_motors: bool = False,
+                 **overrides) -> ArmScenario:
+    """Any MJCF arm on a seeded point-to-point motion inside its joint ranges and torque limits, faults injected
+    online. ``faults``: Fault objects or SPEC strings (:mod:`robofdi.faults.spec`); none = a step of 25 % of the
+    torque limit on a seeded random joint at 40 % of the motion. Everything is checked at once, before any
+    calibration; ``overrides`` go to :class:`ArmScenario`."""
+    faults = tuple(faults)
+    if faults and all(isinstance(f, str) for f in faults):
+        faults = parse_fault_specs(faults)
+    sim = ArmSimulator(robot, joints=joints, torque_motors=torque_motors, seed=seed)
+    model = sim.nominal_model()          # the catalogue model plans the motion (belief, never the plant)
+    limits = MotionLimits.from_ranges(sim.joint_range[:, 0], sim.joint_range[:, 1], model.torque_limit)
+    motion = random_point_to_point(model, limits, seed)
+    if not faults:
+        faults = (_default_fault(sim.joint_names, model.torque_limit, motion.end, seed),)
+    sc = ArmScenario(f"arm-{sim.system}", motion=motion, faults=faults, mjcf=str(robot), joints=tuple(sim.joint_names),
+                     torque_motors=torque_motors, seed=seed, **overrides)
+    check_faults(sc)
+    return sc
