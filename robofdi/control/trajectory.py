@@ -40,6 +40,11 @@ class Quintic:
     def qf(self) -> np.ndarray:
         return np.add(self.q0, self.dq)
 
+    @property
+    def start_pose(self) -> np.ndarray:
+        """q at the start [rad] (the pose to reset the arm to)."""
+        return np.array(self.q0)
+
     def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(q_d, q̇_d, q̈_d) at time t."""
         s = min(max((t - self.start) / self.duration, 0.0), 1.0)
@@ -75,6 +80,25 @@ class Sequence:
     @property
     def end(self) -> float:
         return self.segments[-1].end
+
+    @property
+    def start(self) -> float:
+        return self.segments[0].start
+
+    @property
+    def start_pose(self) -> np.ndarray:
+        """q at the start [rad] (the pose to reset the arm to)."""
+        return self.segments[0].start_pose
+
+    @property
+    def waypoints(self) -> np.ndarray:
+        """(len(segments) + 1, n) poses [rad]: the start and the end of every segment."""
+        return np.array([self.segments[0].q0] + [seg.qf for seg in self.segments])
+
+    @property
+    def durations(self) -> tuple:
+        """Duration [s] of every segment."""
+        return tuple(seg.duration for seg in self.segments)
 
     def __call__(self, t: float):
         for seg in self.segments:
