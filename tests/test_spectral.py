@@ -79,8 +79,6 @@ def test_non_finite_input_is_rejected(which, value):
         ripple_initial_parameters(*data)
 
 
-@pytest.mark.xfail(strict=True, reason="θ_c is refined on a 41-point grid between FFT bins, so its error "
-                   "(~0.1 % of c) times the mean position shifts θ_d: 0.15 rad for a sweep over [1.5, 3.5] rad")
 def test_phase_of_a_sweep_far_from_zero():
     s = np.linspace(0.0, 1.0, N)
     x = (1.5 + 2.0 * 0.5 * (1 - np.cos(2 * np.pi * s)))[:, None]
