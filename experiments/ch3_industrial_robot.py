@@ -136,7 +136,7 @@ def run(name: str, out: str | Path = "runs", seed: int = 0, progress: bool = Tru
         plot_residuals(record, d, figures / f"residuals_{d}.png")
     plot_estimates(record, figures / "estimates.png")
     if replay:
-        from viz import write_replay_html
+        from robofdi.viz import write_replay_html
 
         write_replay_html(record, run_dir / "replay.html")
     return summary, run_dir

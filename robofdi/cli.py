@@ -12,8 +12,9 @@ from pathlib import Path
 
 from robofdi import RobofdiError, __version__
 
-# experiment name → module in experiments/ (each module has EXPERIMENTS {name: description} and run()).
-MODULES = ("experiments.ch3_industrial_robot",)
+# experiment name → module of robofdi.experiments (the repository's experiments/); each module has
+# EXPERIMENTS {name: description} and run().
+MODULES = ("robofdi.experiments.ch3_industrial_robot",)
 
 
 def _experiments() -> dict[str, tuple[str, object]]:
@@ -62,7 +63,7 @@ def _cmd_view(args) -> int:
         path = path / "record.h5"
     if not path.is_file():
         raise RobofdiError(f"RUN: no record at {str(path)!r}; expected a record .h5 file or a run folder holding record.h5")
-    from viz import view
+    from robofdi.viz import view
 
     view(path, diagnoser=args.diagnoser, open_browser=not args.no_browser)
     return 0

@@ -6,12 +6,11 @@ import os
 import subprocess
 import sys
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from experiments.ch3_industrial_robot import scenario
+from robofdi.experiments.ch3_industrial_robot import scenario
 from robofdi import RobofdiError
 from robofdi.faults import Fault
 from robofdi.loop import Diagnosis, Rates, RunAborted, diagnose_record
@@ -123,8 +122,8 @@ def test_scenario_rejects_a_bad_seed():
 
 
 def _cli(*args, cwd):
-    repo = str(Path(__file__).resolve().parents[1])
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([repo, os.environ.get("PYTHONPATH", "")])}
+    """The installed command line (robofdi installed, e.g. `pip install -e .`), run from ``cwd``."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     return subprocess.run([sys.executable, "-m", "robofdi.cli", *args], cwd=cwd, env=env, capture_output=True,
                           text=True, timeout=300)
 

@@ -16,8 +16,8 @@ import umsgpack  # noqa: E402  (installed with meshcat)
 import robofdi  # noqa: E402
 from robofdi import RobofdiError  # noqa: E402
 from robofdi.record import DiagnoserTrace, Record  # noqa: E402
-from viz import MeshcatScene, build_replay, fault_joint, isolated_joints, write_replay_html  # noqa: E402
-from viz.replay import close_visualizer  # noqa: E402
+from robofdi.viz import MeshcatScene, build_replay, fault_joint, isolated_joints, write_replay_html  # noqa: E402
+from robofdi.viz.replay import close_visualizer  # noqa: E402
 
 ARM_ORANGE = np.array([0.85, 0.45, 0.10])
 
