@@ -133,6 +133,18 @@ def test_cli_errors_are_one_line_with_nonzero_exit(tmp_path):
     assert out.returncode == 2 and out.stderr.strip().count("\n") == 0 and "ch9-nothing" in out.stderr
     out = _cli("view", str(tmp_path / "missing.h5"), cwd=tmp_path)
     assert out.returncode == 2 and "missing.h5" in out.stderr
+    out = _cli("run", "ch3-actuator", "--seed", "x", cwd=tmp_path)               # argparse's errors too
+    assert out.returncode == 2 and out.stderr.strip().count("\n") == 0 and out.stderr.startswith("robofdi: error: ")
+
+
+def test_cli_file_system_errors_are_one_line_naming_the_path(tmp_path):
+    """An --out that cannot be created: one line with the path and the OS reason, exit 2, before any simulation."""
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    out = _cli("run", "ch3-actuator", "--quiet", "--out", str(blocker / "runs"), cwd=tmp_path)
+    assert out.returncode == 2, out.stderr
+    assert out.stderr.strip().count("\n") == 0 and "Traceback" not in out.stderr
+    assert out.stderr.startswith("robofdi: error: ") and str(blocker) in out.stderr and "Not a directory" in out.stderr
 
 
 def test_cli_run_writes_the_run_folder(tmp_path):
