@@ -1,19 +1,22 @@
 """`robofdi list | run NAME | demo | view RUN` — the command line.
 
-Errors print one line ``robofdi: error: …`` and exit with code 2 (bad input) or 1 (a run that failed; what
-it had recorded is saved as ``partial.h5`` in the run folder).
+Errors print one line ``robofdi: error: …`` and exit with code 2 (bad input, including a file or folder that
+cannot be read or written) or 1 (a run that failed; what it had recorded is saved as ``partial.h5`` in the run
+folder; also any unexpected failure, whose traceback ``ROBOFDI_TRACEBACK=1`` shows).
 """
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from pathlib import Path
 
 from robofdi import RobofdiError, __version__
 
-# experiment name → module in experiments/ (each module has EXPERIMENTS {name: description} and run()).
-MODULES = ("experiments.ch3_industrial_robot",)
+# experiment name → module of robofdi.experiments (the repository's experiments/); each module has
+# EXPERIMENTS {name: description} and run().
+MODULES = ("robofdi.experiments.ch3_industrial_robot",)
 
 
 def _experiments() -> dict[str, tuple[str, object]]:
@@ -45,7 +48,12 @@ def _cmd_run(args) -> int:
         summary, run_dir = mod.run(args.name, args.out, args.seed, progress=not args.quiet)
     except RunAborted as exc:
         path = Path(args.out) / f"{args.name}-seed{args.seed}" / "partial.h5"
-        exc.record.save(path)
+        try:
+            exc.record.save(path)
+        except OSError as save_exc:
+            print(f"robofdi: error: {exc} (and the partial record could not be saved: {_os_error(save_exc)})",
+                  file=sys.stderr)
+            return 1
         print(f"robofdi: error: {exc} (recorded so far: {path})", file=sys.stderr)
         return 1
     print(results_table(summary))
@@ -62,14 +70,21 @@ def _cmd_view(args) -> int:
         path = path / "record.h5"
     if not path.is_file():
         raise RobofdiError(f"RUN: no record at {str(path)!r}; expected a record .h5 file or a run folder holding record.h5")
-    from viz import view
+    from robofdi.viz import view
 
     view(path, diagnoser=args.diagnoser, open_browser=not args.no_browser)
     return 0
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse, with its usage errors on one line like every other error of the command line."""
+
+    def error(self, message):
+        self.exit(2, f"robofdi: error: {message} (see `{self.prog} --help`)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(
+    p = _Parser(
         prog="robofdi", description="Model-based fault diagnosis and fault-tolerant control of simulated robots."
     )
     p.add_argument("--version", action="version", version=f"robofdi {__version__}")
@@ -94,6 +109,16 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _os_error(exc: OSError) -> str:
+    """One line: the path(s) and the operating system's reason."""
+    if exc.filename is None:
+        return " ".join(str(exc).split())
+    paths = repr(os.fsdecode(exc.filename))
+    if exc.filename2 is not None:
+        paths += f" -> {os.fsdecode(exc.filename2)!r}"
+    return f"{paths}: {exc.strerror or type(exc).__name__}"
+
+
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     try:
@@ -101,9 +126,19 @@ def main(argv=None) -> int:
     except RobofdiError as exc:
         print(f"robofdi: error: {exc}", file=sys.stderr)
         return 2
+    except OSError as exc:
+        print(f"robofdi: error: {_os_error(exc)}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
         print("robofdi: interrupted", file=sys.stderr)
         return 130
+    except Exception as exc:
+        if os.environ.get("ROBOFDI_TRACEBACK"):
+            raise
+        message = " ".join(str(exc).split())
+        print(f"robofdi: error: unexpected {type(exc).__name__}: {message} (ROBOFDI_TRACEBACK=1 shows the traceback)",
+              file=sys.stderr)
+        return 1
 
 
 if __name__ == "__main__":

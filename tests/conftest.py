@@ -12,7 +12,7 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 @pytest.fixture(scope="session")
 def ch3():
     """The ch3-actuator scenario (shorter low-velocity calibration runs, to keep the suite fast) and its calibration."""
-    from experiments.ch3_industrial_robot import scenario
+    from robofdi.experiments.ch3_industrial_robot import scenario
     from robofdi.scenarios.arm import calibrate, calibration_records
 
     sc = scenario("ch3-actuator", seed=0, calibration_low_velocity_time=8.0)
@@ -23,7 +23,7 @@ def ch3():
 @pytest.fixture(scope="session")
 def ch3_runs(ch3):
     """Fault-free, actuator-fault and sensor-fault runs of the book trajectory with every scheme in the loop."""
-    from experiments.ch3_industrial_robot import FAULTS
+    from robofdi.experiments.ch3_industrial_robot import FAULTS
     from robofdi.scenarios.arm import run_scenario
 
     sc, cal = ch3

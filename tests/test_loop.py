@@ -6,12 +6,11 @@ import os
 import subprocess
 import sys
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from experiments.ch3_industrial_robot import scenario
+from robofdi.experiments.ch3_industrial_robot import scenario
 from robofdi import RobofdiError
 from robofdi.faults import Fault
 from robofdi.loop import Diagnosis, Rates, RunAborted, diagnose_record
@@ -123,8 +122,8 @@ def test_scenario_rejects_a_bad_seed():
 
 
 def _cli(*args, cwd):
-    repo = str(Path(__file__).resolve().parents[1])
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([repo, os.environ.get("PYTHONPATH", "")])}
+    """The installed command line (robofdi installed, e.g. `pip install -e .`), run from ``cwd``."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
     return subprocess.run([sys.executable, "-m", "robofdi.cli", *args], cwd=cwd, env=env, capture_output=True,
                           text=True, timeout=300)
 
@@ -134,6 +133,18 @@ def test_cli_errors_are_one_line_with_nonzero_exit(tmp_path):
     assert out.returncode == 2 and out.stderr.strip().count("\n") == 0 and "ch9-nothing" in out.stderr
     out = _cli("view", str(tmp_path / "missing.h5"), cwd=tmp_path)
     assert out.returncode == 2 and "missing.h5" in out.stderr
+    out = _cli("run", "ch3-actuator", "--seed", "x", cwd=tmp_path)               # argparse's errors too
+    assert out.returncode == 2 and out.stderr.strip().count("\n") == 0 and out.stderr.startswith("robofdi: error: ")
+
+
+def test_cli_file_system_errors_are_one_line_naming_the_path(tmp_path):
+    """An --out that cannot be created: one line with the path and the OS reason, exit 2, before any simulation."""
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    out = _cli("run", "ch3-actuator", "--quiet", "--out", str(blocker / "runs"), cwd=tmp_path)
+    assert out.returncode == 2, out.stderr
+    assert out.stderr.strip().count("\n") == 0 and "Traceback" not in out.stderr
+    assert out.stderr.startswith("robofdi: error: ") and str(blocker) in out.stderr and "Not a directory" in out.stderr
 
 
 def test_cli_run_writes_the_run_folder(tmp_path):

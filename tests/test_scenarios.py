@@ -6,7 +6,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from experiments.ch3_industrial_robot import FAULTS, _peak_ratio
+from robofdi.experiments.ch3_industrial_robot import FAULTS, _peak_ratio
 from robofdi.evaluate import evaluate_diagnoser, summarize
 from robofdi.observers.arm_schemes import SCHEMES
 from robofdi.scenarios.arm import run_scenario

@@ -2,9 +2,15 @@
 from __future__ import annotations
 
 import base64
+import os
 import re
+import select
 import shutil
+import signal
 import subprocess
+import sys
+import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,8 +22,8 @@ import umsgpack  # noqa: E402  (installed with meshcat)
 import robofdi  # noqa: E402
 from robofdi import RobofdiError  # noqa: E402
 from robofdi.record import DiagnoserTrace, Record  # noqa: E402
-from viz import MeshcatScene, build_replay, fault_joint, isolated_joints, write_replay_html  # noqa: E402
-from viz.replay import close_visualizer  # noqa: E402
+from robofdi.viz import MeshcatScene, build_replay, fault_joint, isolated_joints, write_replay_html  # noqa: E402
+from robofdi.viz.replay import close_visualizer  # noqa: E402
 
 ARM_ORANGE = np.array([0.85, 0.45, 0.10])
 
@@ -214,6 +220,77 @@ def test_replay_html_self_contained(replay_html):
         assert any(k["value"] is True for k in track["keys"])
     # no markers on joints without fault / isolation
     assert not any("fault_" in p and "joint1" in p for p in objs)
+
+
+# ------------------------------------------------------------------------------ live viewer
+def _children(pid: int) -> list[int]:
+    """PIDs of the child processes of ``pid`` (psutil if installed, else /proc)."""
+    try:
+        import psutil
+    except ImportError:
+        out = []
+        for d in Path("/proc").iterdir():
+            if d.name.isdigit():
+                try:
+                    stat = (d / "stat").read_text()
+                except OSError:
+                    continue
+                if int(stat.rsplit(")", 1)[1].split()[1]) == pid:
+                    out.append(int(d.name))
+        return out
+    return [c.pid for c in psutil.Process(pid).children(recursive=True)]
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` exists and is not a zombie."""
+    try:
+        import psutil
+    except ImportError:
+        try:
+            state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+        except OSError:
+            return False
+        return state not in ("Z", "X")
+    try:
+        return psutil.Process(pid).status() != psutil.STATUS_ZOMBIE
+    except psutil.NoSuchProcess:
+        return False
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+def test_cli_view_stops_on_a_signal_and_leaves_no_meshcat_server(tmp_path, sig):
+    """`robofdi view RECORD --no-browser`: URL printed; SIGTERM / SIGINT end it and kill its meshcat-server child."""
+    if not sys.platform.startswith("linux"):
+        pytest.skip("uses /proc or psutil and POSIX signals")
+    record = make_record().save(tmp_path / "record.h5")
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    proc = subprocess.Popen([sys.executable, "-m", "robofdi.cli", "view", str(record), "--no-browser"], cwd=tmp_path,
+                            env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    children: list[int] = []
+    try:
+        line, deadline = "", time.monotonic() + 120
+        while "http" not in line:
+            ready, _, _ = select.select([proc.stdout], [], [], max(0.0, deadline - time.monotonic()))
+            if proc.poll() is not None:
+                pytest.fail(f"robofdi view exited before printing its URL: {proc.stderr.read()}")
+            assert ready, "robofdi view printed no URL within 120 s"
+            line = proc.stdout.readline()
+        assert line.startswith("robofdi view: http")
+        children = _children(proc.pid)
+        assert children, "robofdi view started no meshcat server"
+        proc.send_signal(sig)
+        assert proc.wait(timeout=30) == 0, proc.stderr.read()
+        deadline = time.monotonic() + 10
+        while any(_alive(c) for c in children) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert not [c for c in children if _alive(c)], "a meshcat server survived robofdi view"
+    finally:
+        for pid in [*children, proc.pid]:
+            if _alive(pid):
+                os.kill(pid, signal.SIGKILL)
+        proc.wait(timeout=30)
+        proc.stdout.close()
+        proc.stderr.close()
 
 
 # ------------------------------------------------------------------------------ browser

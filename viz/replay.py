@@ -17,6 +17,8 @@ from __future__ import annotations
 import contextlib
 import io
 import math
+import signal
+import threading
 import time as _time
 import webbrowser
 from dataclasses import dataclass, field
@@ -359,21 +361,64 @@ def write_replay_html(record, path: str | Path, diagnoser: str | None = None, fp
     return path
 
 
-def view(record_path, diagnoser: str | None = None, open_browser: bool = True, fps: int = 50) -> None:
-    """Live viewer: start meshcat, load the replay, print the URL and block until Ctrl-C."""
-    record = _as_record(record_path)
-    with contextlib.redirect_stdout(io.StringIO()):
-        vis = meshcat.Visualizer()
+class _Stop(BaseException):
+    """Raised by the signal handlers of :func:`view` to leave its loop (a BaseException, like KeyboardInterrupt)."""
+
+
+@contextlib.contextmanager
+def _stop_on_signals(signals):
+    """While active, the ``signals`` request a clean stop: ``raise_pending()`` raises :class:`_Stop` once one came.
+
+    A signal is only recorded while ``armed`` is False (e.g. during the meshcat server's start, so the server is
+    never orphaned between its start and the moment the caller holds it) and raises at once when it is True.
+    Outside the main thread (where handlers cannot be installed) nothing changes.
+    """
+    state = {"armed": False, "pending": None}
+
+    def handler(signum, frame):
+        state["pending"] = signum
+        if state["armed"]:
+            raise _Stop(signum)
+
+    def arm():
+        state["armed"] = True
+        if state["pending"] is not None:
+            raise _Stop(state["pending"])
+
+    previous = {}
+    if threading.current_thread() is threading.main_thread():
+        for sig in signals:
+            previous[sig] = signal.signal(sig, handler)
     try:
-        rep = build_replay(vis, record, diagnoser=diagnoser, fps=fps)
-        url = vis.url()
-        print(f"robofdi view: {url}  (diagnoser: {rep.diagnoser or 'none'}; "
-              f"use the 'Animations' panel to replay; Ctrl-C to quit)", flush=True)
-        if open_browser:
-            webbrowser.open(url, new=2)
-        while True:
-            _time.sleep(0.5)
-    except KeyboardInterrupt:
-        pass
+        yield arm
     finally:
-        close_visualizer(vis)
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+
+
+def view(record_path, diagnoser: str | None = None, open_browser: bool = True, fps: int = 50) -> None:
+    """Live viewer: start meshcat, load the replay, print the URL and block until Ctrl-C (SIGINT) or SIGTERM.
+
+    Either signal (and SIGHUP) stops the viewer cleanly: the meshcat server subprocess is killed before return.
+    """
+    record = _as_record(record_path)
+    stop_signals = [signal.SIGINT, signal.SIGTERM] + ([signal.SIGHUP] if hasattr(signal, "SIGHUP") else [])
+    vis = None
+    with _stop_on_signals(stop_signals) as arm:
+        try:
+            with contextlib.redirect_stdout(io.StringIO()):
+                vis = meshcat.Visualizer()
+            arm()
+            rep = build_replay(vis, record, diagnoser=diagnoser, fps=fps)
+            url = vis.url()
+            print(f"robofdi view: {url}  (diagnoser: {rep.diagnoser or 'none'}; "
+                  f"use the 'Animations' panel to replay; Ctrl-C to quit)", flush=True)
+            if open_browser:
+                webbrowser.open(url, new=2)
+            while True:
+                _time.sleep(0.5)
+        except (KeyboardInterrupt, _Stop):
+            pass
+        finally:
+            if vis is not None:
+                close_visualizer(vis)
