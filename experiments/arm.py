@@ -21,13 +21,14 @@ from pathlib import Path
 import numpy as np
 
 from robofdi.evaluate import summarize
-from robofdi.evaluate.run_folder import prepare_run_dir, write_run_folder
+from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, write_run_folder
 from robofdi.loop import ORACLE
 from robofdi.record import Record
 from robofdi.scenarios.arm import arm_scenario, calibration, calibration_steps, calibration_trajectories, run_scenario
 
 EXPERIMENTS = {"arm": "Any MJCF arm (--robot, --fault SPEC): seeded motion, all arm diagnosers online, fault compensation"}
 HEALTH_SOURCE = "momentum"
+OPTIONS = ("robot", "faults", "joints", "torque_motors")
 
 
 def tracking_rms(record: Record, since: float) -> float:
@@ -39,18 +40,20 @@ def tracking_rms(record: Record, since: float) -> float:
 
 
 def run(name: str = "arm", out: str | Path = "runs", seed: int = 0, progress: bool = True, replay: bool = True,
-        robot: str | Path = "arm6.xml", faults=(), joints=None, torque_motors: bool = False, **overrides):
+        robot: str | Path | None = None, faults=(), joints=None, torque_motors: bool = False, **overrides):
     """Calibrate (cached), run without and with compensation, evaluate, plot; returns (summary, run folder)."""
     from tqdm.auto import tqdm
 
-    sc = arm_scenario(robot, faults, seed, joints, torque_motors, **overrides)
+    robot = robot or "arm6.xml"
+    sc = arm_scenario(robot, faults or (), seed, joints, torque_motors, **overrides)
     run_dir = prepare_run_dir(out, sc.name, seed)
     sim = sc.simulator()
     rates = sc.loop_rates(sim)
     cal_time = sum(m.end for m in calibration_trajectories(sc, sim).values())
     cal_steps = calibration_steps(sc, cal_time, rates)
     steps = cal_steps + int(3 * sc.run_duration * rates.control_hz)
-    with tqdm(total=steps, desc=f"{sc.name}: calibrate", unit="step", disable=not progress, leave=False) as bar:
+    bar = tqdm(total=steps, desc=f"{sc.name}: calibrate", unit="step", disable=not progress, leave=False)
+    with bar, keep_partial(run_dir):
         cal, cached = calibration(sc, progress=bar.update)
         if cached:
             bar.update(cal_steps)

@@ -24,7 +24,7 @@ import numpy as np
 from robofdi.control import Quintic, Sequence
 from robofdi.errors import RobofdiError
 from robofdi.evaluate import results_table, summarize
-from robofdi.evaluate.run_folder import prepare_run_dir, write_run_folder
+from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, write_run_folder
 from robofdi.faults import ExponentialRise, Fault
 from robofdi.loop import Rates
 from robofdi.scenarios.arm import ArmScenario, calibration, calibration_steps, check_faults, run_scenario
@@ -129,7 +129,8 @@ def run(name: str, out: str | Path = "runs", seed: int = 0, progress: bool = Tru
     calibration_time = sum(r.end for r in sc.calibration.values())
     rates = sc.rates
     steps = calibration_steps(sc, calibration_time, rates) + int(2 * sc.run_duration * rates.control_hz)
-    with tqdm(total=steps, desc=f"{name}: calibrate", unit="step", disable=not progress, leave=False) as bar:
+    bar = tqdm(total=steps, desc=f"{name}: calibrate", unit="step", disable=not progress, leave=False)
+    with bar, keep_partial(run_dir):
         cal, cached = calibration(sc, progress=bar.update)
         if cached:
             bar.update(calibration_steps(sc, calibration_time, rates))

@@ -1,9 +1,59 @@
-"""robofdi: model-based fault detection, isolation, identification and fault-tolerant control of robots."""
+"""robofdi: model-based fault detection, isolation, identification and fault-tolerant control of robots.
+
+The simulator is the truth (MuJoCo), the nominal model is the belief (Pinocchio, or matrices): diagnosers see
+only nominal models, commands and measurements. The main objects, importable from here::
+
+    import robofdi as fdi
+    scenario = fdi.arm_scenario("my_arm.xml", faults=["actuator_additive:joint2:30@1.5"], seed=1)
+    cal, _ = fdi.calibration(scenario)          # thresholds per robot and seed (cached)
+    record = fdi.run_scenario(scenario, cal)     # the closed-loop run, every arm diagnoser online
+    summary = fdi.summarize(record, "my-test")   # detection delay, isolation, false alarms, estimate error
+
+Rooms: ``faults`` (what fails), ``sims`` (plants), ``models`` (beliefs), ``control``, ``observers`` (residual
+generators), ``decision`` (thresholds, isolation), ``ftc`` (accommodation), ``loop`` (ClosedLoop), ``record``,
+``evaluate`` (metrics, summary.json, figures), ``scenarios`` (configuration → calibrated loop), ``viz``
+(Meshcat), ``experiments`` (one script per book chapter / paper).
+"""
 from importlib import resources
 from pathlib import Path
 
 __version__ = "0.1.0"
-__all__ = ["ASSETS", "RobofdiError", "__version__", "assets_dir"]
+# Public API, imported lazily (``robofdi.X`` loads the room of X on first use): name -> module.
+_API = {
+    "Fault": "robofdi.faults", "FaultInjector": "robofdi.faults", "parse_fault_spec": "robofdi.faults",
+    "Step": "robofdi.faults", "ExponentialRise": "robofdi.faults", "Ramp": "robofdi.faults",
+    "Sinusoid": "robofdi.faults", "Intermittent": "robofdi.faults",
+    "ArmSimulator": "robofdi.sims", "SensorModel": "robofdi.sims", "TorqueRipple": "robofdi.sims",
+    "ManipulatorModel": "robofdi.models", "ModelMismatch": "robofdi.models",
+    "ComputedTorque": "robofdi.control", "Quintic": "robofdi.control", "MotionLimits": "robofdi.control",
+    "random_point_to_point": "robofdi.control",
+    "DiagnosticObserver": "robofdi.observers", "MomentumObserver": "robofdi.observers",
+    "ThresholdDecision": "robofdi.decision", "Signature": "robofdi.decision", "calibrate_thresholds": "robofdi.decision",
+    "FaultCompensation": "robofdi.ftc",
+    "ClosedLoop": "robofdi.loop", "Diagnosis": "robofdi.loop", "Rates": "robofdi.loop", "RunAborted": "robofdi.loop",
+    "diagnose_record": "robofdi.loop",
+    "Record": "robofdi.record", "load": "robofdi.record",
+    "summarize": "robofdi.evaluate", "write_summary": "robofdi.evaluate", "results_table": "robofdi.evaluate",
+    "ArmScenario": "robofdi.scenarios.arm", "arm_scenario": "robofdi.scenarios.arm",
+    "calibration": "robofdi.scenarios.arm", "run_scenario": "robofdi.scenarios.arm",
+    "Health": "robofdi.protocols",
+}
+__all__ = ["ASSETS", "RobofdiError", "__version__", "assets_dir", *_API]
+
+
+def __getattr__(name: str):
+    module = _API.get(name)
+    if module is None:
+        raise AttributeError(f"module 'robofdi' has no attribute {name!r}")
+    from importlib import import_module
+
+    value = getattr(import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_API))
 
 
 def assets_dir() -> Path:

@@ -16,7 +16,9 @@ from robofdi import RobofdiError, __version__
 
 # experiment name → module of robofdi.experiments (the repository's experiments/); each module has
 # EXPERIMENTS {name: description} and run().
-MODULES = ("robofdi.experiments.ch3_industrial_robot",)
+MODULES = ("robofdi.experiments.ch3_industrial_robot", "robofdi.experiments.arm")
+# options of `robofdi run` that only some experiments take (module attribute OPTIONS lists them)
+EXPERIMENT_OPTIONS = {"robot": "--robot", "faults": "--fault", "joints": "--joints", "torque_motors": "--torque-motors"}
 
 
 def _experiments() -> dict[str, tuple[str, object]]:
@@ -44,17 +46,20 @@ def _cmd_run(args) -> int:
     if args.seed < 0:
         raise RobofdiError(f"--seed must be an integer >= 0, got {args.seed}")
     _, mod = experiments[args.name]
+    accepted = getattr(mod, "OPTIONS", ())
+    options = {k: getattr(args, k) for k in EXPERIMENT_OPTIONS if getattr(args, k) not in (None, False, [])}
+    refused = sorted(set(options) - set(accepted))
+    if refused:
+        flags = ", ".join(EXPERIMENT_OPTIONS[k] for k in refused)
+        raise RobofdiError(f"{flags}: not an option of experiment {args.name!r} (only of: "
+                           f"{', '.join(n for n, (_, m) in experiments.items() if getattr(m, 'OPTIONS', ()))})")
+    if "joints" in options:
+        options["joints"] = [j.strip() for j in options["joints"].split(",") if j.strip()]
     try:
-        summary, run_dir = mod.run(args.name, args.out, args.seed, progress=not args.quiet)
+        summary, run_dir = mod.run(args.name, args.out, args.seed, progress=not args.quiet, **options)
     except RunAborted as exc:
-        path = Path(args.out) / f"{args.name}-seed{args.seed}" / "partial.h5"
-        try:
-            exc.record.save(path)
-        except OSError as save_exc:
-            print(f"robofdi: error: {exc} (and the partial record could not be saved: {_os_error(save_exc)})",
-                  file=sys.stderr)
-            return 1
-        print(f"robofdi: error: {exc} (recorded so far: {path})", file=sys.stderr)
+        where = f"recorded so far: {exc.partial_path}" if exc.partial_path else "the partial record could not be saved"
+        print(f"robofdi: error: {exc} ({where})", file=sys.stderr)
         return 1
     print(results_table(summary))
     for check in summary.get("reproduction", []):
@@ -95,12 +100,20 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--out", default="runs", help="parent folder of the run folder (default: ./runs)")
     run.add_argument("--seed", type=int, default=0)
     run.add_argument("--quiet", action="store_true", help="no progress bar")
+    arm = run.add_argument_group("options of `run arm`")
+    arm.add_argument("--robot", help="the arm's MJCF file (default: the shipped arm6.xml)")
+    arm.add_argument("--fault", dest="faults", action="append", metavar="SPEC",
+                     help="KIND:TARGET:MAGNITUDE@ONSET[-END][~PROFILE][;NAME=VALUE], repeatable, "
+                          "e.g. actuator_additive:joint2:20@1.0 or sensor_bias:joint3_pos:0.004@1.5~ramp(0.5)")
+    arm.add_argument("--joints", help="comma-separated arm joints (default: every joint driven by a motor)")
+    arm.add_argument("--torque-motors", action="store_true",
+                     help="replace the arm's position/velocity servos by torque motors (limit: their forcerange)")
     run.set_defaults(func=_cmd_run)
     demo = sub.add_parser("demo", help="the chapter-3 actuator-fault experiment (= run ch3-actuator)")
     demo.add_argument("--out", default="runs")
     demo.add_argument("--seed", type=int, default=0)
     demo.add_argument("--quiet", action="store_true")
-    demo.set_defaults(func=_cmd_run, name="ch3-actuator")
+    demo.set_defaults(func=_cmd_run, name="ch3-actuator", **dict.fromkeys(EXPERIMENT_OPTIONS))
     view = sub.add_parser("view", help="open a recorded run in the live Meshcat viewer")
     view.add_argument("run", help="a record .h5 file or a run folder")
     view.add_argument("--diagnoser", default=None, help="whose detections light up the joints (default: adaptive)")

@@ -84,11 +84,13 @@ class Diagnosis:
 
 
 class RunAborted(RuntimeError):
-    """A run failed part-way; ``record`` holds everything recorded up to the failure."""
+    """A run failed part-way; ``record`` holds everything recorded up to the failure, ``partial_path`` where it
+    was saved (set by :func:`robofdi.evaluate.run_folder.keep_partial`)."""
 
     def __init__(self, message: str, record: Record):
         super().__init__(message)
         self.record = record
+        self.partial_path = None
 
 
 class DiagnosisRunner:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
+from contextlib import contextmanager
 from pathlib import Path
 
 from robofdi.errors import RobofdiError
@@ -9,7 +10,22 @@ from robofdi.evaluate.figures import plot_estimates, plot_residuals
 from robofdi.evaluate.summary import write_summary
 from robofdi.record import Record
 
-__all__ = ["prepare_run_dir", "write_run_folder"]
+__all__ = ["prepare_run_dir", "write_run_folder", "keep_partial"]
+
+
+@contextmanager
+def keep_partial(run_dir: Path):
+    """A run that fails (or is interrupted) inside this block keeps what it recorded: ``run_dir/partial.h5``."""
+    from robofdi.loop import RunAborted
+
+    try:
+        yield
+    except RunAborted as exc:
+        try:
+            exc.partial_path = exc.record.save(run_dir / "partial.h5")
+        except OSError:
+            exc.partial_path = None
+        raise
 
 
 def prepare_run_dir(out: str | Path, name: str, seed: int) -> Path:
