@@ -9,6 +9,7 @@ from robofdi.control.motions import (
     random_point_to_point,
 )
 from robofdi.control.trajectory import Quintic, Sequence
+from robofdi.control.linear import StateFeedback as StateFeedback, lqr_gain as lqr_gain
 
 __all__ = [
     "ComputedTorque",

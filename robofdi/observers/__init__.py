@@ -9,6 +9,7 @@ from robofdi.observers.diagnostic import (
     TimeDelayed,
 )
 from robofdi.observers.momentum import MomentumObserver
+from robofdi.observers.linear import ObserverResidual as ObserverResidual, observer_gain_kalman as observer_gain_kalman
 from robofdi.observers.residual import Residual, check_measurement
 
 __all__ = [
