@@ -57,14 +57,14 @@ def _names(value, size: int, prefix: str, name: str) -> tuple[str, ...]:
     return names
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class LinearModel:
     """A continuous (``dt`` None) or discrete (``dt`` = sampling period [s]) linear state-space model.
 
     A (n×n), B (n×m), C (p×n); D (p×m, default 0); E (n×q, unknown inputs, default none: n×0).
     ``state_names`` / ``input_names`` / ``output_names`` default to x1…, u1…, y1…; inputs and outputs are fault
     targets, so their names must differ from each other. ``units`` maps "state", "u", "y" to one unit per entry
-    (default "1", dimensionless). Arrays are stored read-only.
+    (default "1", dimensionless). Arrays are stored read-only; models compare by identity.
     """
 
     A: np.ndarray

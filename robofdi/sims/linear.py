@@ -43,7 +43,7 @@ def _vector(value, size: int, name: str, default: float, allow_inf: bool = False
     return a
 
 
-@dataclass
+@dataclass(eq=False)
 class LinearPlant:
     """Simulator protocol (:class:`robofdi.protocols.Simulator`) for a :class:`LinearModel` truth.
 
