@@ -37,6 +37,8 @@ _API = {
     "ArmScenario": "robofdi.scenarios.arm", "arm_scenario": "robofdi.scenarios.arm",
     "calibration": "robofdi.scenarios.arm", "run_scenario": "robofdi.scenarios.arm",
     "Health": "robofdi.protocols",
+    "LinearModel": "robofdi.models", "LinearPlant": "robofdi.sims", "ObserverResidual": "robofdi.observers",
+    "StateFeedback": "robofdi.control",
 }
 __all__ = ["ASSETS", "RobofdiError", "__version__", "assets_dir", *_API]
 

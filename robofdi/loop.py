@@ -272,8 +272,9 @@ class ClosedLoop:
         health_runner = runners.get(self.health_source)
         oracle = self.health_source == ORACLE
         accommodation = self.accommodation
-        if accommodation is not None and hasattr(accommodation, "reset"):
-            accommodation.reset()
+        for part in (self.controller, accommodation):     # stateful parts start every run afresh
+            if hasattr(part, "reset"):
+                part.reset()
         online = self.injection == "online"
         keys = ("time", "state", "u_applied", "reference", "u_cmd", "u", "u_diag", "y_true", "y_meas")
         rows: dict[str, list] = {k: [] for k in keys}
