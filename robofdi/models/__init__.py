@@ -1,4 +1,7 @@
 """Nominal models: the belief a diagnoser is built from (never the simulator's own model)."""
-from robofdi.models.manipulator import ManipulatorModel, ModelMismatch, resolve_asset
+from robofdi.models.manipulator import (
+    CompiledArm, Drive, ManipulatorModel, ModelMismatch, compile_arm, resolve_asset, sensor_channel_names,
+)
 
-__all__ = ["ManipulatorModel", "ModelMismatch", "resolve_asset"]
+__all__ = ["ManipulatorModel", "ModelMismatch", "CompiledArm", "Drive", "compile_arm", "resolve_asset",
+           "sensor_channel_names"]
