@@ -1,4 +1,4 @@
 """Simulated plants (the truth): MuJoCo systems with the effects their nominal models lack."""
-from robofdi.sims.arm import ArmSimulator, SensorModel, TorqueRipple
+from robofdi.sims.arm import ArmSettings, ArmSimulator, SensorModel, StribeckFriction, TorqueRipple
 
-__all__ = ["ArmSimulator", "SensorModel", "TorqueRipple"]
+__all__ = ["ArmSimulator", "ArmSettings", "SensorModel", "StribeckFriction", "TorqueRipple"]
