@@ -181,22 +181,29 @@ def _select_arm(m: mujoco.MjModel, path: Path, joints: Sequence[str] | None, tor
             which = ", ".join(_actuator_label(m, a) for a in acts) or "none"
             raise RobofdiError(f"mjcf: arm joint {names[j]!r} of {file} is driven by {len(acts)} joint actuators "
                                f"({which}); expected exactly one")
-        a = acts[0]
-        if not _is_motor(m, a) and not torque_motors:
-            raise RobofdiError(
-                f"mjcf: actuator {_actuator_label(m, a)} on arm joint {names[j]!r} of {file} is {_actuator_kind(m, a)}; "
-                f"expected a torque motor (<motor>, or <general> with gaintype fixed, biastype none, dyntype none); "
-                f"pass torque_motors=True to convert the arm joints' actuators into motors")
+        if not _is_motor(m, acts[0]) and not torque_motors:
+            raise _not_a_motor(m, acts[0], names[j], file)
     arm = set(ids)
     for j in ids:                                        # nothing but arm joints between an arm joint and the world
         b = int(m.body_parentid[m.jnt_bodyid[j]])
         while b > 0:
             for k in range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b]):
-                if k not in arm:
-                    raise RobofdiError(f"joints: arm joint {names[j]!r} of {file} moves with the non-arm joint "
-                                       f"{names[k]!r}; include it in the arm or weld it")
+                if k in arm:
+                    continue
+                servos = [a for a in actuated.get(k, []) if not _is_motor(m, a)]
+                if joints is None and servos and _JOINT_KINDS.get(int(m.jnt_type[k])) in ("hinge", "slide"):
+                    raise _not_a_motor(m, servos[0], names[k], file)
+                raise RobofdiError(f"joints: arm joint {names[j]!r} of {file} moves with the non-arm joint "
+                                   f"{names[k]!r}; include it in the arm or weld it")
             b = int(m.body_parentid[b])
     return ids
+
+
+def _not_a_motor(m: mujoco.MjModel, a: int, joint: str, file: str) -> RobofdiError:
+    return RobofdiError(
+        f"mjcf: actuator {_actuator_label(m, a)} on arm joint {joint!r} of {file} is {_actuator_kind(m, a)}; "
+        f"expected a torque motor (<motor>, or <general> with gaintype fixed, biastype none, dyntype none); "
+        f"pass torque_motors=True to convert the arm joints' actuators into motors")
 
 
 def _torque_range(m: mujoco.MjModel, a: int, j: int, path: Path) -> tuple[float, float]:
@@ -320,10 +327,9 @@ def pinocchio_model(m: mujoco.MjModel, arm_joints: Sequence[int]) -> pin.Model:
             if j not in arm:
                 continue                          # locked at its reference: the body frame is the compiled one
             kind = _JOINT_KINDS[int(m.jnt_type[j])]
-            axis, ref = m.jnt_axis[j].copy(), float(m.qpos0[m.jnt_qposadr[j]])
-            at_ref = pin.SE3(pin.exp3(-ref * axis), np.zeros(3)) if kind == "hinge" else pin.SE3(np.eye(3), -ref * axis)
-            placement = X * pin.SE3(np.eye(3), m.jnt_pos[j].copy()) * at_ref
-            joint = model.addJoint(joint, _joint_model(kind, axis), placement, _name(m, mujoco.mjtObj.mjOBJ_JOINT, j))
+            placement = X * pin.SE3(np.eye(3), m.jnt_pos[j].copy())      # the body frame at q = ref, moved to the joint
+            joint = model.addJoint(joint, _joint_model(kind, m.jnt_axis[j].copy()), placement,
+                                   _name(m, mujoco.mjtObj.mjOBJ_JOINT, j))
             frame = model.addJointFrame(joint, frame)
             armature[arm[j]], damping[arm[j]] = m.dof_armature[m.jnt_dofadr[j]], m.dof_damping[m.jnt_dofadr[j]]
             X = pin.SE3(np.eye(3), -m.jnt_pos[j])
