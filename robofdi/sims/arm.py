@@ -1,13 +1,38 @@
-"""MuJoCo industrial arm: the truth the diagnosers never see.
+"""MuJoCo arm (any MJCF arm): the truth the diagnosers never see.
 
-Besides what the MJCF holds (armature, viscous and Coulomb friction), the plant carries a position-dependent
-periodic motor torque ripple shaped like eq. (50) of Caccavale & Villani, applied every physics step in
-torque units (it enters as δ in eq. (3): M q̈ + n = τ − δ):
+The file is compiled with ``mujoco.MjSpec.from_file`` (``<include>``, ``<default>``, degrees and meshes work);
+the physics step is the file's ``<option timestep>``. The arm joints are hinge/slide joints each driven by one
+motor-type actuator through a joint transmission, in any file order: u[i] is the torque [N·m] (force [N] for
+a slide joint) on arm joint i, written as ``ctrl = u[i] / gear`` to that joint's actuator. Other joints (a
+gripper) are simulated but not part of the arm: their actuators hold the ctrl of the keyframe "home" (or 0).
 
-    δ_i(q, τ) = c0_i + c1_i sin(N_i q_i + φ1_i) + τ_i c2_i sin(N_i q_i + φ2_i)
+Besides what the MJCF holds (armature, viscous ``damping``, Coulomb ``frictionloss``), the plant carries effects
+outside every diagnoser's model class (the nominal model has rigid body + armature + viscous damping only):
+
+* motor torque ripple with harmonics and a transmission term (:class:`TorqueRipple`), richer than the
+  three-term model of eq. (50) of Caccavale & Villani that the adaptive scheme assumes;
+* a Stribeck breakaway term on top of MuJoCo's Coulomb friction (:class:`StribeckFriction`);
+* industrial sensors: 20-bit absolute encoders and a drive's velocity estimate (:class:`SensorModel`).
+
+Both torque terms enter as δ of eq. (3) (M q̈ + n = τ − δ) through ``qfrc_applied = −δ`` every physics step.
+
+Per-robot settings, read from the MJCF's ``<custom>`` section when present::
+
+    <custom>
+      <numeric name="robofdi_gear_ratio" data="150 150 120 80 80 60"/>  <!-- one per arm joint; default 100 -->
+      <text name="robofdi_payload_body" data="link6"/>          <!-- default: the body of the last arm joint -->
+      <numeric name="robofdi_payload_offset" data="0 0 -0.10"/> <!-- payload point in that body's frame [m]; default 0 -->
+    </custom>
+
+The gear ratios set the ripple's spatial frequencies; the payload body and offset say where ``payload`` and the
+"payload" component fault put their mass.
+
+Randomness: the robot's own (ripple phases) from ``stream(seed, "plant", "ripple")`` with the simulator's
+``seed``; each run's sensor noise from ``stream(run_seed, "sensor", channel)``, one stream per channel.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -15,161 +40,557 @@ import mujoco
 import numpy as np
 
 from robofdi import RobofdiError
-from robofdi.models.manipulator import ManipulatorModel, ModelMismatch, resolve_asset
+from robofdi.models.manipulator import (
+    CompiledArm, ManipulatorModel, ModelMismatch, compile_arm, sensor_channel_names,
+)
+from robofdi.seeding import stream
 
-__all__ = ["TorqueRipple", "SensorModel", "ArmSimulator"]
+__all__ = ["TorqueRipple", "StribeckFriction", "SensorModel", "ArmSettings", "ArmSimulator", "add_point_mass",
+           "arm_settings", "full_mass_matrix"]
 
-# Six ripple cycles per motor revolution: N_i = 6 G_i with the gear ratios of the shipped arm.
-_PHYSICAL_FREQ = np.array([900.0, 900.0, 720.0, 480.0, 480.0, 360.0])
-_LOW_FREQ = np.array([40.0, 40.0, 40.0, 30.0, 30.0, 30.0])
+_RIPPLE_MODES = ("physical", "low", "off")
+
+
+def _is_number(v) -> bool:
+    return not isinstance(v, bool) and isinstance(v, (int, float, np.floating, np.integer)) and bool(np.isfinite(v))
+
+
+def _check_fraction(owner: str, name: str, v, upper: float = np.inf) -> None:
+    if not (_is_number(v) and 0 <= v <= upper):
+        raise RobofdiError(f"{owner}: field {name!r} must be a finite number in [0, {upper}], got {v!r}")
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# Plant effects (configuration)
+# ---------------------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class TorqueRipple:
+    """Motor torque ripple δ_i(q, τ) [N·m] of each arm joint, with G_i the gear ratio and N_i = k G_i the
+    fundamental (k = ``cycles_per_revolution`` ripple periods per motor revolution)::
+
+        δ_i = Σ_h a_h τmax_i sin(h N_i q_i + φ_h,i)            h = 1, 2, 3 (fundamental, 2nd, 3rd harmonic)
+            + c_load τ_i sin(N_i q_i + ψ_i)                     (load-dependent ripple, τ = applied torque)
+            + a_t τmax_i sin(2 G_i q_i + φ_t,i)                  (transmission: 2 cycles per motor revolution)
+
+    Permanent-magnet drives show a ripple of about 1–5 % of rated torque at multiples of 6 per electrical
+    period (Jahns & Soong 1996, IEEE TIE 43(2)); strain-wave gears add a torque component at twice the
+    wave-generator (motor) frequency (Tuttle & Seering 1996, IEEE TRA 12(2)). The adaptive scheme models only
+    c0 + c1 sin(N q + φ1) + τ c2 sin(N q + φ2) per joint, so the harmonics and the transmission term stay outside
+    its model class. Amplitudes: fractions of the joint's torque limit τmax (dimensionless).
+
+    mode: "physical" (the frequencies above), "low" (every frequency scaled by ``low_frequency`` / (k max G), so
+    the stiffest joint's fundamental is ``low_frequency`` rad⁻¹: slow and well conditioned) or "off".
+    Phases come from the simulator's ``seed``.
+    """
+
+    mode: str = "physical"
+    fundamental: float = 0.01
+    harmonics: tuple[float, float] = (0.004, 0.002)
+    load: float = 0.02
+    transmission: float = 0.005
+    cycles_per_revolution: float = 6.0
+    low_frequency: float = 40.0
+
+    def __post_init__(self):
+        if self.mode not in _RIPPLE_MODES:
+            raise RobofdiError(f"TorqueRipple: field 'mode' must be 'physical', 'low' or 'off', got {self.mode!r}")
+        for name in ("fundamental", "load", "transmission"):
+            _check_fraction("TorqueRipple", name, getattr(self, name), 0.5)
+        h = self.harmonics
+        if not (isinstance(h, (tuple, list)) and len(h) == 2):
+            raise RobofdiError(f"TorqueRipple: field 'harmonics' must be two amplitudes (2nd, 3rd), got {h!r}")
+        for v in h:
+            _check_fraction("TorqueRipple", "harmonics", v, 0.5)
+        for name in ("cycles_per_revolution", "low_frequency"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v > 0):
+                raise RobofdiError(f"TorqueRipple: field {name!r} must be a finite number > 0, got {v!r}")
+
+    def terms(self, torque_limit: np.ndarray, gear_ratio: np.ndarray, seed) -> tuple[np.ndarray, ...]:
+        """Pure design computation: (amplitude [N·m], frequency [rad⁻¹], phase [rad]) of the position-dependent
+        terms, each (4, n), and (c_load, frequency, phase) of the load-dependent term, each (n,)."""
+        G = np.asarray(gear_ratio, dtype=float)
+        N = self.cycles_per_revolution * G
+        freq = np.stack([N, 2 * N, 3 * N, 2 * G])
+        load_freq = N.copy()
+        if self.mode == "low":
+            scale = self.low_frequency / np.max(N)
+            freq, load_freq = freq * scale, load_freq * scale
+        phases = np.random.default_rng(stream(seed, "plant", "ripple")).uniform(0.0, 2 * np.pi, (5, len(G)))
+        on = 0.0 if self.mode == "off" else 1.0
+        fractions = np.array([self.fundamental, *self.harmonics, self.transmission])[:, None]
+        amp = on * fractions * np.asarray(torque_limit, dtype=float)
+        return amp, freq, phases[:4], np.full(len(G), on * self.load), load_freq, phases[4]
 
 
 @dataclass(frozen=True)
-class TorqueRipple:
-    """Motor torque ripple of the plant. mode: "physical" (N_i = 6 G_i), "low" (slow, well-conditioned) or "off"."""
+class StribeckFriction:
+    """Breakaway (Stribeck) friction on top of MuJoCo's Coulomb ``frictionloss`` F_c and viscous ``damping``::
 
-    mode: str = "physical"
-    c1_fraction: float = 0.01   # c1_i = c1_fraction * torque limit_i
-    c2: float = 0.02
-    seed: int = 0
+        τ_s,i(q̇) = −(F_s − F_c)_i exp(−(q̇_i / v_s)²) tanh(q̇_i / ε_i),    (F_s − F_c)_i = breakaway · F_c,i
+
+    (Armstrong-Hélouvry, Dupont & Canudas de Wit 1994, Automatica 30(7): static friction typically 10–50 % above
+    Coulomb friction, Stribeck velocities 1e-3–1e-1 in joint units). ``breakaway`` is dimensionless;
+    ``velocity`` v_s [rad/s or m/s]; ``smoothing`` the smallest ε [rad/s or m/s]. Because the term is applied
+    explicitly (qfrc_applied, once per physics step), ε_i is raised where needed so that its slope
+    (F_s − F_c)/ε stays a quarter of the explicit-Euler limit: ε_i ≥ 4 Δt (F_s − F_c)_i / M_ii(q_ref).
+    """
+
+    breakaway: float = 0.3
+    velocity: float = 0.05
+    smoothing: float = 1e-3
 
     def __post_init__(self):
-        if self.mode not in ("physical", "low", "off"):
-            raise RobofdiError(f"TorqueRipple: field 'mode' must be 'physical', 'low' or 'off', got {self.mode!r}")
-        for name in ("c1_fraction", "c2"):
+        _check_fraction("StribeckFriction", "breakaway", self.breakaway, 10.0)
+        for name in ("velocity", "smoothing"):
             v = getattr(self, name)
-            if not (np.isfinite(v) and v >= 0):
-                raise RobofdiError(f"TorqueRipple: field {name!r} must be a finite number >= 0, got {v!r}")
+            if not (np.isfinite(v) and v > 0):
+                raise RobofdiError(f"StribeckFriction: field {name!r} must be a finite number > 0, got {v!r}")
 
-    def coefficients(self, torque_limit: np.ndarray):
-        n = len(torque_limit)
-        freq = (_PHYSICAL_FREQ if self.mode == "physical" else _LOW_FREQ)[:n]
-        if len(freq) < n:
-            freq = np.resize(freq, n)
-        rng = np.random.default_rng(self.seed)
-        phi1, phi2 = rng.uniform(0, 2 * np.pi, (2, n))
-        on = 0.0 if self.mode == "off" else 1.0
-        return on * self.c1_fraction * torque_limit, on * self.c2, freq, phi1, phi2
+    def smoothing_velocity(self, excess: np.ndarray, inertia: np.ndarray, dt: float) -> np.ndarray:
+        """ε_i [rad/s]: ``smoothing``, raised to keep the explicit term stable (pure design computation)."""
+        return np.maximum(self.smoothing, 4.0 * dt * np.asarray(excess) / np.asarray(inertia))
+
+    @staticmethod
+    def torque(v: np.ndarray, excess: np.ndarray, velocity: float, eps: np.ndarray) -> np.ndarray:
+        """τ_s(q̇) of the class docstring [N·m] (opposes the motion)."""
+        return -excess * np.exp(-(v / velocity) ** 2) * np.tanh(v / eps)
 
 
 @dataclass(frozen=True)
 class SensorModel:
-    """Joint encoders: optional quantisation step [rad] and white noise (std) on positions and velocities."""
+    """Joint sensors of an industrial drive.
 
-    position_resolution: float = 0.0
+    Positions: an absolute encoder of ``position_resolution`` [rad] (default 2π/2²⁰, a 20-bit single-turn encoder,
+    the class of joint-side encoders of current collaborative arms; slide joints: ``linear_resolution`` [m],
+    default 1 µm, a common linear-scale resolution), plus optional white noise ``position_noise`` [rad]
+    (``linear_position_noise`` [m]).
+
+    Velocities: the drive's estimate, modelled as the true velocity plus white noise ``velocity_noise``
+    [rad/s] (``linear_velocity_noise`` [m/s]). The default 1e-3 rad/s is what a drive gets from this encoder:
+    a backward difference of a 2π/2²⁰-quantised position at 1 kHz has a quantisation noise of
+    std q·√2/(√12·T) ≈ 2.5e-3 rad/s, which the drive's velocity filter roughly halves; the same argument gives
+    2e-4 m/s for a 1 µm scale. The noise is white (no filter lag): the diagnosers' sampling is left exact.
+
+    ``SensorModel.ideal()`` is the noise-free, unquantised sensor.
+    """
+
+    position_resolution: float = 2 * np.pi / 2**20
     position_noise: float = 0.0
-    velocity_noise: float = 0.0
-    seed: int = 0
+    velocity_noise: float = 1e-3
+    linear_resolution: float = 1e-6
+    linear_position_noise: float = 0.0
+    linear_velocity_noise: float = 2e-4
 
     def __post_init__(self):
-        for name in ("position_resolution", "position_noise", "velocity_noise"):
-            v = getattr(self, name)
-            if not (np.isfinite(v) and v >= 0):
-                raise RobofdiError(f"SensorModel: field {name!r} must be a finite number >= 0, got {v!r}")
+        for name in ("position_resolution", "position_noise", "velocity_noise", "linear_resolution",
+                     "linear_position_noise", "linear_velocity_noise"):
+            _check_fraction("SensorModel", name, getattr(self, name))
+
+    @classmethod
+    def ideal(cls) -> SensorModel:
+        """Noise-free, unquantised sensors."""
+        return cls(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
-@dataclass
+# ---------------------------------------------------------------------------------------------------------------
+# Per-robot settings and the mass function
+# ---------------------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class ArmSettings:
+    """Per-robot settings from the MJCF's <custom> section (module docstring)."""
+
+    gear_ratio: np.ndarray          # (n,) dimensionless
+    payload_body: str
+    payload_offset: np.ndarray      # (3,) [m] in the payload body's frame
+
+
+def _custom_numeric(m: mujoco.MjModel, name: str):
+    i = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_NUMERIC, name)
+    return None if i < 0 else np.array(m.numeric_data[m.numeric_adr[i]: m.numeric_adr[i] + m.numeric_size[i]])
+
+
+def _custom_text(m: mujoco.MjModel, name: str) -> str | None:
+    i = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_TEXT, name)
+    if i < 0:
+        return None
+    raw = bytes(m.text_data[m.text_adr[i]: m.text_adr[i] + m.text_size[i]])
+    return raw.split(b"\0", 1)[0].decode("utf-8").strip()
+
+
+def arm_settings(arm: CompiledArm) -> ArmSettings:
+    """Read robofdi_gear_ratio, robofdi_payload_body, robofdi_payload_offset from ``arm``'s <custom> (defaults:
+    gear ratio 100 per joint, the body of the last arm joint, offset 0)."""
+    m, n, file = arm.model, len(arm.drives), arm.path.name
+    gear = _custom_numeric(m, "robofdi_gear_ratio")
+    if gear is None:
+        gear = np.full(n, 100.0)
+    elif gear.shape != (n,) or not np.all(np.isfinite(gear) & (gear > 0)):
+        raise RobofdiError(f"mjcf: <numeric name='robofdi_gear_ratio'> of {file} must hold {n} finite values > 0 "
+                           f"(one per arm joint {arm.joint_names}), got {gear.tolist()}")
+    body = _custom_text(m, "robofdi_payload_body") or arm.drives[-1].body
+    if mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, body) < 0:
+        raise RobofdiError(f"mjcf: <text name='robofdi_payload_body'> of {file} names {body!r}, which is not a body")
+    offset = _custom_numeric(m, "robofdi_payload_offset")
+    if offset is None:
+        offset = np.zeros(3)
+    elif offset.shape != (3,) or not np.all(np.isfinite(offset)):
+        raise RobofdiError(f"mjcf: <numeric name='robofdi_payload_offset'> of {file} must hold 3 finite values "
+                           f"x y z [m], got {offset.tolist()}")
+    return ArmSettings(gear, body, offset)
+
+
+def add_point_mass(mass: float, com: np.ndarray, quat: np.ndarray, inertia: np.ndarray, added: float,
+                   point: np.ndarray) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
+    """A body's inertial parameters after adding a point mass ``added`` [kg] at ``point`` [m] (body frame):
+    (mass [kg], centre of mass [m], principal-axes quaternion, principal inertia [kg·m²]) in MuJoCo's convention
+    (body_mass, body_ipos, body_iquat, body_inertia). Parallel-axis theorem, re-diagonalised with eigh."""
+    com, point = np.asarray(com, dtype=float), np.asarray(point, dtype=float)
+    total = mass + added
+    if added == 0:
+        return float(mass), com.copy(), np.asarray(quat, dtype=float).copy(), np.asarray(inertia, dtype=float).copy()
+    new_com = (mass * com + added * point) / total
+    R = np.empty(9)
+    mujoco.mju_quat2Mat(R, np.asarray(quat, dtype=float))
+    R = R.reshape(3, 3)
+
+    def shift(m, r):                               # inertia of a point mass m at offset r
+        return m * (r @ r * np.eye(3) - np.outer(r, r))
+
+    I = R @ np.diag(inertia) @ R.T + shift(mass, com - new_com) + shift(added, point - new_com)
+    values, vectors = np.linalg.eigh(0.5 * (I + I.T))
+    if np.linalg.det(vectors) < 0:
+        vectors[:, 0] = -vectors[:, 0]
+    q = np.empty(4)
+    mujoco.mju_mat2Quat(q, vectors.ravel())
+    return float(total), new_com, q, np.maximum(values, 0.0)
+
+
+def full_mass_matrix(m: mujoco.MjModel, d: mujoco.MjData) -> np.ndarray:
+    """MuJoCo's dense joint-space inertia matrix [kg·m²] of the last mj_forward (armature included)."""
+    M = np.zeros((m.nv, m.nv))
+    try:
+        mujoco.mj_fullM(m, d, M)          # MuJoCo >= 4.0
+    except TypeError:
+        mujoco.mj_fullM(m, M, d.qM)       # older signature (spec ch. 3, §6.3)
+    return M
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# The simulator
+# ---------------------------------------------------------------------------------------------------------------
+class _ChannelNoise:
+    """Standard normal draws, one independent stream per channel, buffered (one column per measurement)."""
+
+    def __init__(self, seed, channels: Sequence[str], block: int = 512):
+        root = np.random.SeedSequence() if seed is None else seed
+        self._gens = [np.random.default_rng(stream(root, "sensor", c)) for c in channels]
+        self._block, self._k = block, block
+        self._buffer = np.empty((len(channels), block))
+
+    def draw(self) -> np.ndarray:
+        if self._k == self._block:
+            for i, g in enumerate(self._gens):
+                self._buffer[i] = g.standard_normal(self._block)
+            self._k = 0
+        self._k += 1
+        return self._buffer[:, self._k - 1]
+
+
+@dataclass(eq=False)
 class ArmSimulator:
-    """A torque-controlled arm in MuJoCo; ``step(u)`` holds u for one control period (zero-order hold)."""
+    """A torque-controlled arm in MuJoCo (the truth); ``step(u)`` holds u for one control period.
+
+    mjcf: a shipped asset name or a path. control_dt [s]: a positive integer multiple of the file's physics
+    step; None = the multiple closest to 1 ms. ripple, friction, sensors: the plant effects of the module
+    docstring. payload [kg]: a constant point mass at the payload point. joints: the arm joints (None = every
+    hinge/slide joint driven by a motor-type actuator). torque_motors: convert the arm joints' servos into
+    motors. seed: the robot's own randomness (ripple phases); each run's sensor noise is seeded in ``reset``.
+    """
 
     mjcf: str | Path = "arm6.xml"
-    control_dt: float = 1e-3
+    control_dt: float | None = None
     ripple: TorqueRipple = field(default_factory=TorqueRipple)
     sensors: SensorModel = field(default_factory=SensorModel)
     payload: float = 0.0
+    friction: StribeckFriction = field(default_factory=StribeckFriction)
+    joints: Sequence[str] | None = None
+    torque_motors: bool = False
+    seed: int = 0
 
     def __post_init__(self):
-        self.path = resolve_asset(self.mjcf)
-        try:
-            self.model = mujoco.MjModel.from_xml_path(str(self.path))
-        except Exception as exc:
-            raise RobofdiError(f"mjcf: cannot load {str(self.path)!r} in MuJoCo: {exc}") from None
-        m = self.model
-        if m.nu != m.njnt or m.nq != m.njnt:
-            raise RobofdiError(f"mjcf: {self.path.name} must have one hinge joint and one motor per joint")
-        self.data = mujoco.MjData(m)
-        self.joint_names = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, i) for i in range(m.njnt)]
-        self.n = m.njnt
+        for name, cls in (("ripple", TorqueRipple), ("sensors", SensorModel), ("friction", StribeckFriction)):
+            if not isinstance(getattr(self, name), cls):
+                raise RobofdiError(f"ArmSimulator: field {name!r} must be a {cls.__name__}, got {getattr(self, name)!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or self.seed < 0:
+            raise RobofdiError(f"ArmSimulator: field 'seed' must be an integer >= 0, got {self.seed!r}")
+        if not (_is_number(self.payload) and self.payload >= 0):
+            raise RobofdiError(f"ArmSimulator: field 'payload' must be a finite mass >= 0 kg, got {self.payload!r}")
+        arm = compile_arm(self.mjcf, self.joints, self.torque_motors)
+        m = self.model = arm.model
+        self.path, self.system, self.drives = arm.path, arm.system, arm.drives
+        self.joint_names = arm.joint_names
+        self.n = n = len(self.drives)
+        self.settings = arm_settings(arm)
+
+        # names and units (the Simulator protocol)
         self.actuators = list(self.joint_names)
-        self.sensor_channels = [f"{j}_pos" for j in self.joint_names] + [f"{j}_vel" for j in self.joint_names]
-        self.torque_limit = m.actuator_ctrlrange[:, 1].copy()
-        self.joint_range = m.jnt_range.copy()
-        substeps = self.control_dt / m.opt.timestep
-        if not (self.control_dt > 0 and abs(substeps - round(substeps)) < 1e-9 and round(substeps) >= 1):
-            raise RobofdiError(
-                f"ArmSimulator: field 'control_dt' must be a positive multiple of the physics step "
-                f"{m.opt.timestep}, got {self.control_dt}"
-            )
-        self.substeps = int(round(substeps))
-        if not (np.isfinite(self.payload) and 0.0 <= self.payload <= 20.0):
-            raise RobofdiError(f"ArmSimulator: field 'payload' must be in [0, 20] kg, got {self.payload}")
+        self.sensor_channels = sensor_channel_names(self.joint_names)
+        self.state_names = [f"{j}_q" for j in self.joint_names] + [f"{j}_qd" for j in self.joint_names]
+        slide = np.array([d.kind == "slide" for d in self.drives], dtype=bool)
+        pos_units = ["m" if s else "rad" for s in slide]
+        vel_units = ["m/s" if s else "rad/s" for s in slide]
+        self.units = {"state": pos_units + vel_units, "u": ["N" if s else "N·m" for s in slide],
+                      "y": pos_units + vel_units}
+
+        # drives, ranges, rates
+        self._qadr = np.array([d.qpos for d in self.drives])
+        self._dofs = np.array([d.dof for d in self.drives])
+        self._act = np.array([d.actuator_id for d in self.drives])
+        self._gain = np.array([d.gain for d in self.drives])
+        self.torque_range = arm.torque_range
+        self.torque_limit = arm.torque_limit
+        ids = [d.joint_id for d in self.drives]
+        self.joint_range = np.where(m.jnt_limited[ids, None].astype(bool), m.jnt_range[ids], [-np.inf, np.inf])
+        self.physics_dt = float(m.opt.timestep)
+        self.control_dt, self.substeps = self._control_period(self.control_dt)
+
+        # home pose, non-arm actuators
+        self._home_key = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_KEY, "home")
+        arm_acts = set(self._act.tolist())
+        self._other_act = np.array([a for a in range(m.nu) if a not in arm_acts], dtype=int)
+        self.data = mujoco.MjData(m)
+        self._scratch = mujoco.MjData(m)
+
+        # components: friction per joint, mass per link body and the payload point
+        self._frictionloss0 = m.dof_frictionloss[self._dofs].copy()
+        self._damping0 = m.dof_damping[self._dofs].copy()
+        links = list(dict.fromkeys(d.body for d in self.drives))
+        self._mass_points = {b: (mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, b), None) for b in links}
+        payload_id = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, self.settings.payload_body)
+        self._mass_points["payload"] = (payload_id, self.settings.payload_offset)
+        self.component_kinds = {"component_friction": list(self.joint_names), "component_mass": links + ["payload"]}
+        self.components = list(dict.fromkeys(self.joint_names + links + ["payload"]))
         if self.payload > 0:
-            last = m.nbody - 1
-            m.body_mass[last] += self.payload
-            m.body_ipos[last, 2] -= 0.08 * self.payload / m.body_mass[last]
-            mujoco.mj_setConst(m, self.data)
-        self._c1, self._c2, self._freq, self._phi1, self._phi2 = self.ripple.coefficients(self.torque_limit)
-        self._rng = np.random.default_rng(self.sensors.seed)
+            self._set_body(payload_id, [(self.payload, self.settings.payload_offset)])
+            mujoco.mj_setConst(m, self._scratch)
+        self._body0 = {b: (float(m.body_mass[b]), m.body_ipos[b].copy(), m.body_iquat[b].copy(), m.body_inertia[b].copy())
+                       for b, _ in self._mass_points.values()}
+        self._faults: dict[tuple[str, str], float] = {}
 
-    @property
-    def physics_dt(self) -> float:
-        return float(self.model.opt.timestep)
+        # plant effects
+        amp, freq, phase, c_load, load_freq, load_phase = self.ripple.terms(
+            self.torque_limit, self.settings.gear_ratio, self.seed)
+        self._ripple_on = bool(np.any(amp) or np.any(c_load))
+        self._r_amp, self._r_freq, self._r_phase = amp, freq, phase
+        self._r_load, self._r_load_freq, self._r_load_phase = c_load, load_freq, load_phase
+        d = self._scratch
+        mujoco.mj_resetData(m, d)
+        mujoco.mj_forward(m, d)
+        self._inertia_ref = np.diag(full_mass_matrix(m, d))[self._dofs].copy()
+        self._set_friction(np.zeros(n))
 
-    def reset(self, q0: np.ndarray, seed: int | None = None) -> np.ndarray:
-        """Put the arm at rest at q0 and return the first measurement [q; q̇]."""
-        q0 = np.asarray(q0, dtype=float)
-        if q0.shape != (self.n,) or not np.all(np.isfinite(q0)):
-            raise RobofdiError(f"reset: field 'q0' must be {self.n} finite joint angles, got {q0!r}")
-        lo, hi = self.joint_range.T
-        if np.any(q0 < lo) or np.any(q0 > hi):
-            bad = [self.joint_names[i] for i in np.flatnonzero((q0 < lo) | (q0 > hi))]
-            raise RobofdiError(f"reset: q0 is outside the joint range of {bad}")
-        mujoco.mj_resetData(self.model, self.data)
-        self.data.qpos[:] = q0
-        mujoco.mj_forward(self.model, self.data)
-        self._rng = np.random.default_rng(self.sensors.seed if seed is None else seed)
-        return self.measure()
+        s = self.sensors
+        self._resolution = np.where(slide, s.linear_resolution, s.position_resolution)
+        self._pos_noise = np.where(slide, s.linear_position_noise, s.position_noise)
+        self._vel_noise = np.where(slide, s.linear_velocity_noise, s.velocity_noise)
+        self.reset()
 
-    def ripple_torque(self, q: np.ndarray, tau: np.ndarray) -> np.ndarray:
-        """δ(q, τ) of the module docstring."""
-        arg = self._freq * q
-        return self._c1 * np.sin(arg + self._phi1) + tau * self._c2 * np.sin(arg + self._phi2)
+    # ----------------------------------------------------------------------------------------- configuration
+    def _control_period(self, control_dt) -> tuple[float, int]:
+        dt = self.physics_dt
+        if control_dt is None:
+            k = max(1, int(round(1e-3 / dt)))
+            return k * dt, k
+        ok = _is_number(control_dt) and control_dt > 0
+        ratio = control_dt / dt if ok else np.nan
+        if not (ok and round(ratio) >= 1 and abs(ratio - round(ratio)) <= 1e-9 * max(1.0, ratio)):
+            raise RobofdiError(f"ArmSimulator: field 'control_dt' must be a positive integer multiple of the physics "
+                               f"step {dt} s of {self.path.name}, got {control_dt!r}")
+        return float(control_dt), int(round(ratio))
 
-    def step(self, u: np.ndarray) -> np.ndarray:
-        """Apply torques u (clipped to the motor limits) for one control period; return the measurement."""
-        m, d = self.model, self.data
-        tau = np.clip(u, -self.torque_limit, self.torque_limit)
-        d.ctrl[:] = tau
-        for _ in range(self.substeps):
-            d.qfrc_applied[:] = -self.ripple_torque(d.qpos, tau)
-            mujoco.mj_step(m, d)
-        if not np.all(np.isfinite(d.qpos)):
-            raise RobofdiError("simulation diverged: non-finite joint positions")
-        return self.measure()
+    def _set_body(self, body: int, points: list[tuple[float, np.ndarray | None]]) -> None:
+        m = self.model
+        mass, com, quat, inertia = (float(m.body_mass[body]), m.body_ipos[body].copy(), m.body_iquat[body].copy(),
+                                    m.body_inertia[body].copy())
+        for added, offset in points:
+            point = com if offset is None else offset
+            mass, com, quat, inertia = add_point_mass(mass, com, quat, inertia, added, point)
+        m.body_mass[body], m.body_ipos[body], m.body_iquat[body], m.body_inertia[body] = mass, com, quat, inertia
 
+    def _set_friction(self, rise: np.ndarray) -> None:
+        m = self.model
+        scale = 1.0 + rise
+        m.dof_frictionloss[self._dofs] = np.where(rise == 0, self._frictionloss0, self._frictionloss0 * scale)
+        m.dof_damping[self._dofs] = np.where(rise == 0, self._damping0, self._damping0 * scale)
+        self._stribeck = self.friction.breakaway * m.dof_frictionloss[self._dofs]
+        self._stribeck_eps = self.friction.smoothing_velocity(self._stribeck, self._inertia_ref, self.physics_dt)
+        self._stribeck_on = bool(np.any(self._stribeck > 0))
+
+    # ----------------------------------------------------------------------------------------- protocol
     @property
     def state(self) -> np.ndarray:
-        """True state [q; q̇]."""
-        return np.concatenate([self.data.qpos, self.data.qvel])
+        """True state [q; q̇] of the arm joints [rad, rad/s (m, m/s for slide joints)]."""
+        return np.concatenate([self.data.qpos[self._qadr], self.data.qvel[self._dofs]])
 
     @property
     def time(self) -> float:
         return float(self.data.time)
 
+    def default_positions(self) -> np.ndarray:
+        """Arm joint positions of ``reset(None)``: keyframe "home" if the file has one, else qpos0 clipped into
+        the joint ranges."""
+        if self._home_key >= 0:
+            return self.model.key_qpos[self._home_key][self._qadr].copy()
+        lo, hi = self.joint_range.T
+        return np.clip(self.model.qpos0[self._qadr], lo, hi)
+
+    def reset(self, initial_state=None, seed: np.random.SeedSequence | int | None = None) -> np.ndarray:
+        """Start a run with the arm at rest at ``initial_state`` (n joint positions [rad or m]; or a full state
+        [q; q̇] of 2n entries; None = :meth:`default_positions`), component faults cleared. ``seed`` (int,
+        SeedSequence, None = fresh entropy) drives this run's sensor noise. Returns the first measurement."""
+        n = self.n
+        if initial_state is None:
+            q, v = self.default_positions(), np.zeros(n)
+        else:
+            x = np.asarray(initial_state, dtype=float)
+            if x.shape not in ((n,), (2 * n,)) or not np.all(np.isfinite(x)):
+                raise RobofdiError(f"reset: field 'initial_state' must be {n} finite joint positions (or {2 * n} "
+                                   f"entries [q; q̇]) for {self.joint_names}, got shape {x.shape}: {x.tolist()}")
+            q, v = (x, np.zeros(n)) if x.shape == (n,) else (x[:n], x[n:])
+            lo, hi = self.joint_range.T
+            out = (q < lo) | (q > hi)
+            if np.any(out):
+                bad = {self.joint_names[i]: (float(q[i]), [float(lo[i]), float(hi[i])]) for i in np.flatnonzero(out)}
+                raise RobofdiError(f"reset: initial_state is outside the joint range of {bad} (value, [min, max])")
+        self._clear_faults()
+        m, d = self.model, self.data
+        if self._home_key >= 0:
+            mujoco.mj_resetDataKeyframe(m, d, self._home_key)
+        else:
+            mujoco.mj_resetData(m, d)
+        d.qpos[self._qadr], d.qvel[self._dofs] = q, v
+        d.ctrl[self._act] = 0.0
+        if self._home_key < 0:
+            d.ctrl[self._other_act] = 0.0
+        self._other_ctrl = d.ctrl[self._other_act].copy()
+        mujoco.mj_forward(m, d)
+        self.u_applied = np.zeros(n)
+        self._pos_draws = _ChannelNoise(seed, self.sensor_channels[:n]) if np.any(self._pos_noise) else None
+        self._vel_draws = _ChannelNoise(seed, self.sensor_channels[n:]) if np.any(self._vel_noise) else None
+        return self.measure()
+
+    def saturate(self, u: np.ndarray) -> np.ndarray:
+        """What the drives can deliver of u: clipped to each drive's torque range [N·m or N]."""
+        return np.clip(u, self.torque_range[:, 0], self.torque_range[:, 1])
+
+    def step(self, u: np.ndarray) -> np.ndarray:
+        """Apply torques u (n, [N·m or N], saturated) for one control period; return the measurement."""
+        u = np.asarray(u, dtype=float)
+        if u.shape != (self.n,) or not np.all(np.isfinite(u)):
+            raise RobofdiError(f"step: u must be {self.n} finite joint torques for {self.joint_names}, got shape "
+                               f"{u.shape}: {u.tolist()}")
+        m, d = self.model, self.data
+        tau = self.saturate(u)
+        self.u_applied = tau
+        d.ctrl[self._act] = tau / self._gain
+        d.ctrl[self._other_act] = self._other_ctrl
+        qadr, dofs = self._qadr, self._dofs
+        disturb = self._ripple_on or self._stribeck_on
+        for _ in range(self.substeps):
+            if disturb:
+                d.qfrc_applied[dofs] = -self.disturbance(d.qpos[qadr], d.qvel[dofs], tau)
+            mujoco.mj_step(m, d)
+        if not (np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))):
+            raise RobofdiError(f"simulation diverged at t={d.time:.4f} s: non-finite joint state")
+        return self.measure()
+
+    def disturbance(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """δ(q, q̇, τ) [N·m] of eq. (3): torque ripple plus the Stribeck term (the friction torque opposes motion,
+        so its δ is minus it)."""
+        delta = np.zeros(self.n)
+        if self._ripple_on:
+            delta += self.ripple_torque(q, tau)
+        if self._stribeck_on:
+            delta -= StribeckFriction.torque(v, self._stribeck, self.friction.velocity, self._stribeck_eps)
+        return delta
+
+    def ripple_torque(self, q: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """The ripple δ(q, τ) of :class:`TorqueRipple` [N·m]."""
+        pos = np.sum(self._r_amp * np.sin(self._r_freq * q + self._r_phase), axis=0)
+        return pos + tau * self._r_load * np.sin(self._r_load_freq * q + self._r_load_phase)
+
     def measure(self) -> np.ndarray:
-        """Encoder reading [q; q̇] with the configured quantisation and noise."""
-        s = self.sensors
-        q, v = self.data.qpos.copy(), self.data.qvel.copy()
-        if s.position_resolution > 0:
-            q = np.round(q / s.position_resolution) * s.position_resolution
-        if s.position_noise > 0:
-            q += s.position_noise * self._rng.standard_normal(self.n)
-        if s.velocity_noise > 0:
-            v += s.velocity_noise * self._rng.standard_normal(self.n)
+        """Sensor reading [q; q̇] (quantised positions, noisy velocities; :class:`SensorModel`)."""
+        q, v = self.data.qpos[self._qadr], self.data.qvel[self._dofs]
+        res = self._resolution
+        q = np.where(res > 0, np.round(q / np.where(res > 0, res, 1.0)) * res, q)
+        if self._pos_draws is not None:
+            q = q + self._pos_noise * self._pos_draws.draw()
+        if self._vel_draws is not None:
+            v = v + self._vel_noise * self._vel_draws.draw()
         return np.concatenate([q, v])
 
+    # ----------------------------------------------------------------------------------------- components
+    def apply_component_fault(self, kind: str, target: str, value: float) -> None:
+        """Set component ``target`` to ``value`` away from nominal (0 restores it exactly).
+
+        component_friction (target: an arm joint; value: relative rise, dimensionless, > −1): Coulomb
+        frictionloss, viscous damping and the Stribeck term become nominal · (1 + value).
+        component_mass (target: an arm link body or "payload"; value: added mass [kg], >= 0): a point mass at
+        the body's centre of mass (or at the payload point).
+        """
+        key = (kind, target)
+        if self._faults.get(key, 0.0) == value:
+            return
+        if kind not in self.component_kinds:
+            raise RobofdiError(f"apply_component_fault: kind {kind!r} is not one of {list(self.component_kinds)}")
+        if target not in self.component_kinds[kind]:
+            raise RobofdiError(f"apply_component_fault: {kind} target {target!r} is not one of "
+                               f"{list(self.component_kinds[kind])}")
+        v = float(value)
+        if kind == "component_friction" and not (np.isfinite(v) and v > -1.0):
+            raise RobofdiError(f"apply_component_fault: component_friction on {target!r} must be a relative rise > -1, "
+                               f"got {value!r}")
+        if kind == "component_mass" and not (np.isfinite(v) and v >= 0.0):
+            raise RobofdiError(f"apply_component_fault: component_mass on {target!r} must be an added mass >= 0 kg, "
+                               f"got {value!r}")
+        if v == 0.0:
+            self._faults.pop(key, None)
+        else:
+            self._faults[key] = v
+        if kind == "component_friction":
+            self._apply_friction()
+        else:
+            self._apply_mass(self._mass_points[target][0])
+
+    def _apply_friction(self) -> None:
+        rise = np.array([self._faults.get(("component_friction", j), 0.0) for j in self.joint_names])
+        self._set_friction(rise)
+
+    def _apply_mass(self, body: int) -> None:
+        m = self.model
+        m.body_mass[body], m.body_ipos[body], m.body_iquat[body], m.body_inertia[body] = self._body0[body]
+        points = [(v, self._mass_points[t][1]) for (kind, t), v in self._faults.items()
+                  if kind == "component_mass" and self._mass_points[t][0] == body]
+        if points:
+            self._set_body(body, points)
+        mujoco.mj_setConst(m, self._scratch)
+
+    def _clear_faults(self) -> None:
+        if not self._faults:
+            return
+        bodies = {self._mass_points[t][0] for (kind, t) in self._faults if kind == "component_mass"}
+        self._faults.clear()
+        self._apply_friction()
+        for b in bodies:
+            self._apply_mass(b)
+
+    # ----------------------------------------------------------------------------------------- belief
     def nominal_model(self, mismatch: ModelMismatch | None = None) -> ManipulatorModel:
-        """The belief: a Pinocchio model read from the same MJCF file, with deliberate parameter errors."""
-        model = ManipulatorModel(self.path, mismatch or ModelMismatch())
+        """The belief: a Pinocchio model compiled afresh from the same file (never from this simulator's model,
+        so no payload or component fault leaks in), with deliberate parameter errors ``mismatch``."""
+        model = ManipulatorModel(self.path, mismatch or ModelMismatch(), self.joint_names, self.torque_motors)
         model.check_joints(self.joint_names)
         return model
+
