@@ -22,6 +22,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
+import mujoco
 import numpy as np
 
 from robofdi.control import ComputedTorque, MotionLimits, calibration_motions, random_point_to_point
@@ -225,7 +226,7 @@ def _calibration_key(scenario: ArmScenario, sim: ArmSimulator, trajectories: Map
     from robofdi import __version__
 
     description = {
-        "robot": hashlib.sha256(sim.compiled_xml.encode()).hexdigest(),
+        "robot": hashlib.sha256(mujoco.MjSpec.from_file(str(sim.path)).to_xml().encode()).hexdigest(),
         "joints": list(sim.joint_names), "torque_motors": scenario.torque_motors, "seed": scenario.seed,
         "ripple": scenario.ripple_mode, "sensors": repr(scenario.sensors), "payload": scenario.payload,
         "mismatch": repr(scenario.mismatch), "rates": repr(scenario.loop_rates(sim)), "settings": repr(scenario.settings),
