@@ -374,8 +374,8 @@ class ArmSimulator:
         if self.payload > 0:
             self._set_body(payload_id, [(self.payload, self.settings.payload_offset)])
             mujoco.mj_setConst(m, self._scratch)
-        self._body0 = {b: (float(m.body_mass[b]), m.body_ipos[b].copy(), m.body_iquat[b].copy(), m.body_inertia[b].copy())
-                       for b, _ in self._mass_points.values()}
+        self._body0 = {b: (float(m.body_mass[b]), m.body_ipos[b].copy(), m.body_iquat[b].copy(), m.body_inertia[b].copy(),
+                           int(m.body_sameframe[b])) for b, _ in self._mass_points.values()}
         self._faults: dict[tuple[str, str], float] = {}
 
         # plant effects
@@ -417,6 +417,7 @@ class ArmSimulator:
             point = com if offset is None else offset
             mass, com, quat, inertia = add_point_mass(mass, com, quat, inertia, added, point)
         m.body_mass[body], m.body_ipos[body], m.body_iquat[body], m.body_inertia[body] = mass, com, quat, inertia
+        m.body_sameframe[body] = mujoco.mjtSameFrame.mjSAMEFRAME_NONE    # the compiler's shortcut no longer holds
 
     def _set_friction(self, rise: np.ndarray) -> None:
         m = self.model
@@ -541,7 +542,7 @@ class ArmSimulator:
         the body's centre of mass (or at the payload point).
         """
         key = (kind, target)
-        if self._faults.get(key, 0.0) == value:
+        if key in self._faults and self._faults[key] == value:       # called every control tick: cheap when unchanged
             return
         if kind not in self.component_kinds:
             raise RobofdiError(f"apply_component_fault: kind {kind!r} is not one of {list(self.component_kinds)}")
@@ -556,7 +557,9 @@ class ArmSimulator:
             raise RobofdiError(f"apply_component_fault: component_mass on {target!r} must be an added mass >= 0 kg, "
                                f"got {value!r}")
         if v == 0.0:
-            self._faults.pop(key, None)
+            if key not in self._faults:
+                return
+            del self._faults[key]
         else:
             self._faults[key] = v
         if kind == "component_friction":
@@ -570,7 +573,8 @@ class ArmSimulator:
 
     def _apply_mass(self, body: int) -> None:
         m = self.model
-        m.body_mass[body], m.body_ipos[body], m.body_iquat[body], m.body_inertia[body] = self._body0[body]
+        (m.body_mass[body], m.body_ipos[body], m.body_iquat[body], m.body_inertia[body],
+         m.body_sameframe[body]) = self._body0[body]
         points = [(v, self._mass_points[t][1]) for (kind, t), v in self._faults.items()
                   if kind == "component_mass" and self._mass_points[t][0] == body]
         if points:
