@@ -264,6 +264,10 @@ def test_noise_streams_are_reproducible_independent_and_per_run():
     assert abs(np.corrcoef((y3[:, 7:] - x3[:, 7:]).ravel(), noise.ravel())[0, 1]) < 0.05
     _, x4 = open_loop(ArmSimulator(ARM7, seed=1), seed=5, steps=1500)
     assert np.max(np.abs(x4 - x1)) > 1e-6                 # another robot seed: other ripple phases
+    y5, _ = open_loop(sim, seed=np.random.SeedSequence(5), steps=20)
+    np.testing.assert_array_equal(y5, y1[:20])            # an int seed and its SeedSequence are the same stream
+    with pytest.raises(RobofdiError, match="seed"):
+        ArmSimulator(ARM7, sensors=SensorModel.ideal()).reset(seed=-1)
 
 
 def test_ripple_frequencies_come_from_the_gear_ratios():
@@ -279,20 +283,24 @@ def test_ripple_frequencies_come_from_the_gear_ratios():
     assert np.array_equal(ArmSimulator(ARM7).settings.gear_ratio, [160, 160, 160, 160, 100, 100, 100])
 
 
-def test_stribeck_term_does_not_chatter_under_computed_torque():
-    """Fault-free computed torque on a slow back-and-forth motion (velocity reversals at 0 and 0.5 s)."""
+@pytest.mark.parametrize("mjcf", [ARM6, ARM7])
+def test_stribeck_term_does_not_chatter_under_computed_torque(mjcf):
+    """Fault-free computed torque on a slow back-and-forth motion (velocity reversals every 0.5 s), at the file's
+    physics step (0.5 ms for arm6, 2 ms for arm7): the breakaway term must not make the torque chatter."""
     def run(breakaway):
-        sim = ArmSimulator(ARM6, sensors=SensorModel.ideal(), friction=StribeckFriction(breakaway=breakaway))
+        sim = ArmSimulator(mjcf, sensors=SensorModel.ideal(), friction=StribeckFriction(breakaway=breakaway))
         model = sim.nominal_model()
         ctrl = ComputedTorque(model, torque_limit=model.torque_limit)
-        y = sim.reset(Q6, seed=0)
+        q0 = Q6 if mjcf == ARM6 else sim.default_positions()
+        y = sim.reset(q0, seed=0)
         us = []
-        for k in range(800):
+        for k in range(int(1.0 / sim.control_dt)):
             wt, w = 2 * np.pi * k * sim.control_dt, 2 * np.pi
-            ref = (Q6 + 0.05 * (1 - np.cos(wt)), np.full(6, 0.05 * w * np.sin(wt)), np.full(6, 0.05 * w * w * np.cos(wt)))
+            ref = (q0 + 0.05 * (1 - np.cos(wt)), np.full(sim.n, 0.05 * w * np.sin(wt)),
+                   np.full(sim.n, 0.05 * w * w * np.cos(wt)))
             y = sim.step(ctrl.update(y, ref))
             us.append(sim.u_applied)
-        return np.array(us), np.abs(sim.state[:6] - ref[0])
+        return np.array(us), np.abs(sim.state[:sim.n] - ref[0])
 
     u_s, err_s = run(0.3)
     u_0, _ = run(0.0)

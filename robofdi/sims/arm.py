@@ -282,9 +282,8 @@ def full_mass_matrix(m: mujoco.MjModel, d: mujoco.MjData) -> np.ndarray:
 class _ChannelNoise:
     """Standard normal draws, one independent stream per channel, buffered (one column per measurement)."""
 
-    def __init__(self, seed, channels: Sequence[str], block: int = 512):
-        root = np.random.SeedSequence() if seed is None else seed
-        self._gens = [np.random.default_rng(stream(root, "sensor", c)) for c in channels]
+    def __init__(self, run: np.random.SeedSequence, channels: Sequence[str], block: int = 512):
+        self._gens = [np.random.default_rng(stream(run, "sensor", c)) for c in channels]
         self._block, self._k = block, block
         self._buffer = np.empty((len(channels), block))
 
@@ -409,12 +408,12 @@ class ArmSimulator:
                                f"step {dt} s of {self.path.name}, got {control_dt!r}")
         return float(control_dt), int(round(ratio))
 
-    def _set_body(self, body: int, points: list[tuple[float, np.ndarray | None]]) -> None:
+    def _set_body(self, body: int, points: list[tuple[float, np.ndarray]]) -> None:
+        """Add point masses (mass [kg], point [m] in the body frame) to the body's current parameters."""
         m = self.model
         mass, com, quat, inertia = (float(m.body_mass[body]), m.body_ipos[body].copy(), m.body_iquat[body].copy(),
                                     m.body_inertia[body].copy())
-        for added, offset in points:
-            point = com if offset is None else offset
+        for added, point in points:
             mass, com, quat, inertia = add_point_mass(mass, com, quat, inertia, added, point)
         m.body_mass[body], m.body_ipos[body], m.body_iquat[body], m.body_inertia[body] = mass, com, quat, inertia
         m.body_sameframe[body] = mujoco.mjtSameFrame.mjSAMEFRAME_NONE    # the compiler's shortcut no longer holds
@@ -464,6 +463,7 @@ class ArmSimulator:
             if np.any(out):
                 bad = {self.joint_names[i]: (float(q[i]), [float(lo[i]), float(hi[i])]) for i in np.flatnonzero(out)}
                 raise RobofdiError(f"reset: initial_state is outside the joint range of {bad} (value, [min, max])")
+        run = stream(seed)                              # validates the seed; None: fresh entropy for this run
         self._clear_faults()
         m, d = self.model, self.data
         if self._home_key >= 0:
@@ -477,8 +477,8 @@ class ArmSimulator:
         self._other_ctrl = d.ctrl[self._other_act].copy()
         mujoco.mj_forward(m, d)
         self.u_applied = np.zeros(n)
-        self._pos_draws = _ChannelNoise(seed, self.sensor_channels[:n]) if np.any(self._pos_noise) else None
-        self._vel_draws = _ChannelNoise(seed, self.sensor_channels[n:]) if np.any(self._vel_noise) else None
+        self._pos_draws = _ChannelNoise(run, self.sensor_channels[:n]) if np.any(self._pos_noise) else None
+        self._vel_draws = _ChannelNoise(run, self.sensor_channels[n:]) if np.any(self._vel_noise) else None
         return self.measure()
 
     def saturate(self, u: np.ndarray) -> np.ndarray:
@@ -575,8 +575,9 @@ class ArmSimulator:
         m = self.model
         (m.body_mass[body], m.body_ipos[body], m.body_iquat[body], m.body_inertia[body],
          m.body_sameframe[body]) = self._body0[body]
-        points = [(v, self._mass_points[t][1]) for (kind, t), v in self._faults.items()
-                  if kind == "component_mass" and self._mass_points[t][0] == body]
+        nominal_com = self._body0[body][1]
+        points = [(v, nominal_com if self._mass_points[t][1] is None else self._mass_points[t][1])
+                  for (kind, t), v in self._faults.items() if kind == "component_mass" and self._mass_points[t][0] == body]
         if points:
             self._set_body(body, points)
         mujoco.mj_setConst(m, self._scratch)
