@@ -6,7 +6,7 @@ import pytest
 
 from robofdi import ASSETS, RobofdiError
 from robofdi.control import ComputedTorque
-from robofdi.models import ManipulatorModel
+from robofdi.models import ManipulatorModel, compile_arm
 from robofdi.protocols import Simulator
 from robofdi.sims import ArmSimulator, SensorModel, StribeckFriction, TorqueRipple
 from robofdi.sims.arm import add_point_mass, full_mass_matrix
@@ -134,6 +134,11 @@ def test_position_servo_rejected_with_a_clear_message_and_converted_on_request(t
     sim.step(u)
     assert sim.data.ctrl[sim.drives[2].actuator_id] == pytest.approx(50.0)      # a motor now: ctrl = τ / gear
     assert sim.data.qfrc_actuator[2] == pytest.approx(100.0)
+    # with torque_motors every servo-driven joint is an arm joint unless the joints are named
+    assert compile_arm(ARM7, torque_motors=True).joint_names[-2:] == ["finger_left", "finger_right"]
+    with pytest.raises(RobofdiError, match="robofdi_gear_ratio.*9 finite values"):      # arm7 lists 7 gear ratios
+        ArmSimulator(ARM7, torque_motors=True)
+    assert ArmSimulator(ARM7, torque_motors=True, joints=[f"joint{i}" for i in range(1, 8)]).n == 7
 
 
 def test_torque_motors_takes_the_joint_actuatorfrcrange_or_refuses(tmp_path):

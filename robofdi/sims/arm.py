@@ -303,8 +303,10 @@ class ArmSimulator:
     mjcf: a shipped asset name or a path. control_dt [s]: a positive integer multiple of the file's physics
     step; None = the multiple closest to 1 ms. ripple, friction, sensors: the plant effects of the module
     docstring. payload [kg]: a constant point mass at the payload point. joints: the arm joints (None = every
-    hinge/slide joint driven by a motor-type actuator). torque_motors: convert the arm joints' servos into
-    motors. seed: the robot's own randomness (ripple phases); each run's sensor noise is seeded in ``reset``.
+    hinge/slide joint driven by a motor-type actuator; with torque_motors, by any joint actuator, so pass
+    ``joints`` to leave a servo-driven gripper out). torque_motors: convert the arm joints' servos into motors
+    (torque limit: the servo's forcerange, else the joint's actuatorfrcrange). seed: the robot's own
+    randomness (ripple phases); each run's sensor noise is seeded in ``reset``.
     """
 
     mjcf: str | Path = "arm6.xml"
