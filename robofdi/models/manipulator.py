@@ -259,8 +259,9 @@ def _to_motors(spec: mujoco.MjSpec, m: mujoco.MjModel, ids: list[int], path: Pat
 
 def compile_arm(mjcf: str | Path, joints: Sequence[str] | None = None, torque_motors: bool = False) -> CompiledArm:
     """Compile ``mjcf`` with ``mujoco.MjSpec.from_file`` and read its arm: the joints (``joints``, or every
-    hinge/slide joint driven by a motor-type actuator) and, per joint, the actuator driving it through a joint
-    transmission, its gain and its torque range. ``torque_motors``: convert the arm joints' servos into motors."""
+    hinge/slide joint driven by a motor-type actuator; with ``torque_motors``, by any joint actuator) and, per
+    joint, the actuator driving it through a joint transmission, its gain and its torque range.
+    ``torque_motors``: convert the arm joints' servos into motors."""
     path = resolve_asset(mjcf)
     if not isinstance(torque_motors, bool):
         raise RobofdiError(f"torque_motors: expected True or False, got {torque_motors!r}")

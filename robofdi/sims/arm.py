@@ -282,9 +282,8 @@ def full_mass_matrix(m: mujoco.MjModel, d: mujoco.MjData) -> np.ndarray:
 class _ChannelNoise:
     """Standard normal draws, one independent stream per channel, buffered (one column per measurement)."""
 
-    def __init__(self, seed, channels: Sequence[str], block: int = 512):
-        root = np.random.SeedSequence() if seed is None else seed
-        self._gens = [np.random.default_rng(stream(root, "sensor", c)) for c in channels]
+    def __init__(self, run: np.random.SeedSequence, channels: Sequence[str], block: int = 512):
+        self._gens = [np.random.default_rng(stream(run, "sensor", c)) for c in channels]
         self._block, self._k = block, block
         self._buffer = np.empty((len(channels), block))
 
@@ -304,8 +303,10 @@ class ArmSimulator:
     mjcf: a shipped asset name or a path. control_dt [s]: a positive integer multiple of the file's physics
     step; None = the multiple closest to 1 ms. ripple, friction, sensors: the plant effects of the module
     docstring. payload [kg]: a constant point mass at the payload point. joints: the arm joints (None = every
-    hinge/slide joint driven by a motor-type actuator). torque_motors: convert the arm joints' servos into
-    motors. seed: the robot's own randomness (ripple phases); each run's sensor noise is seeded in ``reset``.
+    hinge/slide joint driven by a motor-type actuator; with torque_motors, by any joint actuator, so pass
+    ``joints`` to leave a servo-driven gripper out). torque_motors: convert the arm joints' servos into motors
+    (torque limit: the servo's forcerange, else the joint's actuatorfrcrange). seed: the robot's own
+    randomness (ripple phases); each run's sensor noise is seeded in ``reset``.
     """
 
     mjcf: str | Path = "arm6.xml"
@@ -374,8 +375,8 @@ class ArmSimulator:
         if self.payload > 0:
             self._set_body(payload_id, [(self.payload, self.settings.payload_offset)])
             mujoco.mj_setConst(m, self._scratch)
-        self._body0 = {b: (float(m.body_mass[b]), m.body_ipos[b].copy(), m.body_iquat[b].copy(), m.body_inertia[b].copy())
-                       for b, _ in self._mass_points.values()}
+        self._body0 = {b: (float(m.body_mass[b]), m.body_ipos[b].copy(), m.body_iquat[b].copy(), m.body_inertia[b].copy(),
+                           int(m.body_sameframe[b])) for b, _ in self._mass_points.values()}
         self._faults: dict[tuple[str, str], float] = {}
 
         # plant effects
@@ -409,14 +410,15 @@ class ArmSimulator:
                                f"step {dt} s of {self.path.name}, got {control_dt!r}")
         return float(control_dt), int(round(ratio))
 
-    def _set_body(self, body: int, points: list[tuple[float, np.ndarray | None]]) -> None:
+    def _set_body(self, body: int, points: list[tuple[float, np.ndarray]]) -> None:
+        """Add point masses (mass [kg], point [m] in the body frame) to the body's current parameters."""
         m = self.model
         mass, com, quat, inertia = (float(m.body_mass[body]), m.body_ipos[body].copy(), m.body_iquat[body].copy(),
                                     m.body_inertia[body].copy())
-        for added, offset in points:
-            point = com if offset is None else offset
+        for added, point in points:
             mass, com, quat, inertia = add_point_mass(mass, com, quat, inertia, added, point)
         m.body_mass[body], m.body_ipos[body], m.body_iquat[body], m.body_inertia[body] = mass, com, quat, inertia
+        m.body_sameframe[body] = mujoco.mjtSameFrame.mjSAMEFRAME_NONE    # the compiler's shortcut no longer holds
 
     def _set_friction(self, rise: np.ndarray) -> None:
         m = self.model
@@ -463,6 +465,7 @@ class ArmSimulator:
             if np.any(out):
                 bad = {self.joint_names[i]: (float(q[i]), [float(lo[i]), float(hi[i])]) for i in np.flatnonzero(out)}
                 raise RobofdiError(f"reset: initial_state is outside the joint range of {bad} (value, [min, max])")
+        run = stream(seed)                              # validates the seed; None: fresh entropy for this run
         self._clear_faults()
         m, d = self.model, self.data
         if self._home_key >= 0:
@@ -476,8 +479,8 @@ class ArmSimulator:
         self._other_ctrl = d.ctrl[self._other_act].copy()
         mujoco.mj_forward(m, d)
         self.u_applied = np.zeros(n)
-        self._pos_draws = _ChannelNoise(seed, self.sensor_channels[:n]) if np.any(self._pos_noise) else None
-        self._vel_draws = _ChannelNoise(seed, self.sensor_channels[n:]) if np.any(self._vel_noise) else None
+        self._pos_draws = _ChannelNoise(run, self.sensor_channels[:n]) if np.any(self._pos_noise) else None
+        self._vel_draws = _ChannelNoise(run, self.sensor_channels[n:]) if np.any(self._vel_noise) else None
         return self.measure()
 
     def saturate(self, u: np.ndarray) -> np.ndarray:
@@ -541,7 +544,7 @@ class ArmSimulator:
         the body's centre of mass (or at the payload point).
         """
         key = (kind, target)
-        if self._faults.get(key, 0.0) == value:
+        if key in self._faults and self._faults[key] == value:       # called every control tick: cheap when unchanged
             return
         if kind not in self.component_kinds:
             raise RobofdiError(f"apply_component_fault: kind {kind!r} is not one of {list(self.component_kinds)}")
@@ -556,7 +559,9 @@ class ArmSimulator:
             raise RobofdiError(f"apply_component_fault: component_mass on {target!r} must be an added mass >= 0 kg, "
                                f"got {value!r}")
         if v == 0.0:
-            self._faults.pop(key, None)
+            if key not in self._faults:
+                return
+            del self._faults[key]
         else:
             self._faults[key] = v
         if kind == "component_friction":
@@ -570,9 +575,11 @@ class ArmSimulator:
 
     def _apply_mass(self, body: int) -> None:
         m = self.model
-        m.body_mass[body], m.body_ipos[body], m.body_iquat[body], m.body_inertia[body] = self._body0[body]
-        points = [(v, self._mass_points[t][1]) for (kind, t), v in self._faults.items()
-                  if kind == "component_mass" and self._mass_points[t][0] == body]
+        (m.body_mass[body], m.body_ipos[body], m.body_iquat[body], m.body_inertia[body],
+         m.body_sameframe[body]) = self._body0[body]
+        nominal_com = self._body0[body][1]
+        points = [(v, nominal_com if self._mass_points[t][1] is None else self._mass_points[t][1])
+                  for (kind, t), v in self._faults.items() if kind == "component_mass" and self._mass_points[t][0] == body]
         if points:
             self._set_body(body, points)
         mujoco.mj_setConst(m, self._scratch)
