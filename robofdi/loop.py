@@ -316,7 +316,7 @@ class ClosedLoop:
                 rows["u_cmd"].append(u_cmd)
                 rows["u"].append(u)
                 rows["u_diag"].append(u_diag)
-                rows["y_true"].append(y)
+                rows["y_true"].append(sim.true_output)
                 rows["y_meas"].append(y_faulty)
                 for name, (active, value) in inj.labels.items():
                     labels[name][0].append(active)

@@ -39,6 +39,7 @@ class Simulator(Protocol):
     physics_dt: float                    # [s], from the model file
     u_applied: np.ndarray                # what the plant really received in the last step (after saturation)
     state: np.ndarray                    # the true state now
+    true_output: np.ndarray              # what the sensors would read now without noise (and without faults)
 
     def reset(self, initial_state: Any = None, seed: np.random.SeedSequence | int | None = None) -> np.ndarray:
         """Start a run (``initial_state`` None: the plant's own default); ``seed`` drives this run's sensor

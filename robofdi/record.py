@@ -7,7 +7,8 @@ Layout (readable with plain h5py; every dataset carries ``units`` and ``columns`
     /truth/state           (N, nx)           true simulator state
     /truth/u_applied       (N, nu)           what the plant really received (after saturation)
     /truth/faults/<name>/{active, value}     ground-truth labels per fault (value in the fault's unit)
-    /signals/<name>        (N, k)            reference, u_cmd, u, u_diag, y_meas, y_true
+    /signals/<name>        (N, k)            reference, u_cmd, u, u_diag, y_meas (after noise and sensor faults),
+                                             y_true (the noise-free output)
     /diagnosers/<name>/{time, residual, threshold, alarm, isolated, estimate}
 
 Diagnosers run at their own rate, so each carries its own ``time``.

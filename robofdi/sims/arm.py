@@ -436,6 +436,11 @@ class ArmSimulator:
         return np.concatenate([self.data.qpos[self._qadr], self.data.qvel[self._dofs]])
 
     @property
+    def true_output(self) -> np.ndarray:
+        """What ideal encoders would read: [q; q̇], the state itself."""
+        return self.state
+
+    @property
     def time(self) -> float:
         return float(self.data.time)
 

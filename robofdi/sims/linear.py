@@ -125,6 +125,12 @@ class LinearPlant:
     def time(self) -> float:
         return self._k * self.control_dt
 
+    @property
+    def true_output(self) -> np.ndarray:
+        """C x + D u_applied: what the sensors would read without noise."""
+        md = self.discrete_model
+        return md.C @ self._x + md.D @ self.u_applied
+
     def reset(self, initial_state: Any = None, seed: np.random.SeedSequence | int | None = None) -> np.ndarray:
         """Start a run from ``initial_state`` (None: x0). ``seed`` (int, SeedSequence; None = fresh entropy) drives
         this run's noise: w from ``stream(seed, "process")``, sensor j from ``stream(seed, "sensor", name_j)``."""
