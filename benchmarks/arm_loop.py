@@ -55,12 +55,14 @@ import pinocchio as pin
 import robofdi
 from robofdi.control import ComputedTorque
 from robofdi.decision import ThresholdDecision
+from robofdi.control import Quintic
 from robofdi.faults import FaultInjector
-from robofdi.loop import ClosedLoop, Diagnosis, DiagnosisRunner, diagnose_record
+from robofdi.loop import ClosedLoop, Diagnosis, DiagnosisRunner, Rates, diagnose_record
 from robofdi.observers import DiagnosticObserver
 from robofdi.observers.arm_schemes import SCHEMES, arm_schemes
 from robofdi.observers.spectral import ripple_initial_parameters
 from robofdi.scenarios.arm import ArmScenario
+from robofdi.sims import ArmSimulator, SensorModel, StribeckFriction, TorqueRipple
 
 # The book's motion (experiments/ch3_industrial_robot.py): q0 → q0 + Δq in 4 s.
 Q0 = (np.pi / 2, -2 * np.pi / 3, np.pi / 6, -np.pi / 2, np.pi / 2, 0.0)
@@ -98,18 +100,26 @@ def bench(fn, number: int, repeats: int, setup=None) -> Timing:
     return Timing(samples)
 
 
-def build_loop(scenario: ArmScenario, diagnoser_names=(), theta0=None) -> ClosedLoop:
-    """The loop of ``scenarios.arm._loop`` / ``run_scenario``: fault-free, online injection."""
-    sim = scenario.simulator()
+def previous_harness() -> ArmSimulator:
+    """arm6 as the plant was before the honest harness: ideal sensors, ripple of eq. (50)'s class only (one
+    harmonic plus the load term), no Stribeck term — to time the loop machinery like for like."""
+    return ArmSimulator("arm6.xml", ripple=TorqueRipple(harmonics=(0.0, 0.0), transmission=0.0),
+                        sensors=SensorModel.ideal(), friction=StribeckFriction(breakaway=0.0))
+
+
+def build_loop(scenario: ArmScenario, diagnoser_names=(), theta0=None, sim=None) -> ClosedLoop:
+    """The loop of ``scenarios.arm.build_loop`` / ``run_scenario``: fault-free, online injection, the honest
+    harness (ripple harmonics, Stribeck friction, encoder quantisation and velocity noise) unless ``sim``."""
+    sim = sim or scenario.simulator()
     model = scenario.nominal_model(sim)
     controller = ComputedTorque(model, torque_limit=sim.torque_limit)
-    injector = FaultInjector([], sim.actuators, sim.sensor_channels, seed=scenario.seed)
     diagnoses = {}
     if diagnoser_names:
-        for name, d in arm_schemes(model, scenario.settings, theta0, diagnoser_names).items():
+        settings = scenario.scheme_settings(scenario.rates)
+        for name, d in arm_schemes(model, settings, theta0, diagnoser_names).items():
             decision = ThresholdDecision(d.components, np.full(len(d.components), 1e9), d.signatures())
             diagnoses[name] = Diagnosis(d, decision)
-    return ClosedLoop(sim, controller, scenario.reference(), injector, diagnoses, scenario.rates, scenario.injection)
+    return ClosedLoop(sim, controller, scenario.motion, (), diagnoses, scenario.rates, scenario.injection)
 
 
 def time_loops(loops: dict, q0, repeats: int) -> dict:
@@ -152,7 +162,7 @@ def main(argv=None) -> int:
     R, LR = args.repeats, args.loop_repeats
     t_start = time.perf_counter()
 
-    scenario = ArmScenario("benchmark", q0=Q0, dq=DQ, duration=LOOP_SECONDS, motion_time=4.0)
+    scenario = ArmScenario("benchmark", motion=Quintic(Q0, DQ, 4.0), duration=LOOP_SECONDS, rates=Rates(1000.0, 500.0))
     ratio = scenario.rates.ratio
     rows: list[tuple[str, float, str]] = []   # (name, µs per call, note)
 
@@ -160,7 +170,8 @@ def main(argv=None) -> int:
     rec_loop = build_loop(scenario)
     record = rec_loop.run(RECORD_SECONDS, Q0)
     model = rec_loop.controller.model
-    n, T = model.n, scenario.settings.T
+    settings = scenario.scheme_settings(scenario.rates)
+    n, T = model.n, settings.T
     skip = int(np.ceil(0.010 / T))
     simple = diagnose_record(record, Diagnosis(DiagnosticObserver(model, T, residual_space="state")))
     theta0 = ripple_initial_parameters(record.signals["y_meas"][::ratio][skip:, :n], simple.residual[skip:, n:])
@@ -204,7 +215,7 @@ def main(argv=None) -> int:
     number = min(400, len(feed) - warm)
     t_update = {}
     for name in SCHEMES:
-        d = arm_schemes(model, scenario.settings, theta0, [name])[name]
+        d = arm_schemes(model, settings, theta0, [name])[name]
 
         def setup(d=d):
             d.reset()
@@ -217,7 +228,8 @@ def main(argv=None) -> int:
 
     # ---- the other pieces of one loop tick, in isolation ----------------------------------------------
     sim = rec_loop.simulator
-    ctrl, ref_fn, inj = rec_loop.controller, rec_loop.reference, rec_loop.injector
+    ctrl, ref_fn = rec_loop.controller, rec_loop.reference
+    inj = FaultInjector([], sim.actuators, sim.sensor_channels, 0, component_kinds=sim.component_kinds)
     ys = record.signals["y_true"]
     ts = record.time
     refs = [ref_fn(t) for t in ts]
@@ -233,7 +245,7 @@ def main(argv=None) -> int:
     rows.append(("piece/Quintic reference(t)", t_ref, ""))
     t_inj = bench(lambda i: (inj.sense(ts[i], ys[i]), inj.actuate(ts[i], u_rec[i])), 1000, R)
     rows.append(("piece/FaultInjector sense+actuate (no faults)", t_inj, ""))
-    d_ad = arm_schemes(model, scenario.settings, theta0, ["adaptive"])["adaptive"]
+    d_ad = arm_schemes(model, settings, theta0, ["adaptive"])["adaptive"]
     dec = ThresholdDecision(d_ad.components, np.full(2 * n, 1e9), d_ad.signatures())
     res = [d_ad.update(y, u) for y, u in feed[:200]]
     t_dec = bench(lambda i: dec.update(res[i % 200].r), 1000, R)
@@ -247,6 +259,8 @@ def main(argv=None) -> int:
         "a": ("loop (a) no diagnoser", build_loop(scenario)),
         "b": ("loop (b) adaptive + decision", build_loop(scenario, ("adaptive",), theta0)),
         "c": ("loop (c) all six + decisions", build_loop(scenario, SCHEMES, theta0)),
+        "a0": ("loop (a0) = (a), previous harness", build_loop(scenario, sim=previous_harness())),
+        "b0": ("loop (b0) = (b), previous harness", build_loop(scenario, ("adaptive",), theta0, previous_harness())),
     }
     t_loop = time_loops({key: loop for key, (_, loop) in loops.items()}, Q0, LR)
     for key, (label, _loop) in loops.items():
@@ -289,6 +303,7 @@ def main(argv=None) -> int:
         profile_loop(loops["b"][1])
     print(f"loop/floor ratio (a): {t_loop['a'] / t_floor:.2f}")
     print(f"loop/floor ratio (c): {t_loop['c'] / t_floor:.2f}")
+    print(f"loop/floor ratio (b0), the previous harness's plant: {t_loop['b0'] / t_floor:.2f}")
     print(f"loop/floor ratio: {t_loop['b'] / t_floor:.2f}")
     return 0
 

@@ -189,6 +189,16 @@ def _flat(reference) -> np.ndarray:
     return np.atleast_1d(np.asarray(reference, dtype=float))
 
 
+def _stack_references(refs: list) -> np.ndarray:
+    """(N, k) array of the references recorded as they came (arrays, or tuples of arrays such as (q, q̇, q̈))."""
+    if not refs:
+        return np.zeros((0, 0))
+    try:                          # the usual case, every tick alike: one vectorised conversion
+        return np.asarray(refs, dtype=float).reshape(len(refs), -1)
+    except ValueError:            # ragged parts (e.g. a tuple of vectors of different lengths)
+        return np.asarray([_flat(r) for r in refs], dtype=float)
+
+
 @dataclass
 class ClosedLoop:
     """Wires simulator, reference, controller, accommodation, faults and diagnoses for one scenario.
@@ -276,6 +286,7 @@ class ClosedLoop:
             if hasattr(part, "reset"):
                 part.reset()
         online = self.injection == "online"
+        components = inj.has_component_faults
         keys = ("time", "state", "u_applied", "reference", "u_cmd", "u", "u_diag", "y_true", "y_meas")
         rows: dict[str, list] = {k: [] for k in keys}
         labels: dict[str, tuple[list, list]] = {name: ([], []) for name in inj.label_names}
@@ -306,13 +317,14 @@ class ClosedLoop:
                 u = accommodation.update(u_cmd, health) if accommodation is not None else u_cmd
                 if online:
                     u_plant, u_diag = inj.actuate(t, u), u
-                    for kind, target, value in inj.components(t):
-                        sim.apply_component_fault(kind, target, value)
+                    if components:
+                        for kind, target, value in inj.components(t):
+                            sim.apply_component_fault(kind, target, value)
                 else:
                     u_plant, u_diag = u, inj.emulate(t, u)
                 rows["time"].append(t)
                 rows["state"].append(sim.state)
-                rows["reference"].append(_flat(ref))
+                rows["reference"].append(ref)
                 rows["u_cmd"].append(u_cmd)
                 rows["u"].append(u)
                 rows["u_diag"].append(u_diag)
@@ -341,7 +353,8 @@ class ClosedLoop:
         sim = self.simulator
         u_cols, u_units = list(sim.actuators), list(sim.units.get("u", [""] * len(sim.actuators)))
         y_cols, y_units = list(sim.sensor_channels), list(sim.units.get("y", [""] * len(sim.sensor_channels)))
-        width = len(rows["reference"][0]) if rows["reference"] else 0
+        reference = _stack_references(rows["reference"])
+        width = reference.shape[1]
         ref_cols = list(self.reference_columns) if self.reference_columns else [f"reference[{i}]" for i in range(width)]
         columns = {"truth/state": list(sim.state_names), "truth/u_applied": u_cols, "signals/reference": ref_cols}
         units = {"truth/state": list(sim.units.get("state", [])), "truth/u_applied": u_units,
@@ -366,7 +379,7 @@ class ClosedLoop:
             u_applied=array("u_applied", n_u),
             faults={k: FaultLabels(np.asarray(a, dtype=bool), np.asarray(v, dtype=float), _label_unit(faults[k], sim))
                     for k, (a, v) in labels.items()},
-            signals={"reference": array("reference", width), "u_cmd": array("u_cmd", n_u), "u": array("u", n_u),
+            signals={"reference": reference, "u_cmd": array("u_cmd", n_u), "u": array("u", n_u),
                      "u_diag": array("u_diag", n_u), "y_true": array("y_true", n_y), "y_meas": array("y_meas", n_y)},
             diagnosers={name: r.trace() for name, r in runners.items()},
             meta={"injection": self.injection, "duration": duration, "faults": [f.to_dict() for f in self.faults],

@@ -162,13 +162,19 @@ def test_duplicate_fault_names():
     [(np.array([1, 2, np.nan, 4, 5, 6.0]), "'u'"), (np.ones(5), "'u'"), (np.ones((6, 1)), "'u'"), ("abc", "'u'")],
 )
 def test_bad_input_vector(u, field):
-    inj = injector(Fault("a", "actuator_float", "joint1", onset=0.0))
+    inj = injector(Fault("a", "actuator_float", "joint1", onset=0.0), Fault("b", "sensor_bias", "q1", onset=0.0))
     with pytest.raises(RobofdiError, match=field):
         inj.actuate(0.0, u)
     with pytest.raises(RobofdiError, match="'y'"):
         inj.sense(0.0, np.array([np.inf, 0, 0, 0, 0, 0]))
     with pytest.raises(RobofdiError, match="'t'"):
         inj.actuate(float("nan"), U)
+
+
+def test_a_family_without_faults_passes_its_vector_through_untouched():
+    inj = injector(Fault("a", "sensor_bias", "q1", onset=0.0, magnitude=1.0))
+    assert inj.actuate(0.5, U) is U and inj.emulate(0.5, U) is U
+    assert inj.sense(0.5, Y)[0] == Y[0] + 1.0
 
 
 # --- effects and labels ---------------------------------------------------------------------------

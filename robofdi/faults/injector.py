@@ -106,7 +106,10 @@ class FaultInjector:
         self.labels = {f.name: (False, 0.0) for f in self.faults}
 
     def actuate(self, t: float, u: np.ndarray) -> np.ndarray:
-        """Faulty copy of the actuator command ``u`` at time ``t`` (input is never modified)."""
+        """Faulty copy of the actuator command ``u`` at time ``t`` (input is never modified; with no actuator
+        fault, ``u`` itself is returned)."""
+        if not self._by_family["actuator"]:
+            return u
         out = self._vector(t, u, "u", len(self.actuators))
         sat = self.saturate
         for effect, ch in self._by_family["actuator"]:
@@ -129,6 +132,8 @@ class FaultInjector:
     def emulate(self, t: float, u: np.ndarray) -> np.ndarray:
         """Offline emulation (Caccavale & Villani Sec. 7): the input ū the diagnosers are told while the plant
         receives the fault-free u, chosen so that the actuator faults turn ū into u exactly. Labels: u − ū."""
+        if not self._by_family["actuator"]:
+            return u
         out = self._vector(t, u, "u", len(self.actuators))
         for effect, ch in reversed(self._by_family["actuator"]):
             f = effect.fault
@@ -141,7 +146,10 @@ class FaultInjector:
         return out
 
     def sense(self, t: float, y: np.ndarray) -> np.ndarray:
-        """Faulty copy of the sensor reading ``y`` at time ``t`` (input is never modified)."""
+        """Faulty copy of the sensor reading ``y`` at time ``t`` (input is never modified; with no sensor fault,
+        ``y`` itself is returned)."""
+        if not self._by_family["sensor"]:
+            return y
         out = self._vector(t, y, "y", len(self.sensors))
         for effect, ch in self._by_family["sensor"]:
             f = effect.fault
@@ -153,6 +161,10 @@ class FaultInjector:
             else:
                 self.labels[f.name] = (False, 0.0)
         return out
+
+    @property
+    def has_component_faults(self) -> bool:
+        return bool(self._by_family["component"])
 
     def components(self, t: float) -> list[tuple[str, str, float]]:
         """(kind, target, change from nominal) of every component fault at time t (0.0 while inactive)."""

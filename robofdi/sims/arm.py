@@ -32,6 +32,8 @@ Randomness: the robot's own (ripple phases) from ``stream(seed, "plant", "ripple
 """
 from __future__ import annotations
 
+import math
+
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -296,6 +298,13 @@ class _ChannelNoise:
         return self._buffer[:, self._k - 1]
 
 
+def _as_slice(index: np.ndarray):
+    """``index`` as a slice when it is a contiguous ascending run (a view, no copy), else the index array."""
+    if index.size and np.array_equal(index, np.arange(index[0], index[0] + index.size)):
+        return slice(int(index[0]), int(index[0]) + index.size)
+    return index
+
+
 @dataclass(eq=False)
 class ArmSimulator:
     """A torque-controlled arm in MuJoCo (the truth); ``step(u)`` holds u for one control period.
@@ -349,7 +358,11 @@ class ArmSimulator:
         self._dofs = np.array([d.dof for d in self.drives])
         self._act = np.array([d.actuator_id for d in self.drives])
         self._gain = np.array([d.gain for d in self.drives])
+        # hot-path views: slices where the arm's addresses are contiguous (the usual file), else index arrays
+        self._q_at, self._v_at, self._ctrl_at = (_as_slice(a) for a in (self._qadr, self._dofs, self._act))
+        self._inv_gain = None if np.all(self._gain == 1.0) else 1.0 / self._gain
         self.torque_range = arm.torque_range
+        self._torque_lo, self._torque_hi = self.torque_range[:, 0].copy(), self.torque_range[:, 1].copy()
         self.torque_limit = arm.torque_limit
         ids = [d.joint_id for d in self.drives]
         self.joint_range = np.where(m.jnt_limited[ids, None].astype(bool), m.jnt_range[ids], [-np.inf, np.inf])
@@ -385,6 +398,15 @@ class ArmSimulator:
         self._ripple_on = bool(np.any(amp) or np.any(c_load))
         self._r_amp, self._r_freq, self._r_phase = amp, freq, phase
         self._r_load, self._r_load_freq, self._r_load_phase = c_load, load_freq, load_phase
+        # the same terms fused for the hot path: one sine over every (harmonic, joint), one product with the
+        # amplitudes (A[i, k·n + i] = amp[k, i]), the load-dependent block last
+        k = amp.shape[0]
+        self._r_index = np.tile(np.arange(n), k + 1)
+        self._r_F = np.concatenate([freq.ravel(), load_freq])
+        self._r_P = np.concatenate([phase.ravel(), load_phase])
+        self._r_A = np.zeros((n, k * n))
+        self._r_A[np.tile(np.arange(n), k), np.arange(k * n)] = amp.ravel()
+        self._r_split = k * n
         d = self._scratch
         mujoco.mj_resetData(m, d)
         mujoco.mj_forward(m, d)
@@ -393,6 +415,9 @@ class ArmSimulator:
 
         s = self.sensors
         self._resolution = np.where(slide, s.linear_resolution, s.position_resolution)
+        self._quantised = bool(np.all(self._resolution > 0))
+        self._any_quantised = bool(np.any(self._resolution > 0))
+        self._inv_resolution = 1.0 / np.where(self._resolution > 0, self._resolution, 1.0)
         self._pos_noise = np.where(slide, s.linear_position_noise, s.position_noise)
         self._vel_noise = np.where(slide, s.linear_velocity_noise, s.velocity_noise)
         self.reset()
@@ -428,6 +453,7 @@ class ArmSimulator:
         self._stribeck = self.friction.breakaway * m.dof_frictionloss[self._dofs]
         self._stribeck_eps = self.friction.smoothing_velocity(self._stribeck, self._inertia_ref, self.physics_dt)
         self._stribeck_on = bool(np.any(self._stribeck > 0))
+        self._stribeck_inv_v, self._stribeck_inv_eps = 1.0 / self.friction.velocity, 1.0 / self._stribeck_eps
 
     # ----------------------------------------------------------------------------------------- protocol
     @property
@@ -490,49 +516,52 @@ class ArmSimulator:
 
     def saturate(self, u: np.ndarray) -> np.ndarray:
         """What the drives can deliver of u: clipped to each drive's torque range [N·m or N]."""
-        return np.clip(u, self.torque_range[:, 0], self.torque_range[:, 1])
+        return np.minimum(np.maximum(u, self._torque_lo), self._torque_hi)
 
     def step(self, u: np.ndarray) -> np.ndarray:
         """Apply torques u (n, [N·m or N], saturated) for one control period; return the measurement."""
         u = np.asarray(u, dtype=float)
-        if u.shape != (self.n,) or not np.all(np.isfinite(u)):
+        if u.shape != (self.n,) or not math.isfinite(u.sum()):
             raise RobofdiError(f"step: u must be {self.n} finite joint torques for {self.joint_names}, got shape "
                                f"{u.shape}: {u.tolist()}")
         m, d = self.model, self.data
         tau = self.saturate(u)
         self.u_applied = tau
-        d.ctrl[self._act] = tau / self._gain
-        d.ctrl[self._other_act] = self._other_ctrl
-        qadr, dofs = self._qadr, self._dofs
+        d.ctrl[self._ctrl_at] = tau if self._inv_gain is None else tau * self._inv_gain
+        if self._other_act.size:
+            d.ctrl[self._other_act] = self._other_ctrl
+        qadr, dofs = self._q_at, self._v_at
         disturb = self._ripple_on or self._stribeck_on
         for _ in range(self.substeps):
             if disturb:
                 d.qfrc_applied[dofs] = -self.disturbance(d.qpos[qadr], d.qvel[dofs], tau)
             mujoco.mj_step(m, d)
-        if not (np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel))):
+        if not math.isfinite(d.qpos.sum() + d.qvel.sum()):
             raise RobofdiError(f"simulation diverged at t={d.time:.4f} s: non-finite joint state")
         return self.measure()
 
     def disturbance(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """δ(q, q̇, τ) [N·m] of eq. (3): torque ripple plus the Stribeck term (the friction torque opposes motion,
         so its δ is minus it)."""
-        delta = np.zeros(self.n)
-        if self._ripple_on:
-            delta += self.ripple_torque(q, tau)
-        if self._stribeck_on:
-            delta -= StribeckFriction.torque(v, self._stribeck, self.friction.velocity, self._stribeck_eps)
+        delta = self.ripple_torque(q, tau) if self._ripple_on else np.zeros(self.n)
+        if self._stribeck_on:       # StribeckFriction.torque with the divisions precomputed
+            delta = delta + self._stribeck * np.exp(-np.square(v * self._stribeck_inv_v)) * np.tanh(v * self._stribeck_inv_eps)
         return delta
 
     def ripple_torque(self, q: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """The ripple δ(q, τ) of :class:`TorqueRipple` [N·m]."""
-        pos = np.sum(self._r_amp * np.sin(self._r_freq * q + self._r_phase), axis=0)
-        return pos + tau * self._r_load * np.sin(self._r_load_freq * q + self._r_load_phase)
+        s = np.sin(self._r_F * q[self._r_index] + self._r_P)
+        k = self._r_split
+        return self._r_A @ s[:k] + tau * self._r_load * s[k:]
 
     def measure(self) -> np.ndarray:
         """Sensor reading [q; q̇] (quantised positions, noisy velocities; :class:`SensorModel`)."""
-        q, v = self.data.qpos[self._qadr], self.data.qvel[self._dofs]
+        q, v = self.data.qpos[self._q_at], self.data.qvel[self._v_at]
         res = self._resolution
-        q = np.where(res > 0, np.round(q / np.where(res > 0, res, 1.0)) * res, q)
+        if self._quantised:
+            q = np.round(q * self._inv_resolution) * res
+        elif self._any_quantised:
+            q = np.where(res > 0, np.round(q * self._inv_resolution) * res, q)
         if self._pos_draws is not None:
             q = q + self._pos_noise * self._pos_draws.draw()
         if self._vel_draws is not None:
