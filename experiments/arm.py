@@ -1,13 +1,14 @@
 """Any MJCF arm: a seeded point-to-point motion, faults from the command line, every arm diagnoser online, and
 the first fault-tolerant control — compensation of the identified actuator fault after isolation.
 
-    robofdi run arm [--robot MJCF] [--fault SPEC ...] [--joints J1,J2,...] [--torque-motors] [--seed N] [--out DIR]
+    robofdi run arm [--robot MJCF] [--fault SPEC ...] [--joints J1,J2,...] [--torque-motors]
+                    [--seed N] [--out DIR]
 
 SPEC = KIND:TARGET:MAGNITUDE@ONSET[-END][~PROFILE][;NAME=VALUE] (see :mod:`robofdi.faults.spec`), e.g.
 ``actuator_additive:joint2:20@1.0``. Without ``--fault``: a step of 25 % of the motor torque limit on a seeded
-random joint, at 40 % of the motion (:func:`robofdi.scenarios.arm.arm_scenario`). The robot's calibration (thresholds, ripple initialisation) is computed once
-per robot and seed on motions derived from its joint ranges and torque limits, and cached; the motion under test
-is drawn from the seed and plays no part in it.
+random joint, at 40 % of the motion (:func:`robofdi.scenarios.arm.arm_scenario`). The robot's calibration
+(thresholds, ripple initialisation) is computed once per robot and seed on motions derived from its joint ranges
+and torque limits, and cached; the motion under test is drawn from the seed and plays no part in it.
 
 Three runs with the same noise: no accommodation; compensation with the health of ``HEALTH_SOURCE``; and the
 same compensation with the true fault (the oracle bound). summary.json["accommodation"] holds the tracking RMS

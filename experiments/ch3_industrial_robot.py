@@ -70,7 +70,8 @@ def scenario(name: str, seed: int = 0, calibration_low_velocity_time: float = 20
     fields = set(ArmScenario.__dataclass_fields__) - {"name"}
     unknown = sorted(set(overrides) - fields)
     if unknown:
-        raise RobofdiError(f"{name}: unknown override(s) {', '.join(unknown)}; expected ArmScenario fields {', '.join(sorted(fields))}")
+        raise RobofdiError(f"{name}: unknown override(s) {', '.join(unknown)}; "
+                           f"expected ArmScenario fields {', '.join(sorted(fields))}")
     base = dict(motion=Quintic(Q0, DQ, 4.0), duration=4.0, faults=FAULTS[name], injection="offline", seed=seed,
                 rates=Rates(1000.0, 500.0), calibration=book_calibration(slow=calibration_low_velocity_time))
     base.update(overrides)

@@ -88,20 +88,23 @@ class ArmScenario:
         if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or self.seed < 0:
             raise RobofdiError(f"ArmScenario: field 'seed' must be an integer >= 0, got {self.seed!r}")
         if not callable(self.motion) or not hasattr(self.motion, "end"):
-            raise RobofdiError("ArmScenario: field 'motion' must be a trajectory (callable t -> (q, q̇, q̈), with .end)")
+            raise RobofdiError("ArmScenario: field 'motion' must be a trajectory (t -> (q, q̇, q̈), with .end)")
         if self.duration is not None and not (np.isfinite(self.duration) and self.duration > 0):
             raise RobofdiError(f"ArmScenario: field 'duration' must be None or > 0 s, got {self.duration}")
         unknown = [s for s in self.schemes if s not in SCHEMES]
         if unknown:
-            raise RobofdiError(f"ArmScenario: field 'schemes' has unknown scheme(s) {unknown}; expected a subset of {list(SCHEMES)}")
+            raise RobofdiError(f"ArmScenario: field 'schemes' has unknown scheme(s) {unknown}; "
+                               f"expected a subset of {list(SCHEMES)}")
         if self.accommodation not in ACCOMMODATIONS:
-            raise RobofdiError(f"ArmScenario: field 'accommodation' must be one of {list(ACCOMMODATIONS)}, got {self.accommodation!r}")
+            raise RobofdiError(f"ArmScenario: field 'accommodation' must be one of {list(ACCOMMODATIONS)}, "
+                               f"got {self.accommodation!r}")
         if self.accommodation and self.health_source not in (*self.schemes, ORACLE):
             raise RobofdiError(f"ArmScenario: field 'health_source' must be one of {[*self.schemes, ORACLE]} for "
                                f"accommodation, got {self.health_source!r}")
         for f in self.faults:
             if f.onset >= self.run_duration:
-                raise RobofdiError(f"Fault {f.name!r}: onset {f.onset} s is not inside the run (duration {self.run_duration:g} s)")
+                raise RobofdiError(f"Fault {f.name!r}: onset {f.onset} s is not inside the run "
+                                   f"(duration {self.run_duration:g} s)")
 
     @property
     def run_duration(self) -> float:
@@ -277,7 +280,7 @@ def build_loop(scenario: ArmScenario, cal: Calibration) -> ClosedLoop:
     rates = scenario.loop_rates(sim)
     accommodation = FaultCompensation(sim.actuators) if scenario.accommodation == "compensation" else None
     n = sim.n
-    columns = [f"{j}_q_d" for j in sim.joint_names] + [f"{j}_qd_d" for j in sim.joint_names] + [f"{j}_qdd_d" for j in sim.joint_names]
+    columns = [f"{j}_{part}" for part in ("q_d", "qd_d", "qdd_d") for j in sim.joint_names]
     units = sim.units["state"][:n] + sim.units["state"][n:] + [f"{u}/s" for u in sim.units["state"][n:]]
     return ClosedLoop(sim, _controller(model), scenario.motion, scenario.faults,
                       _diagnoses(scenario, model, cal, scenario.scheme_settings(rates)), rates, scenario.injection,
