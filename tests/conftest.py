@@ -9,6 +9,13 @@ import pytest
 os.environ.setdefault("MPLBACKEND", "Agg")
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _calibration_cache(tmp_path_factory):
+    """The suite's calibrations are cached in a folder of its own (never the user's ~/.cache/robofdi); CLI
+    subprocesses inherit it."""
+    os.environ["ROBOFDI_CACHE"] = str(tmp_path_factory.mktemp("robofdi-cache"))
+
+
 @pytest.fixture(scope="session")
 def ch3():
     """The ch3-actuator scenario (shorter low-velocity calibration runs, to keep the suite fast) and its calibration."""
