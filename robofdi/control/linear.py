@@ -7,17 +7,11 @@ import numpy as np
 import scipy.linalg
 
 from robofdi.errors import RobofdiError
-from robofdi.models.linear import LinearModel, covariance_factor, format_mode, uncontrollable_modes
+from robofdi.models.linear import (
+    LinearModel, covariance_factor, format_mode, require_discrete, uncontrollable_modes,
+)
 
 __all__ = ["lqr_gain", "StateFeedback"]
-
-
-def _discrete(model, where: str) -> LinearModel:
-    if not isinstance(model, LinearModel):
-        raise RobofdiError(f"{where}: field 'model' must be a LinearModel, got {type(model).__name__}")
-    if not model.discrete:
-        raise RobofdiError(f"{where}: field 'model' must be discrete; discretize(model, dt) at the control period first")
-    return model
 
 
 def lqr_gain(model: LinearModel, Qx, Ru) -> np.ndarray:
@@ -27,7 +21,7 @@ def lqr_gain(model: LinearModel, Qx, Ru) -> np.ndarray:
     Qx: n×n PSD (or n weights); Ru: m×m positive definite (or m weights).
     """
     where = "lqr_gain"
-    model = _discrete(model, where)
+    model = require_discrete(model, where, "control")
     Qx, _ = covariance_factor(Qx, model.n, "Qx")
     Ru, _ = covariance_factor(Ru, model.m, "Ru")
     if np.linalg.eigvalsh(Ru).min() <= 0:
@@ -74,7 +68,7 @@ class StateFeedback:
 
     def __init__(self, model: LinearModel, K, L, tracked: Sequence[str] | None = None, u_min=None, u_max=None, x0=None):
         where = "StateFeedback"
-        self.model = model = _discrete(model, where)
+        self.model = model = require_discrete(model, where, "control")
         n, m, p = model.n, model.m, model.p
         self.K = np.array(K, dtype=float)
         if self.K.shape != (m, n) or not np.all(np.isfinite(self.K)):

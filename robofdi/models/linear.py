@@ -17,8 +17,8 @@ import scipy.linalg
 from robofdi.errors import RobofdiError
 from robofdi.seeding import rng
 
-__all__ = ["LinearModel", "LinearMismatch", "discretize", "perturbed", "unobservable_modes", "uncontrollable_modes",
-           "format_mode", "covariance_factor"]
+__all__ = ["LinearModel", "LinearMismatch", "discretize", "require_discrete", "perturbed", "unobservable_modes",
+           "uncontrollable_modes", "format_mode", "covariance_factor"]
 
 #: Relative tolerance on dt when a discrete model meets a requested sampling period.
 DT_RTOL = 1e-9
@@ -166,6 +166,15 @@ def _check_dt(dt, name: str = "dt") -> float:
     if isinstance(dt, bool) or not isinstance(dt, (int, float, np.floating, np.integer)) or not (np.isfinite(dt) and dt > 0):
         raise RobofdiError(f"discretize: field {name!r} must be a sampling period > 0 s, got {dt!r}")
     return float(dt)
+
+
+def require_discrete(model, where: str, period: str = "control") -> LinearModel:
+    """``model`` if it is a discrete LinearModel; else an error naming ``where`` and what to do."""
+    if not isinstance(model, LinearModel):
+        raise RobofdiError(f"{where}: field 'model' must be a LinearModel, got {type(model).__name__}")
+    if not model.discrete:
+        raise RobofdiError(f"{where}: field 'model' must be discrete; discretize(model, dt) at the {period} period first")
+    return model
 
 
 def discretize(model: LinearModel, dt: float) -> LinearModel:

@@ -21,7 +21,9 @@ import scipy.linalg
 import scipy.signal
 
 from robofdi.errors import RobofdiError
-from robofdi.models.linear import LinearModel, covariance_factor, format_mode, unobservable_modes
+from robofdi.models.linear import (
+    LinearModel, covariance_factor, format_mode, require_discrete, unobservable_modes,
+)
 from robofdi.observers.residual import Residual, check_measurement
 
 __all__ = ["ObserverResidual", "observer_gain_poles", "observer_gain_kalman", "spectral_radius"]
@@ -36,14 +38,6 @@ MAX_HORIZON = 20000
 
 def spectral_radius(M: np.ndarray) -> float:
     return float(np.max(np.abs(np.linalg.eigvals(M)))) if M.size else 0.0
-
-
-def _discrete(model, where: str) -> LinearModel:
-    if not isinstance(model, LinearModel):
-        raise RobofdiError(f"{where}: field 'model' must be a LinearModel, got {type(model).__name__}")
-    if not model.discrete:
-        raise RobofdiError(f"{where}: field 'model' must be discrete; discretize(model, dt) at the diagnosis period first")
-    return model
 
 
 def _check_detectable(model: LinearModel, where: str, need_observable: bool = False) -> None:
@@ -68,7 +62,7 @@ def observer_gain_poles(model: LinearModel, poles: Sequence[complex]) -> np.ndar
     """L (n×p) with eig(A − L C) = ``poles``: scipy.signal.place_poles (Tits & Yang, IEEE TAC 41(10), 1996) on the
     dual pair (Aᵀ, Cᵀ), L = Kᵀ. Poles: n values strictly inside the unit circle, complex ones in conjugate pairs."""
     where = "observer_gain_poles"
-    model = _discrete(model, where)
+    model = require_discrete(model, where, "diagnosis")
     try:
         p = np.array(poles, dtype=complex).ravel()
     except (TypeError, ValueError):
@@ -97,7 +91,7 @@ def observer_gain_kalman(model: LinearModel, process_noise, measurement_noise) -
     measurement_noise R: p×p (or p variances), positive definite.
     """
     where = "observer_gain_kalman"
-    model = _discrete(model, where)
+    model = require_discrete(model, where, "diagnosis")
     Q, _ = covariance_factor(process_noise, model.n, "process_noise")
     R, _ = covariance_factor(measurement_noise, model.p, "measurement_noise")
     if np.linalg.eigvalsh(R).min() <= 0:
@@ -149,7 +143,7 @@ class ObserverResidual:
 
     def __init__(self, model: LinearModel, L, x0=None, residual_scale=None, required_fraction: float = REQUIRED_FRACTION):
         where = "ObserverResidual"
-        self.model = model = _discrete(model, where)
+        self.model = model = require_discrete(model, where, "diagnosis")
         n, m, p = model.n, model.m, model.p
         try:
             L = np.array(L, dtype=float)
