@@ -327,3 +327,25 @@ def test_screenshot_shows_arm(replay_html, tmp_path):
     r, gch, b = img[..., 0], img[..., 1], img[..., 2]
     orange = (r > 0.35) & (r - gch > 0.12) & (gch - b > 0.05) & (r - b > 0.3)
     assert orange.sum() > 500, f"only {orange.sum()} arm-coloured pixels"
+
+
+def test_replay_of_an_arm_with_a_gripper_maps_joints_by_name():
+    """arm7 records only its 7 arm joints; the gripper's fingers stay at their reference position in the replay
+    (the record's velocity columns must never be read as finger positions)."""
+    from robofdi.control import ComputedTorque
+    from robofdi.loop import ClosedLoop
+    from robofdi.sims import ArmSimulator
+    from robofdi.viz.replay import _resample
+    from robofdi.viz.scene import MeshcatScene
+
+    sim = ArmSimulator("arm7.xml")
+    model = sim.nominal_model()
+    q0 = sim.default_positions()
+    loop = ClosedLoop(sim, ComputedTorque(model), lambda t: (q0 + 0.3 * t, np.full(7, 0.3), np.zeros(7)))
+    record = loop.run(0.3, q0, meta={"joint_names": sim.joint_names})
+    scene = MeshcatScene(sim.path)
+    _, qs = _resample(record, scene, 50)
+    arm = [scene.joint(j)["qposadr"] for j in sim.joint_names]
+    fingers = [a for a in range(scene.nq) if a not in arm]
+    assert len(fingers) == 2 and np.all(qs[:, fingers] == scene.model.qpos0[fingers])
+    np.testing.assert_allclose(qs[-1, arm], record.truth_state[-1, :7], atol=1e-9)

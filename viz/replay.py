@@ -153,16 +153,26 @@ def _detection_times(record, diag: str | None, joint_names) -> dict[str, float]:
 
 
 def _resample(record, scene: MeshcatScene, fps: int) -> tuple[np.ndarray, np.ndarray]:
+    """Frame times at ``fps`` and the full qpos of the scene at each: the recorded joints (``meta["joint_names"]``,
+    the first columns of the state) at their addresses, every other joint (a gripper) at its reference qpos0.
+    A record without joint names is read as qpos first (the whole qpos)."""
     t = np.asarray(record.time, dtype=float).reshape(-1)
     x = np.asarray(record.truth_state, dtype=float)
     if t.size == 0:
         raise RobofdiError("record.time: empty; expected at least one time stamp")
-    if x.ndim != 2 or x.shape[0] != t.size or x.shape[1] < scene.nq:
-        raise RobofdiError(f"record.truth_state: expected shape ({t.size}, >={scene.nq}) with qpos first, "
-                           f"got {x.shape}")
+    names = list((record.meta or {}).get("joint_names") or [])
+    if names:
+        address = [scene.joint(j)["qposadr"] for j in names]
+    else:
+        address = list(range(scene.nq))
+    if x.ndim != 2 or x.shape[0] != t.size or x.shape[1] < len(address):
+        raise RobofdiError(f"record.truth_state: expected shape ({t.size}, >={len(address)}) with the joint "
+                           f"positions first, got {x.shape}")
     n = int(math.floor((t[-1] - t[0]) * fps + 1e-9)) + 1
     ft = t[0] + np.arange(n) / fps
-    q = np.column_stack([np.interp(ft, t, x[:, i]) for i in range(scene.nq)])
+    q = np.tile(np.asarray(scene.model.qpos0, dtype=float), (n, 1))
+    for column, adr in enumerate(address):
+        q[:, adr] = np.interp(ft, t, x[:, column])
     return ft, q
 
 
