@@ -40,7 +40,7 @@ from robofdi.seeding import rng
 from robofdi.sims import ArmSimulator, SensorModel, TorqueRipple
 
 __all__ = ["ArmScenario", "arm_scenario", "Calibration", "calibration_trajectories", "calibration_records", "calibrate",
-           "calibration", "run_scenario", "build_loop", "check_faults", "cache_dir"]
+           "calibration", "run_scenario", "build_loop", "check_scenario", "cache_dir"]
 
 ACCOMMODATIONS = (None, "compensation")
 
@@ -287,9 +287,16 @@ def build_loop(scenario: ArmScenario, cal: Calibration) -> ClosedLoop:
                       accommodation, scenario.health_source if accommodation is not None else None, columns, units)
 
 
-def check_faults(scenario: ArmScenario) -> None:
-    """Raise now (before any calibration) if a fault names an unknown target or cannot be injected as asked."""
+def check_scenario(scenario: ArmScenario) -> None:
+    """Raise now, before any calibration, if the scenario cannot run: its motions do not fit the robot's joints,
+    or a fault names an unknown target or cannot be injected as asked."""
     sim = scenario.simulator()
+    motions = {"motion": scenario.motion, **(scenario.calibration or {})}
+    for name, motion in motions.items():
+        size = np.asarray(motion(0.0)[0]).shape
+        if size != (sim.n,):
+            raise RobofdiError(f"ArmScenario: {name} gives {size[0] if size else 0} joint positions, the robot "
+                               f"{sim.system} has {sim.n} joints {list(sim.joint_names)}")
     injector = FaultInjector(scenario.faults, sim.actuators, sim.sensor_channels, 0, component_kinds=sim.component_kinds)
     if scenario.injection == "offline":
         injector.check_offline()
@@ -337,5 +344,5 @@ def arm_scenario(robot: str | Path = "arm6.xml", faults=(), seed: int = 0, joint
         faults = (_default_fault(sim.joint_names, model.torque_limit, motion.end, seed),)
     sc = ArmScenario(f"arm-{sim.system}", motion=motion, faults=faults, mjcf=str(robot), joints=tuple(sim.joint_names),
                      torque_motors=torque_motors, seed=seed, **overrides)
-    check_faults(sc)
+    check_scenario(sc)
     return sc
