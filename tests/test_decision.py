@@ -4,6 +4,7 @@ import pytest
 
 from robofdi import RobofdiError
 from robofdi.decision import Alarms, Signature, ThresholdDecision, calibrate_thresholds
+from robofdi.decision.isolation import startup_samples
 
 TORQUES = [f"joint{i}_tau" for i in range(1, 4)]
 COMPONENTS = TORQUES + ["joint3_pos"]
@@ -103,6 +104,16 @@ def test_without_latch_isolation_follows_the_current_sample():
     assert d.update(np.array([0.0, 3.0, 0.0, 0.0])).isolated == ("joint2",)
     assert d.update(np.zeros(4)).isolated == ()
     assert d.update(np.array([0.0, 3.0, 0.0, 0.0])).new == ("joint2",)
+
+
+def test_blanking_suppresses_the_first_samples_after_each_reset():
+    d = ThresholdDecision(COMPONENTS, np.ones(4), arm_signatures(), blanking=2)
+    big = np.array([0.0, 10.0, 0.0, 0.0])
+    for _ in range(2):                                      # a fresh decision, then the same after reset()
+        assert [d.update(big).alarm.any() for _ in range(3)] == [False, False, True]
+        assert d.update(big).isolated == ("joint2",)
+        d.reset()
+    assert startup_samples(0.002) == 5 and startup_samples(0.002, 0.0) == 0   # 10 ms default at 500 Hz
 
 
 def test_nan_residual_names_residual_and_component():

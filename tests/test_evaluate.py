@@ -147,6 +147,15 @@ def test_summarize_has_contract_keys_and_writes_json(tmp_path):
     for metrics in s["diagnosers"].values():
         assert {"false_alarms", "first_false_alarm_time", "detections", "estimate_rmse"} <= set(metrics)
         assert {"fault", "time", "delay", "isolated"} == set(metrics["detections"][0])
+    # the metrics of the hand-made trace (see test_detection_delay_isolation_and_false_alarm_episode) and of an
+    # alarm-free one: no false alarm, the fault missed
+    assert s["diagnosers"]["recursive"]["false_alarms"] == 1
+    assert s["diagnosers"]["recursive"]["detections"][0]["time"] == pytest.approx(1.006)
+    assert s["diagnosers"]["other"]["false_alarms"] == 0 and s["diagnosers"]["other"]["missed_detections"] == 1
+    # units: times in s, the RMSE in the unit of the fault's ground-truth label
+    assert s["units"]["delay"] == "s" and s["units"]["estimate_rmse"] == {"tau3": ""}
+    rec.faults["tau3"].unit = "N·m"
+    assert summarize(rec, "x", faults)["units"]["estimate_rmse"] == {"tau3": "N·m"}
     assert set(summarize(rec, "x", faults, diagnosers=["other"])["diagnosers"]) == {"other"}
 
     path = write_summary(s, tmp_path / "out" / "summary.json")
@@ -161,8 +170,18 @@ def test_results_table_lists_every_diagnoser_and_fault():
     rec = record({"tau3": labels(1.0), "tau5": labels(3.0)}, {"recursive": tr, "momentum": trace(alarm_on=[])})
     s = summarize(rec, "two-faults", [spec("tau3", "joint3", 1.0), spec("tau5", "joint5", 3.0)])
     table = results_table(s)
-    for word in ("recursive", "momentum", "tau3", "tau5", "delay [ms]", "6.0", "4.0"):
-        assert word in table
+    assert "delay [ms]" in table and table.splitlines()[0] == "two-faults  system=arm6  seed=0"
     lines = table.splitlines()
     assert len(lines) == 3 + 4  # title, header, rule, one row per (diagnoser, fault)
     assert len({len(line) for line in lines[1:3]}) == 1  # header and rule are aligned
+    # tau3: alarm rises at 1.006 (6 ms), joint3 isolated at 1.010; the estimate stays 0, so the RMSE over
+    # t = 1.010, 1.012, …, 3.998 against the true 2(t − 1) is sqrt(mean(4 s²)), s = 0.010 … 2.998 step 0.002.
+    # tau5: component 2 rises at 3.004 (4 ms) but nothing new is isolated. momentum never alarms.
+    s_grid = 0.010 + 0.002 * np.arange(1495)
+    rmse = f"{np.sqrt(np.mean(4 * s_grid**2)):.4g}"       # 3.468
+    assert [line.split() for line in lines[3:]] == [
+        ["recursive", "tau3", "yes", "6.0", "joint3", "yes", rmse, "0"],
+        ["recursive", "tau5", "yes", "4.0", "-", "no", "-", "0"],
+        ["momentum", "tau3", "no", "-", "-", "-", "-", "0"],
+        ["momentum", "tau5", "no", "-", "-", "-", "-", "0"],
+    ]

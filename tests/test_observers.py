@@ -118,12 +118,32 @@ def test_recursive_is_low_pass_of_time_delayed(model, plant):
     np.testing.assert_array_equal(rrec[0], 0.0)
     # eq. (35), exact from the start with r_rec(0) = 0
     np.testing.assert_allclose(rrec[1:], (1 - gain) * rrec[:-1] + rtd[1:], rtol=1e-9, atol=1e-12)
-    # step of size s on a velocity row: jump s then decay (1 − γ)^j (η's start-up term has decayed by then)
-    j = np.arange(10)
-    np.testing.assert_allclose(rrec[STEP_K + 1 + j, STEP_ROW] - rrec[STEP_K + j, STEP_ROW] * (1 - gain[STEP_ROW]),
-                               np.r_[STEP_SIZE, np.zeros(9)], atol=1e-12)
-    # ramp of slope s: steady state Γ⁻¹ s (gain 1/γ over the time-delayed residual)
+    # closed forms, a = 1 − γ: r_TD(1) = η, then f(k−1) − f(k−2), so r_rec(k) = η a^(k−1) + (fault part)
+    k = np.arange(1, len(xs))
+    # fault-free row with γ = 1.5: the start-up η alternates in sign and decays ×0.5 per step
+    row = N_JOINTS + 1
+    np.testing.assert_allclose(rrec[1:, row], ETA[row] * (-0.5) ** (k - 1), rtol=1e-9, atol=1e-15)
+    # step of size s at k₀ (first seen at k₀ + 1): jump s, then decay a^j
+    a = 1 - gain[STEP_ROW]
+    step = np.where(k >= STEP_K + 1, STEP_SIZE * a ** np.maximum(k - STEP_K - 1, 0), 0.0)
+    np.testing.assert_allclose(rrec[1:, STEP_ROW], ETA[STEP_ROW] * a ** (k - 1) + step, rtol=1e-9, atol=1e-15)
+    # ramp of slope s: r_TD = s from k₀ + 1, so r_rec = s (1 − a^(k−k₀)) / γ → steady state Γ⁻¹ s (gain 1/γ)
+    a = 1 - gain[RAMP_ROW]
+    ramp = np.where(k >= RAMP_K + 1, RAMP_SLOPE * (1 - a ** np.maximum(k - RAMP_K, 0)) / gain[RAMP_ROW], 0.0)
+    np.testing.assert_allclose(rrec[1:, RAMP_ROW], ETA[RAMP_ROW] * a ** (k - 1) + ramp, rtol=1e-9, atol=1e-15)
     assert rrec[-1, RAMP_ROW] == pytest.approx(RAMP_SLOPE / gain[RAMP_ROW], rel=1e-6)
+
+
+def eta_eq50(theta, x1, tau, torque_scale):
+    """Eq. (50) written out: θ_i on the position rows; a + b sin(c x₁ + d) + (τ/τ_scale) e sin(f x₁ + g) on the
+    velocity rows, with the 7 parameters of joint i at θ[n + 7i … n + 7i + 6]."""
+    n = len(x1)
+    out = np.empty(2 * n)
+    out[:n] = theta[:n]
+    for i in range(n):
+        a, b, c, d, e, f, g = theta[n + 7 * i : n + 7 * i + 7]
+        out[n + i] = a + b * np.sin(c * x1[i] + d) + tau[i] / torque_scale[i] * e * np.sin(f * x1[i] + g)
+    return out
 
 
 def test_adaptive_residual_is_simple_minus_ripple_estimate(model, plant):
@@ -144,10 +164,11 @@ def test_adaptive_residual_is_simple_minus_ripple_estimate(model, plant):
     for k in range(1, len(xs)):
         theta = est.theta.copy()
         r = obs.update(xs[k], us[k - 1]).r
-        eta_hat = ripple.eta(theta, xs[k - 1][:N_JOINTS], us[k - 1])
+        eta_hat = eta_eq50(theta, xs[k - 1][:N_JOINTS], us[k - 1], model.torque_limit)
         np.testing.assert_allclose(r, r20[k] - eta_hat, rtol=1e-9, atol=1e-12)
-        Z = ripple.jacobian(theta, xs[k - 1][:N_JOINTS], us[k - 1])
-        np.testing.assert_allclose(est.theta, theta + Z.T @ est.gain(Z) @ r, rtol=1e-9, atol=1e-12)
+        Z = ripple.jacobian(theta, xs[k - 1][:N_JOINTS], us[k - 1])     # checked against finite differences below
+        gamma_theta = 2.0 * np.linalg.inv(Z @ Z.T + np.diag(2.0 / GAMMA))  # eq. (39) with Q = 2 Γ_η⁻¹
+        np.testing.assert_allclose(est.theta, theta + Z.T @ gamma_theta @ r, rtol=1e-9, atol=1e-12)
         moved |= not np.allclose(est.theta, theta0)
     assert moved
 
@@ -244,46 +265,72 @@ def exp_rise(amplitude, tau, k0):
 K0 = 10
 
 
+def increments(amplitude, tau, n_steps, delay):
+    """Closed form of the first difference of the sampled book profile A(1 − e^{−(k−K0)T/τ}), seen ``delay``
+    samples late: with b = e^{−T/τ}, the j-th increment (j ≥ 1) is A(1 − b) b^{j−1}, at sample K0 + delay + j − 1."""
+    b = np.exp(-T / tau)
+    j = np.arange(n_steps) - (K0 + delay) + 1
+    return np.where(j >= 1, amplitude * (1 - b) * b ** np.maximum(j - 1, 0), 0.0), b
+
+
+def low_passed_increments(amplitude, tau, gamma, n_steps, delay):
+    """Closed form of r(k) = (1 − γ) r(k−1) + (those increments), eq. (35): with a = 1 − γ,
+    Σ_{i=1..j} a^{j−i} A(1 − b) b^{i−1} = A(1 − b)(a^j − b^j)/(a − b)."""
+    a, b = 1 - gamma, np.exp(-T / tau)
+    j = np.arange(n_steps) - (K0 + delay) + 1
+    return np.where(j >= 1, amplitude * (1 - b) * (a ** np.maximum(j, 0) - b ** np.maximum(j, 0)) / (a - b), 0.0)
+
+
 def test_time_delayed_torque_response_to_abrupt_actuator_fault(model):
     obs = DiagnosticObserver(model, T, TimeDelayed(), residual_space="torque")
     r = stationary_actuator_run(model, obs, 2, exp_rise(60.0, 0.002, K0), 40)
     tau3 = r[:, N_JOINTS + 2]
-    # f(K0) = 0, f(K0+1) = 37.927 enters x(K0+2): the first increment appears at sample K0+2 (u is ū(k−1))
-    np.testing.assert_allclose(tau3[: K0 + 2], 0.0, atol=1e-9)
-    np.testing.assert_allclose(tau3[K0 + 2 : K0 + 6], [37.927, 13.953, 5.133, 1.888], atol=1e-3)
-    assert tau3.max() == pytest.approx(37.92723, abs=1e-4)
+    # the arm stays at rest, so r_τ = (M̂/T)·T M̂⁻¹(δτ(k−1) − δτ(k−2)): the increments of the profile, two samples
+    # late (δτ(K0) = 0; δτ(K0+1) − δτ(K0) = 60(1 − e⁻¹) = 37.927 enters x(K0+2), as u is ū(k−1))
+    expected, _ = increments(60.0, 0.002, 40, delay=2)
+    np.testing.assert_allclose(tau3, expected, rtol=1e-9, atol=1e-9)
+    assert tau3.max() == pytest.approx(60 * (1 - np.exp(-1)), abs=1e-9) and int(np.argmax(tau3)) == K0 + 2
     others = np.delete(r, N_JOINTS + 2, axis=1)
     np.testing.assert_allclose(others, 0.0, atol=1e-9)           # isolates joint 3 in torque space
 
 
-@pytest.mark.parametrize("gamma, peak", [(0.2, 44.294), (0.3, 40.502)])
-def test_recursive_torque_response_to_abrupt_actuator_fault(model, gamma, peak):
+@pytest.mark.parametrize("gamma", [0.2, 0.3])
+def test_recursive_torque_response_to_abrupt_actuator_fault(model, gamma):
     gain = np.r_[np.full(N_JOINTS, 0.01), np.full(N_JOINTS, gamma)]   # uniform on velocity rows: commutes with M̂
     obs = DiagnosticObserver(model, T, Recursive(gain), residual_space="torque")
     r = stationary_actuator_run(model, obs, 2, exp_rise(60.0, 0.002, K0), 40)
     tau3 = r[:, N_JOINTS + 2]
-    assert tau3.max() == pytest.approx(peak, abs=1e-3)
-    assert int(np.argmax(tau3)) == K0 + 3       # spec: peak at 4 ms = 2 samples after the onset, + 1 sample (u = ū(k−1))
-    assert tau3[K0 + 2] == pytest.approx(37.927, abs=1e-3)
+    np.testing.assert_allclose(tau3, low_passed_increments(60.0, 0.002, gamma, 40, delay=2), rtol=1e-9, atol=1e-9)
+    # peak 2 samples after the first increment (spec: 4 ms after onset): (1 − γ)·37.927 + 13.953 > 37.927
+    d1 = 60 * (1 - np.exp(-1))
+    assert int(np.argmax(tau3)) == K0 + 3
+    assert tau3.max() == pytest.approx((1 - gamma) * d1 + d1 * np.exp(-1), abs=1e-9)
     np.testing.assert_allclose(np.delete(r, N_JOINTS + 2, axis=1), 0.0, atol=1e-9)
 
 
-@pytest.mark.parametrize("gamma, peak, samples", [(0.2, 3.7951, 11), (0.3, 2.7302, 8)])
-def test_recursive_torque_response_to_incipient_actuator_fault(model, gamma, peak, samples):
+@pytest.mark.parametrize("gamma, samples", [(0.2, 11), (0.3, 8)])
+def test_recursive_torque_response_to_incipient_actuator_fault(model, gamma, samples):
     gain = np.r_[np.full(N_JOINTS, 0.01), np.full(N_JOINTS, gamma)]
     td = DiagnosticObserver(model, T, TimeDelayed(), residual_space="torque")
     rec = DiagnosticObserver(model, T, Recursive(gain), residual_space="torque")
     rtd = stationary_actuator_run(model, td, 4, exp_rise(40.0, 0.08, K0), 60)[:, N_JOINTS + 4]
     rrec = stationary_actuator_run(model, rec, 4, exp_rise(40.0, 0.08, K0), 60)[:, N_JOINTS + 4]
-    assert rtd.max() == pytest.approx(0.98760, abs=1e-5)
-    np.testing.assert_allclose(rtd[K0 + 3 : K0 + 20] / rtd[K0 + 2 : K0 + 19], np.exp(-1 / 40), rtol=1e-9)
-    assert rrec.max() == pytest.approx(peak, abs=1e-4)
-    # peak `samples` samples after the first increment (22 ms resp. 16 ms in the spec's time base)
+    expected_td, b = increments(40.0, 0.08, 60, delay=2)
+    np.testing.assert_allclose(rtd, expected_td, rtol=1e-9, atol=1e-9)
+    assert rtd.max() == pytest.approx(40 * (1 - np.exp(-0.025)), abs=1e-9)   # 0.98760 N·m: TD barely sees it
+    np.testing.assert_allclose(rrec, low_passed_increments(40.0, 0.08, gamma, 60, delay=2), rtol=1e-9, atol=1e-9)
+    # peak where b^j − a^j is largest (a = 1 − γ): the continuous maximiser j* = ln(ln a / ln b) / ln(b / a) is
+    # 11.05 for γ = 0.2 and 8.01 for γ = 0.3, and the sampled peak at j = 11 resp. 8 (22 ms resp. 16 ms in the spec)
     assert int(np.argmax(rrec)) == K0 + 1 + samples
+    assert rrec.max() > 2.5 * rtd.max()          # the low-pass gain is what makes incipient faults visible
 
 
 def test_position_sensor_fault_numbers(model):
-    """δx_{1,3} = 0.006(1 − e^{−(kT−t0)/0.002}) on the measured position of a resting arm (spec §7.3)."""
+    """δx_{1,3} = 0.006(1 − e^{−(kT−t0)/0.002}) on the measured position of a resting arm (spec §7.3): the position
+    row of r₂₀ is x̄₁(k) − x̄₁(k−1) − T x̄₂(k−1) = δx(k) − δx(k−1) (measured velocity 0), the time-delayed one its
+    first difference, the recursive one that low-passed with γ = 0.01 (eq. (35))."""
+    from scipy.signal import lfilter
+
     dx = exp_rise(0.006, 0.002, K0)
     g0 = model.gravity(Q0)
     obs = {name: DiagnosticObserver(model, T, est, residual_space="state")
@@ -295,12 +342,17 @@ def test_position_sensor_fault_numbers(model):
         for name, o in obs.items():
             out[name].append(o.update(y, g0 if k else np.zeros(N_JOINTS)).r[2])
     simple, td, rec = (np.array(out[n]) for n in ("simple", "td", "rec"))
-    assert simple.max() == pytest.approx(0.0037927, abs=1e-7)
-    assert td.max() == pytest.approx(0.0037927, abs=1e-7)
-    k = int(np.argmax(td))
-    assert td[k + 1] == pytest.approx(-0.0023975, abs=1e-7)
-    assert int(np.argmax(rec)) == k and rec.max() == pytest.approx(0.0037927, abs=1e-7)
-    assert rec[-1] < 0                                       # slow undershoot (×0.99 per step)
+    delta = np.array([dx(k) for k in range(60)])
+    exp_simple = np.r_[0.0, np.diff(delta)]
+    exp_td = np.r_[0.0, np.diff(exp_simple)]
+    exp_rec = lfilter([1.0], [1.0, -(1 - GAMMA[2])], exp_td)
+    np.testing.assert_allclose(simple, exp_simple, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(td, exp_td, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(rec, exp_rec, rtol=1e-9, atol=1e-12)
+    # the spec's numbers: peak 0.006(1 − e⁻¹) = 3.7927 mrad, then the TD second difference 0.006(e⁻¹ − e⁻²) − 3.7927
+    assert simple.max() == pytest.approx(0.0037927, abs=1e-7) and td.max() == pytest.approx(0.0037927, abs=1e-7)
+    assert td[K0 + 2] == pytest.approx(-0.0023975, abs=1e-7)
+    assert int(np.argmax(rec)) == K0 + 1 and rec[-1] < 0    # slow undershoot (×0.99 per step)
 
 
 # ---------------------------------------------------------------------------------------------------------------
