@@ -528,3 +528,16 @@ def test_adaptive_diagonal_fast_path_equals_the_printed_update():
             est.update(r, r, x, u)
         np.testing.assert_allclose(fast.eta_hat, full.eta_hat, rtol=1e-10, atol=1e-14)
         np.testing.assert_allclose(fast.theta, full.theta, rtol=1e-10, atol=1e-14)
+
+
+def test_huge_finite_measurements_are_not_taken_for_nan():
+    """The hot-path finiteness test sums the vector; a finite overflow of that sum must not count as NaN."""
+    import warnings
+
+    from robofdi.observers import check_measurement
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        np.testing.assert_array_equal(check_measurement(np.full(12, 1e308), 12, "y"), np.full(12, 1e308))
+    with pytest.raises(RobofdiError, match=r"indices \[11\]"):
+        check_measurement(np.r_[np.ones(11), np.inf], 12, "y")

@@ -6,7 +6,7 @@ from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
-from robofdi.errors import RobofdiError
+from robofdi.errors import RobofdiError, all_finite
 from robofdi.faults.effects import Effect, make_effect
 from robofdi.faults.fault import FAULT_KINDS, Fault
 from robofdi.seeding import stream
@@ -188,6 +188,6 @@ class FaultInjector:
             raise RobofdiError(
                 f"FaultInjector: field '{field_name}' must be a 1-D array of length {n}, got shape {out.shape}"
             )
-        if not math.isfinite(out.sum()):  # NaN and inf propagate through the sum: one reduction per call
+        if not all_finite(out):
             raise RobofdiError(f"FaultInjector: field '{field_name}' must be finite, got {out.tolist()}")
         return out

@@ -13,14 +13,13 @@ held from some sample on drives the residual through the error dynamics e(k+1) =
 """
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
 import numpy as np
 import scipy.linalg
 import scipy.signal
 
-from robofdi.errors import RobofdiError
+from robofdi.errors import RobofdiError, all_finite
 from robofdi.models.linear import (
     LinearModel, covariance_factor, format_mode, require_discrete, unobservable_modes,
 )
@@ -207,7 +206,7 @@ class ObserverResidual:
             return Residual(np.zeros(md.p), np.zeros(len(self._estimated)))
         self._x = md.A @ self._x + md.B @ u + self.L @ self._innovation
         r = y - md.C @ self._x - md.D @ u
-        if not math.isfinite(r.sum()):
+        if not all_finite(r):
             raise RobofdiError("ObserverResidual: the residual diverged (non-finite); check the model and gain 'L'")
         self._innovation = r
         return Residual(r.copy(), self._projection @ r)

@@ -1,12 +1,11 @@
 """What a diagnoser returns each sample, and the input check every diagnoser applies."""
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from robofdi import RobofdiError
+from robofdi.errors import RobofdiError, all_finite
 
 __all__ = ["Residual", "check_measurement"]
 
@@ -25,7 +24,7 @@ def check_measurement(v, size: int, field: str) -> np.ndarray:
     a = np.array(v, dtype=float)  # a copy: diagnosers keep past samples, callers may reuse their buffers
     if a.shape != (size,):
         raise RobofdiError(f"diagnoser input {field!r} must be a vector of {size} values, got shape {a.shape}")
-    if not math.isfinite(a.sum()):  # NaN/inf propagate through the sum (one reduction on the hot path)
+    if not all_finite(a):
         bad = np.flatnonzero(~np.isfinite(a)).tolist()
         raise RobofdiError(f"diagnoser input {field!r} has non-finite values at indices {bad} (NaN/inf measurement)")
     return a

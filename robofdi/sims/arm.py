@@ -32,7 +32,6 @@ Randomness: the robot's own (ripple phases) from ``stream(seed, "plant", "ripple
 """
 from __future__ import annotations
 
-import math
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -41,7 +40,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from robofdi import RobofdiError
+from robofdi.errors import RobofdiError, all_finite
 from robofdi.models.manipulator import (
     CompiledArm, ManipulatorModel, ModelMismatch, compile_arm, sensor_channel_names,
 )
@@ -521,7 +520,7 @@ class ArmSimulator:
     def step(self, u: np.ndarray) -> np.ndarray:
         """Apply torques u (n, [N·m or N], saturated) for one control period; return the measurement."""
         u = np.asarray(u, dtype=float)
-        if u.shape != (self.n,) or not math.isfinite(u.sum()):
+        if u.shape != (self.n,) or not all_finite(u):
             raise RobofdiError(f"step: u must be {self.n} finite joint torques for {self.joint_names}, got shape "
                                f"{u.shape}: {u.tolist()}")
         m, d = self.model, self.data
@@ -536,7 +535,7 @@ class ArmSimulator:
             if disturb:
                 d.qfrc_applied[dofs] = -self.disturbance(d.qpos[qadr], d.qvel[dofs], tau)
             mujoco.mj_step(m, d)
-        if not math.isfinite(d.qpos.sum() + d.qvel.sum()):
+        if not (all_finite(d.qpos) and all_finite(d.qvel)):
             raise RobofdiError(f"simulation diverged at t={d.time:.4f} s: non-finite joint state")
         return self.measure()
 
