@@ -399,6 +399,8 @@ class ArmSimulator:
         self._r_load, self._r_load_freq, self._r_load_phase = c_load, load_freq, load_phase
         # the same terms fused for the hot path: one sine over every (harmonic, joint), one product with the
         # amplitudes (A[i, k·n + i] = amp[k, i]), the load-dependent block last
+        used = np.any(amp != 0.0, axis=1)                 # terms switched off cost nothing
+        amp, freq, phase = amp[used], freq[used], phase[used]
         k = amp.shape[0]
         self._r_index = np.tile(np.arange(n), k + 1)
         self._r_F = np.concatenate([freq.ravel(), load_freq])
