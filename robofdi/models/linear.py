@@ -17,7 +17,7 @@ import scipy.linalg
 from robofdi.errors import RobofdiError
 from robofdi.seeding import rng
 
-__all__ = ["LinearModel", "LinearMismatch", "discretize", "require_discrete", "perturbed", "unobservable_modes",
+__all__ = ["LinearModel", "LinearMismatch", "discretize", "require_discrete", "vector_field", "perturbed", "unobservable_modes",
            "uncontrollable_modes", "format_mode", "covariance_factor"]
 
 #: Relative tolerance on dt when a discrete model meets a requested sampling period.
@@ -166,6 +166,28 @@ def _check_dt(dt, name: str = "dt") -> float:
     if isinstance(dt, bool) or not isinstance(dt, (int, float, np.floating, np.integer)) or not (np.isfinite(dt) and dt > 0):
         raise RobofdiError(f"discretize: field {name!r} must be a sampling period > 0 s, got {dt!r}")
     return float(dt)
+
+
+def vector_field(value, size: int, name: str, where: str, default: float, *, allow_inf: bool = False,
+                 positive: bool = False) -> np.ndarray:
+    """A configuration vector of ``size`` floats: None → ``default`` everywhere, a scalar → broadcast; errors name
+    ``where``, the field and the first bad entry."""
+    if value is None:
+        return np.full(size, float(default))
+    try:
+        a = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise RobofdiError(f"{where}: field {name!r} must be {size} numbers, got {value!r}") from None
+    if a.ndim == 0:
+        a = np.full(size, float(a))
+    if a.shape != (size,):
+        raise RobofdiError(f"{where}: field {name!r} must be a vector of {size} values, got shape {a.shape}")
+    bad = (np.isnan(a) if allow_inf else ~np.isfinite(a)) | ((a <= 0) if positive else False)
+    if bad.any():
+        expected = "values > 0" if positive else ("non-NaN" if allow_inf else "finite")
+        raise RobofdiError(f"{where}: field {name!r} must be {expected}, "
+                           f"got {a[bad][0]} at index {int(np.flatnonzero(bad)[0])}")
+    return a
 
 
 def require_discrete(model, where: str, period: str = "control") -> LinearModel:

@@ -21,7 +21,7 @@ import scipy.signal
 
 from robofdi.errors import RobofdiError, all_finite
 from robofdi.models.linear import (
-    LinearModel, covariance_factor, format_mode, require_discrete, unobservable_modes,
+    LinearModel, covariance_factor, format_mode, require_discrete, unobservable_modes, vector_field,
 )
 from robofdi.observers.residual import Residual, check_measurement
 
@@ -110,20 +110,6 @@ def observer_gain_kalman(model: LinearModel, process_noise, measurement_noise) -
     return L
 
 
-def _positive_vector(value, size: int, name: str, where: str) -> np.ndarray:
-    if value is None:
-        return np.ones(size)
-    try:
-        a = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise RobofdiError(f"{where}: field {name!r} must be {size} positive numbers, got {value!r}") from None
-    if a.ndim == 0:
-        a = np.full(size, float(a))
-    if a.shape != (size,) or not np.all(np.isfinite(a) & (a > 0)):
-        raise RobofdiError(f"{where}: field {name!r} must be {size} finite values > 0 (one per residual), got {value!r}")
-    return a
-
-
 class ObserverResidual:
     """Diagnoser protocol: one residual per output (named like the outputs, in their units).
 
@@ -157,7 +143,7 @@ class ObserverResidual:
             if x0.shape != (n,) or not np.all(np.isfinite(x0)):
                 raise RobofdiError(f"{where}: field 'x0' must be None or a finite vector of {n} values, got {x0!r}")
         self.x0 = x0
-        self.residual_scale = _positive_vector(residual_scale, p, "residual_scale", where)
+        self.residual_scale = vector_field(residual_scale, p, "residual_scale", where, 1.0, positive=True)
         rf = required_fraction
         if isinstance(rf, bool) or not isinstance(rf, (int, float, np.floating)) or not (0 < rf <= 1):
             raise RobofdiError(f"{where}: field 'required_fraction' must be in (0, 1], got {rf!r}")
@@ -228,7 +214,7 @@ class ObserverResidual:
         return self._peak
 
     def _scaled(self, scale):
-        s = self.residual_scale if scale is None else _positive_vector(scale, self.model.p, "scale", "signatures")
+        s = self.residual_scale if scale is None else vector_field(scale, self.model.p, "scale", "signatures", 1.0, positive=True)
         return np.abs(self.dc_gain) / s[:, None], self.peak_gain() / s[:, None]
 
     def signatures(self, scale=None, required_fraction: float | None = None) -> list:

@@ -19,28 +19,12 @@ from typing import Any
 import numpy as np
 
 from robofdi.errors import RobofdiError
-from robofdi.models.linear import DT_RTOL, LinearMismatch, LinearModel, covariance_factor, discretize, perturbed
+from robofdi.models.linear import (
+    DT_RTOL, LinearMismatch, LinearModel, covariance_factor, discretize, perturbed, vector_field,
+)
 from robofdi.seeding import stream
 
 __all__ = ["LinearPlant"]
-
-
-def _vector(value, size: int, name: str, default: float, allow_inf: bool = False) -> np.ndarray:
-    if value is None:
-        return np.full(size, default)
-    try:
-        a = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise RobofdiError(f"LinearPlant: field {name!r} must be {size} numbers, got {value!r}") from None
-    if a.ndim == 0:
-        a = np.full(size, float(a))
-    if a.shape != (size,):
-        raise RobofdiError(f"LinearPlant: field {name!r} must be a vector of {size} values, got shape {a.shape}")
-    bad = np.isnan(a) if allow_inf else ~np.isfinite(a)
-    if bad.any():
-        raise RobofdiError(f"LinearPlant: field {name!r} must be {'non-NaN' if allow_inf else 'finite'}, "
-                           f"got {a[bad][0]} at index {int(np.flatnonzero(bad)[0])}")
-    return a
 
 
 @dataclass(eq=False)
@@ -95,13 +79,13 @@ class LinearPlant:
                                               "process_noise")
         self._R, self._FR = covariance_factor(np.zeros(p) if self.measurement_noise is None else self.measurement_noise, p,
                                               "measurement_noise")
-        self._u_min = _vector(self.u_min, m, "u_min", -np.inf, allow_inf=True)
-        self._u_max = _vector(self.u_max, m, "u_max", np.inf, allow_inf=True)
+        self._u_min = vector_field(self.u_min, m, "u_min", "LinearPlant", -np.inf, allow_inf=True)
+        self._u_max = vector_field(self.u_max, m, "u_max", "LinearPlant", np.inf, allow_inf=True)
         if np.any(self._u_min > self._u_max):
             j = int(np.flatnonzero(self._u_min > self._u_max)[0])
             raise RobofdiError(f"LinearPlant: field 'u_min' must be <= u_max for input {md.input_names[j]!r}, "
                                f"got {self._u_min[j]} > {self._u_max[j]}")
-        self._x0 = _vector(self.x0, n, "x0", 0.0)
+        self._x0 = vector_field(self.x0, n, "x0", "LinearPlant", 0.0)
         if self.disturbance is not None and not callable(self.disturbance):
             raise RobofdiError("LinearPlant: field 'disturbance' must be None or a function d(t) -> array of q values")
         if self.disturbance is not None and md.q == 0:
