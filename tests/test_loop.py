@@ -87,6 +87,9 @@ def test_record_round_trip_is_exact_and_every_dataset_has_units_and_columns(ch3,
         assert json.loads(f["signals/y_meas"].attrs["columns"])[:2] == ["joint1_pos", "joint2_pos"]
         assert json.loads(f["signals/y_meas"].attrs["units"])[5:7] == ["rad", "rad/s"]
         assert json.loads(f["diagnosers/recursive/residual"].attrs["units"])[5:7] == ["rad", "N·m"]
+    np.testing.assert_array_equal(back.column("signals/u", "joint3"), rec.signals["u"][:, 2])
+    with pytest.raises(RobofdiError, match="no column 'joint9'"):
+        back.column("signals/u", "joint9")
 
 
 def test_same_seed_gives_a_byte_identical_record(ch3, tmp_path):

@@ -43,6 +43,8 @@ __all__ = ["ArmScenario", "arm_scenario", "Calibration", "calibration_trajectori
            "calibration", "run_scenario", "build_loop", "check_scenario", "cache_dir"]
 
 ACCOMMODATIONS = (None, "compensation")
+#: Schemes whose thresholds are also calibrated in the book's state space (reported next to the book's).
+STATE_SPACE_SCHEMES = ("time_delayed", "recursive")
 
 
 @dataclass(frozen=True)
@@ -207,7 +209,7 @@ def calibrate(scenario: ArmScenario, records: dict[str, Record],
             out[name] = calibrate_thresholds(residuals, scenario.threshold_margin, skip)
         return out
 
-    state_schemes = [s for s in ("time_delayed", "recursive") if s in scenario.schemes]
+    state_schemes = [s for s in STATE_SPACE_SCHEMES if s in scenario.schemes]
     return Calibration(thresholds(settings, scenario.schemes), theta0, skip,
                        thresholds(replace(settings, residual_space="state"), state_schemes))
 
@@ -215,7 +217,7 @@ def calibrate(scenario: ArmScenario, records: dict[str, Record],
 def calibration_steps(scenario: ArmScenario, records_duration: float, rates: Rates) -> int:
     """Progress units of :func:`calibration`: control ticks simulated plus ticks replayed per scheme."""
     ticks = int(records_duration * rates.control_hz)
-    replays = 1 + len(scenario.schemes) + len([s for s in ("time_delayed", "recursive") if s in scenario.schemes])
+    replays = 1 + len(scenario.schemes) + len([s for s in STATE_SPACE_SCHEMES if s in scenario.schemes])
     return ticks * (1 + replays)
 
 
