@@ -42,6 +42,11 @@ def lqr_gain(model: LinearModel, Qx, Ru) -> np.ndarray:
     return K
 
 
+def observer_gain_unused(n: int, p: int) -> np.ndarray:
+    """Placeholder L (zeros) when an external estimator replaces the built-in observer."""
+    return np.zeros((n, p))
+
+
 def _vector(value, size: int, name: str, default: float) -> np.ndarray:
     if value is None:
         return np.full(size, default)
@@ -64,20 +69,29 @@ class StateFeedback:
     setpoints (least squares when there are more tracked outputs than inputs). ``reference``: an array of setpoints,
     a tuple whose first entry is that array, or None (zeros). u_min / u_max: the controller clips its command (and
     its observer uses the clipped command); default ±inf. x0: initial estimate (None: C⁺ y of the first sample).
+    estimator: optional state estimator used instead of the built-in observer (then ``L`` may be None) — any object
+    with ``reset()``, ``update(y(k), u(k−1))`` and ``state_estimate`` (x̂(k) after the update), e.g. a fault-decoupled
+    :class:`robofdi.observers.kalman.KalmanFaultEstimator`, so that an actuator fault does not bias x̂.
     """
 
-    def __init__(self, model: LinearModel, K, L, tracked: Sequence[str] | None = None, u_min=None, u_max=None, x0=None):
+    def __init__(self, model: LinearModel, K, L, tracked: Sequence[str] | None = None, u_min=None, u_max=None, x0=None,
+                 estimator=None):
         where = "StateFeedback"
         self.model = model = require_discrete(model, where, "control")
         n, m, p = model.n, model.m, model.p
         self.K = np.array(K, dtype=float)
         if self.K.shape != (m, n) or not np.all(np.isfinite(self.K)):
             raise RobofdiError(f"{where}: field 'K' must be a finite {m}x{n} matrix (inputs x states), got shape {self.K.shape}")
+        if estimator is not None and not all(hasattr(estimator, a) for a in ("reset", "update", "state_estimate")):
+            raise RobofdiError(f"{where}: field 'estimator' must have reset(), update(y, u) and state_estimate")
+        self.estimator = estimator
+        if L is None and estimator is not None:
+            L = observer_gain_unused(n, p)
         self.L = np.array(L, dtype=float)
         if self.L.shape != (n, p) or not np.all(np.isfinite(self.L)):
             raise RobofdiError(f"{where}: field 'L' must be a finite {n}x{p} matrix (states x outputs), got shape {self.L.shape}")
         A, B, C, D = model.A, model.B, model.C, model.D
-        for name, M in (("K", A - B @ self.K), ("L", A - self.L @ C)):
+        for name, M in (("K", A - B @ self.K),) + ((("L", A - self.L @ C),) if estimator is None else ()):
             rho = float(np.max(np.abs(np.linalg.eigvals(M))))
             if not rho < 1.0:
                 what = "A − B K" if name == "K" else "A − L C"
@@ -111,6 +125,8 @@ class StateFeedback:
     def reset(self) -> None:
         self._x = None
         self._u = np.zeros(self.model.m)
+        if self.estimator is not None:
+            self.estimator.reset()
 
     def update(self, y: np.ndarray, reference=None) -> np.ndarray:
         """y(k) measured now, reference(k) → u(k), held until the next sample."""
@@ -123,7 +139,10 @@ class StateFeedback:
         if ref.shape != (len(self.tracked),) or not np.all(np.isfinite(ref)):
             raise RobofdiError(f"StateFeedback: input 'reference' must be {len(self.tracked)} finite setpoints for "
                                f"{self.tracked}, got {reference!r}")
-        if self._x is None:
+        if self.estimator is not None:
+            self.estimator.update(y, self._u)
+            self._x = np.asarray(self.estimator.state_estimate, dtype=float)
+        elif self._x is None:
             self._x = self.x0.copy() if self.x0 is not None else np.linalg.lstsq(md.C, y - md.D @ self._u, rcond=None)[0]
         else:
             self._x = md.A @ self._x + md.B @ self._u + self.L @ self._innovation

@@ -101,6 +101,33 @@ class Sinusoid(Profile):
 
 
 @dataclass(frozen=True)
+class Oscillation(Profile):
+    """A fault that oscillates about a mean: p(s) = mean + amplitude·sin(2π·frequency·s + phase).
+
+    Usable by the "unit" kinds (loss of effectiveness) when mean ± |amplitude| stays in [0, 1], e.g. Jiang &
+    Chowdhury's r₂(t) = 0.5 + 0.3 sin(πt)."""
+
+    mean: float
+    amplitude: float
+    frequency: float
+    phase: float = 0.0
+    type_name = "oscillation"
+
+    def __post_init__(self):
+        _positive("Oscillation", "frequency", self.frequency)
+        for name in ("mean", "amplitude", "phase"):
+            if not _is_number(getattr(self, name)):
+                raise RobofdiError(f"Oscillation: field {name!r} must be a finite number, got {getattr(self, name)!r}")
+
+    @property
+    def unit_range(self) -> bool:
+        return self.mean - abs(self.amplitude) >= 0.0 and self.mean + abs(self.amplitude) <= 1.0
+
+    def __call__(self, s: float) -> float:
+        return self.mean + self.amplitude * math.sin(2.0 * math.pi * self.frequency * s + self.phase)
+
+
+@dataclass(frozen=True)
 class Intermittent(Profile):
     """On/off pattern: p(s) = 1 while (s mod period) < duty*period, else 0."""
 
@@ -119,7 +146,7 @@ class Intermittent(Profile):
 
 #: Serialised profile type name -> class.
 PROFILE_TYPES: dict[str, type[Profile]] = {
-    cls.type_name: cls for cls in (Step, ExponentialRise, Ramp, Sinusoid, Intermittent)
+    cls.type_name: cls for cls in (Step, ExponentialRise, Ramp, Sinusoid, Oscillation, Intermittent)
 }
 
 

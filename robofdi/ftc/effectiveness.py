@@ -1,0 +1,43 @@
+"""Loss-of-effectiveness accommodation — Jiang & Chowdhury (2005) eq. (29): u_R = (I − R̂)⁻¹ u."""
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from robofdi.errors import RobofdiError
+from robofdi.protocols import Health
+
+__all__ = ["EffectivenessCompensation"]
+
+
+class EffectivenessCompensation:
+    """u = (I − R̂)⁻¹ u_cmd, R̂ = diag(r̂ᵢ) from the health estimate (the loss of effectiveness of each isolated
+    actuator, unit 1), clipped to [0, ``r_max``] so that I − R̂ stays invertible (r_max = 0.95: spec A.3 [HARNESS]).
+    Actuators not isolated keep r̂ = 0."""
+
+    def __init__(self, actuators: Sequence[str], r_max: float = 0.95):
+        self.actuators = list(actuators)
+        if not self.actuators:
+            raise RobofdiError("EffectivenessCompensation: field 'actuators' must name at least one actuator")
+        if isinstance(r_max, bool) or not isinstance(r_max, (int, float, np.floating)) or not (0 < r_max < 1):
+            raise RobofdiError(f"EffectivenessCompensation: field 'r_max' must be in (0, 1), got {r_max!r}")
+        self.r_max = float(r_max)
+        self._index = {name: i for i, name in enumerate(self.actuators)}
+
+    def reset(self) -> None:
+        """Stateless: nothing to forget."""
+
+    def loss(self, health: Health) -> np.ndarray:
+        """R̂ (diagonal entries) from ``health``, clipped to [0, r_max]."""
+        r = np.zeros(len(self.actuators))
+        for target, value in health.estimate.items():
+            i = self._index.get(target)
+            if i is not None and target in health.isolated:
+                r[i] = min(max(float(value), 0.0), self.r_max)
+        return r
+
+    def update(self, u_cmd: np.ndarray, health: Health) -> np.ndarray:
+        if not health.estimate:
+            return u_cmd
+        return np.asarray(u_cmd, dtype=float) / (1.0 - self.loss(health))
