@@ -11,7 +11,7 @@ from robofdi.models.linear import (
     LinearModel, covariance_factor, format_mode, require_discrete, uncontrollable_modes,
 )
 
-__all__ = ["lqr_gain", "StateFeedback"]
+__all__ = ["lqr_gain", "StateFeedback", "OpenLoop"]
 
 
 def lqr_gain(model: LinearModel, Qx, Ru) -> np.ndarray:
@@ -150,3 +150,22 @@ class StateFeedback:
         u = np.clip(-self.K @ self._x + self.N @ ref, self.u_min, self.u_max)
         self._u = u
         return u.copy()
+
+
+class OpenLoop:
+    """Controller protocol for open-loop experiments: u(k) = reference(k) (e.g. the step input of Guo et al. 2008)."""
+
+    def __init__(self, m: int):
+        if isinstance(m, bool) or not isinstance(m, (int, np.integer)) or m < 1:
+            raise RobofdiError(f"OpenLoop: field 'm' must be the number of inputs (>= 1), got {m!r}")
+        self.m = int(m)
+
+    def reset(self) -> None:
+        """Stateless."""
+
+    def update(self, y: np.ndarray, reference=None) -> np.ndarray:
+        ref = reference[0] if isinstance(reference, tuple) else reference
+        u = np.zeros(self.m) if ref is None else np.atleast_1d(np.array(ref, dtype=float))
+        if u.shape != (self.m,) or not np.all(np.isfinite(u)):
+            raise RobofdiError(f"OpenLoop: input 'reference' must be {self.m} finite input values, got {reference!r}")
+        return u

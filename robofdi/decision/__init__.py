@@ -2,6 +2,7 @@
 from robofdi.decision.thresholds import calibrate_thresholds
 from robofdi.decision.identification import Identification
 from robofdi.decision.isolation import STARTUP_BLANKING, Alarms, Signature, ThresholdDecision, startup_samples
+from robofdi.decision.multiple_model import SwitchingIndexDecision
 
 __all__ = ["Identification", "calibrate_thresholds", "Signature", "Alarms", "ThresholdDecision", "STARTUP_BLANKING",
-           "startup_samples"]
+           "startup_samples", "SwitchingIndexDecision"]

@@ -1,0 +1,79 @@
+"""Multiple-model decision: detection on the nominal model's residual, isolation by the switching index —
+Guo, Jiang, Zhang & Wang (2008) eqs. (21)–(22)."""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from robofdi.decision.isolation import Alarms
+from robofdi.errors import RobofdiError
+
+__all__ = ["SwitchingIndexDecision"]
+
+
+@dataclass
+class SwitchingIndexDecision:
+    """Decision protocol for a bank whose residual is [‖r₀‖ (nominal), ‖r₁‖, …, ‖r_m‖] (one per fault model).
+
+    Detection: ‖r₀‖ > ``threshold[0]`` (calibrated on fault-free runs; eq. (22), whose inequality is garbled).
+    Isolation: the active model argminᵢ Jᵢ(t), Jᵢ(t) = c₁‖rᵢ(t)‖² + c₂/(c₃t + 1) Σ_τ≤t ‖rᵢ(τ)‖² dt — eq. (21), t
+    counted from the first sample; reported from the first alarm on (isolation before a fault is meaningless:
+    every lock model explains fault-free data, spec B.2). ``models``: the hypothesis name of each bank model.
+    ``threshold``: the decision's thresholds per residual component (only the nominal one is used for alarms; the
+    others are reported as +inf-like large values for the record).
+    """
+
+    components: Sequence[str]
+    threshold: np.ndarray
+    models: Sequence[str]
+    dt: float
+    c: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    blanking: int = 0
+    index: np.ndarray = field(default=None, init=False)
+
+    def __post_init__(self):
+        self.components = tuple(self.components)
+        m = len(self.components)
+        if m < 2 or len(self.models) != m - 1:
+            raise RobofdiError(f"SwitchingIndexDecision: field 'models' must name the {m - 1} bank models after "
+                               f"the nominal residual, got {list(self.models)}")
+        self.threshold = np.array(self.threshold, dtype=float)
+        if self.threshold.shape != (m,) or not np.all(self.threshold > 0):
+            raise RobofdiError(f"SwitchingIndexDecision: field 'threshold' must be {m} values > 0, got {self.threshold}")
+        if not (np.isfinite(self.dt) and self.dt > 0):
+            raise RobofdiError(f"SwitchingIndexDecision: field 'dt' must be a sample time > 0 s, got {self.dt!r}")
+        if len(self.c) != 3 or not all(np.isfinite(v) and v > 0 for v in self.c):
+            raise RobofdiError(f"SwitchingIndexDecision: field 'c' must be three constants c₁, c₂, c₃ > 0, got {self.c}")
+        self.reset()
+
+    def reset(self) -> None:
+        self._k = 0
+        self._integral = np.zeros(len(self.models))
+        self._detected = False
+        self._active = None
+        self.index = np.zeros(len(self.models))
+
+    def update(self, residual: np.ndarray) -> Alarms:
+        r = np.asarray(residual, dtype=float)
+        if r.shape != (len(self.components),) or not np.all(np.isfinite(r)):
+            raise RobofdiError(f"SwitchingIndexDecision: residual must be {len(self.components)} finite values")
+        c1, c2, c3 = self.c
+        t = self._k * self.dt
+        self._k += 1
+        sq = r[1:] ** 2
+        self._integral += sq * self.dt
+        self.index = c1 * sq + c2 / (c3 * t + 1.0) * self._integral
+        alarm = np.zeros(len(self.components), dtype=bool)
+        if self._k > self.blanking:
+            alarm[0] = r[0] > self.threshold[0]
+        self._detected |= bool(alarm[0])
+        if not self._detected:
+            return Alarms(alarm=alarm)
+        i = int(np.argmin(self.index))
+        alarm[1 + i] = True                       # the active model's component marks the isolated hypothesis
+        best = self.models[i]
+        new = (best,) if best != self._active else ()
+        self._active = best
+        return Alarms(alarm=alarm, isolated=(best,), new=new)
