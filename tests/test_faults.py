@@ -219,6 +219,7 @@ def check_window(outs, labels, noms):
         ("actuator_additive", "joint2", 3.0, Ramp(1.0), lambda x, s: x + 3.0 * min(s, 1.0)),
         ("actuator_drift", "joint2", 0.5, Step(), lambda x, s: x + 0.5 * s),
         ("actuator_loss_of_effectiveness", "joint2", 0.4, Step(), lambda x, s: x * 0.6),
+        ("actuator_scale", "joint2", 0.25, Ramp(2.0), lambda x, s: x * (1 + 0.25 * min(s / 2.0, 1.0))),
         ("actuator_float", "joint2", 0.0, Step(), lambda x, s: 0.0),
         ("sensor_bias", "q3", 0.2, ExponentialRise(0.1), lambda x, s: x + 0.2 * (1 - math.exp(-s / 0.1))),
         ("sensor_drift", "q3", -0.1, Step(), lambda x, s: x - 0.1 * s),
@@ -366,7 +367,8 @@ def test_reset_clears_held_values_and_labels():
 
 
 def test_every_kind_is_covered():
-    covered = {"actuator_additive", "actuator_drift", "actuator_loss_of_effectiveness", "actuator_lock_in_place",
+    covered = {"actuator_additive", "actuator_drift", "actuator_loss_of_effectiveness", "actuator_scale",
+               "actuator_lock_in_place",
                "actuator_float", "actuator_hard_over", "sensor_bias", "sensor_drift",
                "sensor_freeze", "sensor_dropout", "sensor_scale", "sensor_noise", "sensor_delay", "sensor_outliers",
                "component_friction", "component_mass"}

@@ -63,7 +63,7 @@ class Drift(Effect):
 
 
 class Gain(Effect):
-    """x*(1 + sign*m*p): loss of effectiveness (sign -1) or sensor scale (sign +1)."""
+    """x*(1 + sign*m*p): loss of effectiveness (sign -1), actuator or sensor scale (sign +1)."""
 
     def __init__(self, fault, seed, sign: float):
         self.sign = sign
@@ -168,6 +168,7 @@ _EFFECTS = {
     "actuator_additive": Additive,
     "actuator_drift": Drift,
     "actuator_loss_of_effectiveness": lambda f, s: Gain(f, s, -1.0),
+    "actuator_scale": lambda f, s: Gain(f, s, +1.0),
     "actuator_lock_in_place": Hold,
     "actuator_float": Zero,
     "actuator_hard_over": HardOver,

@@ -50,6 +50,7 @@ FAULT_KINDS: dict[str, FaultKind] = {
     "actuator_drift": FaultKind(profiles="step", offline=True, unit="target/s", description="u + m·(t − onset)"),
     "actuator_loss_of_effectiveness": FaultKind(profiles="unit", offline=True, unit="1",
                                                 description="u·(1 − m·p), m in [0, 1]"),
+    "actuator_scale": FaultKind(unit="1", offline=True, description="u·(1 + m·p), actuator gain change (either sign)"),
     "actuator_lock_in_place": FaultKind(profiles="unit", description="held at its value at onset"),
     "actuator_float": FaultKind(profiles="unit", description="zero output (1 − p)·u"),
     "actuator_hard_over": FaultKind({"limit": _LIMIT}, profiles="unit",

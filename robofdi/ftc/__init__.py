@@ -1,5 +1,5 @@
 """Accommodation: what stands between the controller and the actuators (allocation, compensation, reconfiguration)."""
 from robofdi.ftc.compensation import FaultCompensation
-from robofdi.ftc.effectiveness import EffectivenessCompensation
+from robofdi.ftc.effectiveness import EffectivenessCompensation, GainCompensation
 
-__all__ = ["FaultCompensation", "EffectivenessCompensation"]
+__all__ = ["FaultCompensation", "EffectivenessCompensation", "GainCompensation"]

@@ -8,7 +8,7 @@ import numpy as np
 from robofdi.errors import RobofdiError
 from robofdi.protocols import Health
 
-__all__ = ["EffectivenessCompensation"]
+__all__ = ["EffectivenessCompensation", "GainCompensation"]
 
 
 class EffectivenessCompensation:
@@ -41,3 +41,31 @@ class EffectivenessCompensation:
         if not health.estimate:
             return u_cmd
         return np.asarray(u_cmd, dtype=float) / (1.0 - self.loss(health))
+
+
+class GainCompensation:
+    """u = f_H f̂⁻¹ u_cmd per isolated actuator — Wang, book ch. 2, eq. (104) for a controller K that does not
+    depend on f (then (105)–(106) reduce to it). f̂ from the health estimate (the diagnosed actuator gain); gains
+    with |f̂| < ``min_gain`` are treated as a total failure and left uncompensated (the chapter's reconfiguration
+    case (110)–(111) is out of scope)."""
+
+    def __init__(self, actuators: Sequence[str], f_H, min_gain: float = 1e-3):
+        self.actuators = list(actuators)
+        if not self.actuators:
+            raise RobofdiError("GainCompensation: field 'actuators' must name at least one actuator")
+        fH = np.broadcast_to(np.array(f_H, dtype=float), (len(self.actuators),)).copy()
+        if not np.all(np.isfinite(fH)) or np.any(fH == 0):
+            raise RobofdiError(f"GainCompensation: field 'f_H' must be non-zero healthy gains, got {f_H!r}")
+        self.f_H, self.min_gain = fH, float(min_gain)
+        self._index = {name: i for i, name in enumerate(self.actuators)}
+
+    def reset(self) -> None:
+        """Stateless: nothing to forget."""
+
+    def update(self, u_cmd: np.ndarray, health: Health) -> np.ndarray:
+        u = np.array(u_cmd, dtype=float)
+        for target, value in health.estimate.items():
+            i = self._index.get(target)
+            if i is not None and target in health.isolated and abs(value) >= self.min_gain:
+                u[i] *= self.f_H[i] / value
+        return u
