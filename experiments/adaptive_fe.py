@@ -1,0 +1,108 @@
+"""Seed 004 — "adaptive fault estimation observer for discrete-time linear systems" (F-16 vertical dynamics
+example). The seed's equations, model, noise table and fault profiles are lost in the extraction: this experiment
+runs the digest's clearly labelled reconstruction (spec_linear_papers.md C.2 [RECON]) on a documented vertical-plane
+aircraft model (AIRC, Maciejowski 1989 — not claimed to be the seed's ref. [16]). What is the paper's: the class of
+method (adaptive observer, state + fault estimates, discrete time, constant and ramp faults, a Lyapunov condition
+on an augmented error system) and the printed numbers checked structurally (the 5×5 "learning rate" matrix is
+symmetric positive definite up to one typo). Everything else is reconstructed; no figure is reproduced numerically.
+
+    robofdi run adaptive-fe --out runs --seed 0
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from robofdi.evaluate.run_folder import prepare_run_dir, write_run_folder
+from robofdi.observers.adaptive import is_spd
+from robofdi.scenarios.f16 import F16Scenario, build_loop, calibrate, fault_estimates
+
+EXPERIMENTS = {"adaptive-fe": "Seed 004 (reconstructed): adaptive fault-estimation observer, constant + ramp faults, "
+                              "vertical-plane aircraft"}
+
+#: The printed 5×5 "learning rate" matrix of the seed (symbols lost; (2,4) = −0.58 vs (4,2) = −0.589 [ERRATUM]).
+PRINTED_RATE = np.array([[189923, -147.6, 646.2, 2443, 1727.8],
+                         [-147.6, 100.6, 1.31, -0.58, 1.24],
+                         [646.2, 1.31, 9365, -465.8, -1.27],
+                         [2443, -0.589, -465.8, 71.3, -5.26],
+                         [1727.8, 1.24, -1.27, -5.26, 87.5]])
+#: The printed 5×3 matrix X (an observer-gain-shaped matrix).
+PRINTED_X = np.array([[0.0001, 0, 0], [0, 0.0001, 0], [0, 0, 0.0002], [0.0001, 0.0001, 0], [0, 0.0001, 0.0001]])
+
+
+def _check(quantity, paper, ours, tolerance, passed, note=""):
+    d = {"quantity": quantity, "paper": paper, "ours": ours, "tolerance": tolerance, "pass": bool(passed)}
+    if note:
+        d["note"] = note
+    return d
+
+
+def analyse(record, sc: F16Scenario, rho: float) -> dict:
+    """Constant-fault decay rate and ramp-fault steady error from the replayed f̂ (noise-free run)."""
+    f = fault_estimates(record, sc)
+    t = record.time[:-1]
+    e_const = f[1:, 2] - record.faults["elevator_bias"].value[:-1]
+    e_ramp = f[1:, 1] - record.faults["thrust_ramp"].value[:-1]
+    a, b = np.argmin(np.abs(t - 6.0)), np.argmin(np.abs(t - 12.0))
+    rate = float((abs(e_const[b]) / abs(e_const[a])) ** (1.0 / (b - a)))
+    late = t >= 20.0
+    return {"decay_rate_per_sample": rate, "spectral_radius": rho, "e_const_at_14.9s": float(e_const[np.argmin(
+        np.abs(t - 14.9))]), "ramp_error_max_20_30s": float(np.max(np.abs(e_ramp[late]))),
+        "ramp_error_spread_20_30s": float(np.ptp(e_ramp[late])), "slope": 0.02}
+
+
+def _figure(run_dir: Path, record, f):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(2, 1, figsize=(7, 4.5), sharex=True)
+    for ax, name, j, unit in ((axes[0], "elevator_bias", 2, "deg"), (axes[1], "thrust_ramp", 1, "m/s²")):
+        ax.plot(record.time, record.faults[name].value, "k", lw=2, label="f")
+        ax.plot(record.time[:-1], f[1:, j], lw=0.9, label="f̂ (one sample later)")
+        ax.set_ylabel(f"{name} [{unit}]")
+        ax.legend(fontsize=7)
+    axes[-1].set_xlabel("time [s]")
+    fig.suptitle("Figs. 1–3 (like, reconstructed): constant and ramp fault estimates, noise-free", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(run_dir / "figures" / "fig_fault_estimates.png", dpi=110)
+    plt.close(fig)
+
+
+def run(name: str = "adaptive-fe", out: str | Path = "runs", seed: int = 0, progress: bool = True, replay: bool = False):
+    from robofdi.evaluate import summarize
+
+    run_dir = prepare_run_dir(out, name, seed)
+    quiet = F16Scenario(seed=seed)
+    loop = build_loop(quiet, calibrate(quiet))
+    rho = loop.diagnoses["adaptive_fe"].diagnoser.spectral_radius
+    record = loop.run(quiet.duration, seed=seed, scenario="f16_vertical noise-free")
+    stats = analyse(record, quiet, rho)
+    noisy_sc = F16Scenario(seed=seed, sensor_noise=0.01)
+    noisy = build_loop(noisy_sc, calibrate(noisy_sc)).run(noisy_sc.duration, seed=seed, scenario="f16_vertical")
+    sym = 0.5 * (PRINTED_RATE + PRINTED_RATE.T)
+    eig = np.linalg.eigvalsh(sym)
+    reproduction = [
+        _check("printed 5×5 matrix: symmetric part positive definite", "P = Pᵀ > 0 (or Γ)", eig.tolist(), None,
+               is_spd(PRINTED_RATE), note="asymmetric only at (2,4) = −0.58 vs (4,2) = −0.589 [ERRATUM]"),
+        _check("printed X is 5×3 (observer-gain shape for n = 5, p = 3)", [5, 3], list(PRINTED_X.shape), 0,
+               PRINTED_X.shape == (5, 3)),
+        _check("augmented error system spectral radius < 1 (Theorem 1, reconstructed)", "< 1", rho, None, rho < 1),
+        _check("constant fault: e_f decays geometrically at ≤ the spectral radius", rho,
+               stats["decay_rate_per_sample"], 0.01, stats["decay_rate_per_sample"] <= rho + 0.01),
+        _check("ramp fault: e_f bounded (Remark 4), max |e_f| on [20, 30] s", "bounded, ∝ slope",
+               stats["ramp_error_max_20_30s"], None, stats["ramp_error_max_20_30s"] < 0.05
+               and stats["ramp_error_spread_20_30s"] < 1e-3),
+    ]
+    summary = summarize(noisy, name, [f.to_dict() for f in noisy_sc.faults])
+    summary["noise_free"] = summarize(record, name, [f.to_dict() for f in quiet.faults])["diagnosers"]
+    summary["analysis"] = stats
+    summary["harness"] = ("RECONSTRUCTED (spec C.2): AIRC model at T = 0.1 s, LQR + Kalman predictor at trim; "
+                          "gains place the 8 augmented poles on 0.5…0.85; sensor noise std 0.01 in the main run")
+    summary["reproduction"] = reproduction
+    (run_dir / "figures").mkdir(parents=True, exist_ok=True)
+    write_run_folder(run_dir, noisy, summary, {"noise_free": record}, replay=replay)
+    _figure(run_dir, record, fault_estimates(record, quiet))
+    return summary, run_dir
