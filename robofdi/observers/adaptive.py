@@ -93,10 +93,12 @@ class AdaptiveFaultEstimator:
     F (q×p) and Γ (q×q, symmetric positive definite) — or ``G`` = ΓF directly. The design is rejected when the
     augmented error system's spectral radius is ≥ 1. Residual and estimate: f̂ per fault (the innovation
     y − C x̂ is ``innovation``); a threshold decision on f̂ isolates the fault channel.
-    ``spectral_radius`` and ``lyapunov`` (the certificate P) are reported.
+    ``spectral_radius`` and ``lyapunov`` (the certificate P) are reported. ``operating_point`` (x₀, u₀): the model is
+    a linearisation about the equilibrium (x₀, u₀) — the observer then works on x − x₀, u − u₀, y − C x₀.
     """
 
-    def __init__(self, model: LinearModel, L, F=None, Gamma=None, E=None, G=None, fault_names=None):
+    def __init__(self, model: LinearModel, L, F=None, Gamma=None, E=None, G=None, fault_names=None,
+                 operating_point=None):
         where = "AdaptiveFaultEstimator"
         self.model = model = require_discrete(model, where, "diagnosis")
         n, p = model.n, model.p
@@ -120,6 +122,13 @@ class AdaptiveFaultEstimator:
         if G.shape != (q, p) or not np.all(np.isfinite(G)):
             raise RobofdiError(f"{where}: G = ΓF must be a finite {q}x{p} matrix, got shape {G.shape}")
         self.L, self.G = L, G
+        if operating_point is None:
+            self.x0, self.u0 = np.zeros(n), np.zeros(model.m)
+        else:
+            x0, u0 = operating_point
+            self.x0 = check_measurement(x0, n, "operating_point x0")
+            self.u0 = check_measurement(u0, model.m, "operating_point u0")
+        self.y0 = model.C @ self.x0
         self.error_matrix = augmented_error_matrix(model.A, model.C, E, L, G)
         self.spectral_radius = float(np.max(np.abs(np.linalg.eigvals(self.error_matrix))))
         self.lyapunov = lyapunov_certificate(self.error_matrix)
@@ -148,8 +157,8 @@ class AdaptiveFaultEstimator:
     def update(self, y: np.ndarray, u: np.ndarray) -> Residual:
         """y(k), u(k−1): x̂(k) from the previous sample, then f̂(k) = f̂(k−1) + ΓF (y(k) − C x̂(k))."""
         md = self.model
-        y = check_measurement(y, md.p, "y")
-        u = check_measurement(u, md.m, "u")
+        y = check_measurement(y, md.p, "y") - self.y0
+        u = check_measurement(u, md.m, "u") - self.u0
         if self._x is None:
             self._x = np.linalg.lstsq(md.C, y, rcond=None)[0]
         else:
