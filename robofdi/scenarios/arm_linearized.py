@@ -25,6 +25,8 @@ from robofdi.scenarios.arm import ArmScenario
 __all__ = ["linearized_estimator_loop", "run_linearized"]
 
 BLANKING = 0.5          # [s] the estimator's start-up, skipped by calibration and blanked by the decision
+#: Poles of the augmented error system (z-plane, at 500 Hz: time constants 0.04–0.2 s).
+POLES = tuple(np.linspace(0.95, 0.99, 18))
 
 
 def _estimator(sc: ArmScenario, sim, model, poles, offset) -> AdaptiveFaultEstimator:
@@ -47,7 +49,7 @@ def linearized_estimator_loop(sc: ArmScenario, poles, offset=None, threshold=Non
                       {"adaptive_fe": Diagnosis(fe, decision)}, rates, sc.injection)
 
 
-def run_linearized(sc: ArmScenario, poles=tuple(np.linspace(0.95, 0.99, 18)), margin: float = 1.5) -> Record:
+def run_linearized(sc: ArmScenario, poles=POLES, margin: float = 1.5) -> Record:
     """Calibrate (offset, thresholds) on the fault-free hold, then run the scenario; returns the record."""
     start = np.concatenate([sc.start_pose, np.zeros(len(sc.start_pose))])
     free_sc = replace(sc, faults=())
