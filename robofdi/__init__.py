@@ -39,6 +39,11 @@ _API = {
     "Health": "robofdi.protocols",
     "LinearModel": "robofdi.models", "LinearPlant": "robofdi.sims", "ObserverResidual": "robofdi.observers",
     "StateFeedback": "robofdi.control",
+    "Oscillation": "robofdi.faults", "EffectivenessCompensation": "robofdi.ftc", "GainCompensation": "robofdi.ftc",
+    "KalmanFaultEstimator": "robofdi.observers.kalman", "UnknownInputObserver": "robofdi.observers.uio",
+    "LockInPlaceBank": "robofdi.observers.uio", "AdaptiveFaultEstimator": "robofdi.observers.adaptive",
+    "GainFaultObserver": "robofdi.observers.gain", "SwitchingIndexDecision": "robofdi.decision",
+    "WindowedTTest": "robofdi.decision",
 }
 __all__ = ["ASSETS", "RobofdiError", "__version__", "assets_dir", *_API]
 

@@ -66,8 +66,10 @@ def _cmd_run(args) -> int:
     print(results_table(summary))
     for check in summary.get("reproduction", []):
         print(f"  [{'pass' if check['pass'] else 'FAIL'}] {check['quantity']}")
-    print(f"\nrun folder: {run_dir}  (summary.json, record.h5, figures/, replay.html)")
-    print(f"3-D replay: open {run_dir / 'replay.html'} in a browser, or `robofdi view {run_dir / 'record.h5'}`")
+    replay = (run_dir / "replay.html").is_file()
+    print(f"\nrun folder: {run_dir}  (summary.json, record.h5, figures/{', replay.html' if replay else ''})")
+    if replay:
+        print(f"3-D replay: open {run_dir / 'replay.html'} in a browser, or `robofdi view {run_dir / 'record.h5'}`")
     return 0
 
 
