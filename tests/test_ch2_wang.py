@@ -27,12 +27,25 @@ def test_static_and_noise_free_checks():
     assert rec.diagnosers["gain"].residual[60:100, 0].mean() == pytest.approx(-1.9644, abs=1e-3)
 
 
-def test_stochastic_detection_over_seeds():
-    checks, stats = stochastic_checks(0.05, range(10))
+@pytest.mark.parametrize("sigma", [0.05, 0.1])
+def test_stochastic_detection_over_20_seeds(sigma):
+    checks, stats = stochastic_checks(sigma, range(20))
     assert all(c["pass"] for c in checks), [c for c in checks if not c["pass"]]
+    assert stats["seeds"] == 20
+
+
+def test_literal_denominator_raises_false_alarms():
     # the literal (variance) denominator raises false alarms: the documented divergence
     _, lit = stochastic_checks(0.1, range(3))
     assert max(lit["var_literal_false_alarm_rate"]) > 0.0
+
+
+def test_same_seed_gives_a_byte_identical_record(tmp_path):
+    from robofdi.scenarios.refiner import run_refiner
+
+    a, _ = run_refiner(seed=5, sigma=0.1)
+    b, _ = run_refiner(seed=5, sigma=0.1)
+    assert a.save(tmp_path / "a.h5").read_bytes() == b.save(tmp_path / "b.h5").read_bytes()
 
 
 def test_gain_compensation_restores_the_healthy_loop():

@@ -53,6 +53,9 @@ def test_matched_model_wins_and_estimates_the_lock(fine):
     assert J[np.argmin(np.abs(t - 15.5))] == pytest.approx([6.55, 1.38, 5.03, 4.45, 5.05], rel=0.02)
     assert np.all(np.abs(tr.estimate[t >= 17.4, 1] - 1.0) < 0.01)
     assert tr.estimate[np.argmin(np.abs(t - 20.0)), 1] == pytest.approx(1.0, abs=0.02)
+    # pre-fault caveat (spec B.4 item 5): on [14, 15) s the rudder model adapts slowest, every ‖rᵢ‖ stays < 0.4
+    pre = tr.residual[(t >= 14.0) & (t < 15.0), 1:].max(axis=0)
+    assert np.argmax(pre) == 4 and pre.max() < 0.4 and pre[:2].max() < 1e-6
     norms = tr.residual[t >= 20.0, 1:]
     assert norms[:, 1].max() < 1e-2
     assert np.delete(norms, 1, axis=1).min() > 1.0

@@ -77,6 +77,20 @@ def test_noise_free_estimate_is_exact_after_the_one_step_delay():
     assert np.max(np.abs(rec0.diagnosers["kalman_fe"].residual)) < 1e-9
 
 
+@pytest.mark.parametrize("mode", ["swapped", "corrected"])
+def test_noise_free_exactness_holds_in_every_covariance_mode(mode):
+    sc, rec = _noise_free(accommodation=False, covariance_mode=mode)
+    f, _ = fault_estimates(rec, sc)
+    truth = -np.stack([rec.faults["r1"].value, rec.faults["r2"].value], axis=1)
+    assert np.max(np.abs(f[1:] - truth[:-1])) < 1e-9
+
+
+def test_same_seed_gives_a_byte_identical_record(tmp_path):
+    a, _ = run_helicopter(seed=3, threshold=np.ones(2))
+    b, _ = run_helicopter(seed=3, threshold=np.ones(2))
+    assert a.save(tmp_path / "a.h5").read_bytes() == b.save(tmp_path / "b.h5").read_bytes()
+
+
 def test_accommodation_keeps_the_loop_near_the_fault_free_one():
     sc, with_ftc = _noise_free()
     free = build_loop(replace(sc, faults=(), accommodation=False)).run(sc.duration, seed=0)
