@@ -185,6 +185,8 @@ def run(name: str = "ch2-wang", out: str | Path = "runs", seed: int = 0, progres
     summary["stochastic"] = stats
     summary["harness"] = ("x0 = 0, 400 samples, truncated Gaussian ω, μ (±3σ), σ = 0.1 assumed (the chapter gives "
                           "none); state feedback on the true state as written (116); t-test with the std reading")
+    summary["fault_note"] = ("drift_up and drift_down are the one drift of eq. (117): two faults because gains on the "
+                             "same channel multiply; an alarm episode that spans both is credited to drift_up")
     summary["estimate_note"] = "estimates are actuator gains f̂ [1]; labels are the injector's additive effect"
     summary["reproduction"] = static + stochastic + [ftc]
     (run_dir / "figures").mkdir(parents=True, exist_ok=True)
