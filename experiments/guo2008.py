@@ -73,7 +73,7 @@ def _figures(run_dir: Path, rec, J, names):
     plt.close(fig)
     fig, ax = plt.subplots(figsize=(7, 3))
     for j, a in enumerate(names):
-        ax.semilogy(tr.time, np.maximum(J[:, j], 1e-12), lw=0.9, label=f"J {a}")
+        ax.semilogy(tr.time, np.maximum(J[:, j], 1e-4), lw=0.9, label=f"J {a}")
     ax.set_xlabel("time [s]")
     ax.set_ylabel("switching index J [1]")
     ax.set_xlim(14, tr.time[-1])
