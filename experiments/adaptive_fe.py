@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from robofdi.evaluate.reproduction import reproduction_check as check
 from robofdi.evaluate.run_folder import prepare_run_dir, write_run_folder
 from robofdi.observers.adaptive import is_spd
 from robofdi.scenarios.f16 import F16Scenario, build_loop, calibrate, fault_estimates
@@ -30,12 +31,6 @@ PRINTED_RATE = np.array([[189923, -147.6, 646.2, 2443, 1727.8],
 #: The printed 5×3 matrix X (an observer-gain-shaped matrix).
 PRINTED_X = np.array([[0.0001, 0, 0], [0, 0.0001, 0], [0, 0, 0.0002], [0.0001, 0.0001, 0], [0, 0.0001, 0.0001]])
 
-
-def _check(quantity, paper, ours, tolerance, passed, note=""):
-    d = {"quantity": quantity, "paper": paper, "ours": ours, "tolerance": tolerance, "pass": bool(passed)}
-    if note:
-        d["note"] = note
-    return d
 
 
 def analyse(record, sc: F16Scenario, rho: float) -> dict:
@@ -85,14 +80,14 @@ def run(name: str = "adaptive-fe", out: str | Path = "runs", seed: int = 0, prog
     sym = 0.5 * (PRINTED_RATE + PRINTED_RATE.T)
     eig = np.linalg.eigvalsh(sym)
     reproduction = [
-        _check("printed 5×5 matrix: symmetric part positive definite", "P = Pᵀ > 0 (or Γ)", eig.tolist(), None,
+        check("printed 5×5 matrix: symmetric part positive definite", "P = Pᵀ > 0 (or Γ)", eig.tolist(), None,
                is_spd(PRINTED_RATE), note="asymmetric only at (2,4) = −0.58 vs (4,2) = −0.589 [ERRATUM]"),
-        _check("printed X is 5×3 (observer-gain shape for n = 5, p = 3)", [5, 3], list(PRINTED_X.shape), 0,
+        check("printed X is 5×3 (observer-gain shape for n = 5, p = 3)", [5, 3], list(PRINTED_X.shape), 0,
                PRINTED_X.shape == (5, 3)),
-        _check("augmented error system spectral radius < 1 (Theorem 1, reconstructed)", "< 1", rho, None, rho < 1),
-        _check("constant fault: e_f decays geometrically at ≤ the spectral radius", rho,
+        check("augmented error system spectral radius < 1 (Theorem 1, reconstructed)", "< 1", rho, None, rho < 1),
+        check("constant fault: e_f decays geometrically at ≤ the spectral radius", rho,
                stats["decay_rate_per_sample"], 0.01, stats["decay_rate_per_sample"] <= rho + 0.01),
-        _check("ramp fault: e_f bounded (Remark 4), max |e_f| on [20, 30] s", "bounded, ∝ slope",
+        check("ramp fault: e_f bounded (Remark 4), max |e_f| on [20, 30] s", "bounded, ∝ slope",
                stats["ramp_error_max_20_30s"], None, stats["ramp_error_max_20_30s"] < 0.05
                and stats["ramp_error_spread_20_30s"] < 1e-3),
     ]

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from robofdi.evaluate.reproduction import reproduction_check as check
 from robofdi.evaluate.run_folder import prepare_run_dir, write_run_folder
 from robofdi.models.examples import CHIP_REFINER, chip_refiner
 from robofdi.observers.gain import GainFaultObserver
@@ -24,12 +25,6 @@ from robofdi.scenarios.refiner import F_H, PAPER_FAULTS, run_refiner, true_gain
 EXPERIMENTS = {"ch2-wang": "Book ch. 2 (Wang): gain-fault detection, recursive diagnosis and FTC on the TMP chip refiner"}
 SEEDS = 20
 
-
-def _check(quantity, paper, ours, tolerance, passed, note=""):
-    d = {"quantity": quantity, "paper": paper, "ours": ours, "tolerance": tolerance, "pass": bool(passed)}
-    if note:
-        d["note"] = note
-    return d
 
 
 def noise_free_checks() -> tuple[list[dict], object]:
@@ -47,31 +42,31 @@ def noise_free_checks() -> tuple[list[dict], object]:
     lag = f - f_hat
     eps_bound = 1.7495 * 0.005 * F_H * float(np.max(np.abs(rec.signals["u"][200:300])))
     checks = [
-        _check("eig(A − LC) ≈ {0.2, 0.5}", [0.2, 0.5], eig_obs.tolist(), 2e-3, np.allclose(eig_obs, [0.2, 0.5], atol=2e-3)),
-        _check("eig(A − B f_H K) = {0.1, 0.2}", [0.1, 0.2], eig_cl.tolist(), 1e-9, np.allclose(eig_cl, [0.1, 0.2], atol=1e-9)),
-        _check("N(q⁻¹) coefficients a", [1, -0.7, 0.1002], obs.a.tolist(), 1e-12,
+        check("eig(A − LC) ≈ {0.2, 0.5}", [0.2, 0.5], eig_obs.tolist(), 2e-3, np.allclose(eig_obs, [0.2, 0.5], atol=2e-3)),
+        check("eig(A − B f_H K) = {0.1, 0.2}", [0.1, 0.2], eig_cl.tolist(), 1e-9, np.allclose(eig_cl, [0.1, 0.2], atol=1e-9)),
+        check("N(q⁻¹) coefficients a", [1, -0.7, 0.1002], obs.a.tolist(), 1e-12,
                np.allclose(obs.a, [1, -0.7, 0.1002], atol=1e-12)),
-        _check("M(q⁻¹) coefficients", [1, -1.1, 0.48], obs.M.ravel().tolist(), 1e-9,
+        check("M(q⁻¹) coefficients", [1, -1.1, 0.48], obs.M.ravel().tolist(), 1e-9,
                np.allclose(obs.M.ravel(), [1, -1.1, 0.48], atol=1e-9)),
-        _check("scenario f: 10 | 8 on [50,100) | f[249] = 12.5 | f[299] = 10", [10, 8, 12.5, 10],
+        check("scenario f: 10 | 8 on [50,100) | f[249] = 12.5 | f[299] = 10", [10, 8, 12.5, 10],
                [f[49], f[50], f[249], f[299]], 1e-9,
                np.allclose([f[49], f[50], f[99], f[100], f[249], f[299]], [10, 8, 8, 10, 12.5, 10], atol=1e-9)),
-        _check("healthy: max |ē|, max |f̂ − 10| for k < 50", 0.0, [float(np.abs(ebar[:50]).max()),
+        check("healthy: max |ē|, max |f̂ − 10| for k < 50", 0.0, [float(np.abs(ebar[:50]).max()),
                float(np.abs(f_hat[:50] - 10).max())], 1e-9,
                np.abs(ebar[:50]).max() < 1e-9 and np.abs(f_hat[:50] - 10).max() < 1e-9),
-        _check("step: f̂ at k = 51, 52, 53 (digest 8.4375, 8.0075, 7.9998)", [8.4375, 8.0075, 7.9998],
+        check("step: f̂ at k = 51, 52, 53 (digest 8.4375, 8.0075, 7.9998)", [8.4375, 8.0075, 7.9998],
                f_hat[51:54].tolist(), 1e-3, np.allclose(f_hat[51:54], [8.4375, 8.0075, 7.9998], atol=1e-3)
                and np.all(np.abs(f_hat[53:100] - 8) < 1e-3)),
-        _check("recovery: f̂ at k = 101, 102, 103 (digest 10.7778, 10.0561, 10.0016)", [10.7778, 10.0561, 10.0016],
+        check("recovery: f̂ at k = 101, 102, 103 (digest 10.7778, 10.0561, 10.0016)", [10.7778, 10.0561, 10.0016],
                f_hat[101:104].tolist(), 1e-3, np.allclose(f_hat[101:104], [10.7778, 10.0561, 10.0016], atol=1e-3)
                and np.all(np.abs(f_hat[103:200] - 10) < 1e-2)),
-        _check("mean ē over k = 60..99", -1.9644, float(ebar[60:100].mean()), 1e-3, abs(ebar[60:100].mean() + 1.9644) < 1e-3),
-        _check("drift lag f − f̂ on 201..249 / 251..299", [0.0498, -0.0502],
+        check("mean ē over k = 60..99", -1.9644, float(ebar[60:100].mean()), 1e-3, abs(ebar[60:100].mean() + 1.9644) < 1e-3),
+        check("drift lag f − f̂ on 201..249 / 251..299", [0.0498, -0.0502],
                [float(lag[201:250].min()), float(lag[201:250].max()), float(lag[251:300].min()),
                 float(lag[251:300].max())], 0.005,
                bool(np.all((lag[201:250] > 0.045) & (lag[201:250] < 0.055))
                     and np.all((lag[251:300] > -0.055) & (lag[251:300] < -0.045)))),
-        _check("drift: |ε| ≤ G₀ ε₀ max|u| (eq. (51))", eps_bound,
+        check("drift: |ε| ≤ G₀ ε₀ max|u| (eq. (51))", eps_bound,
                float(np.abs(_innovations(rec)[201:300]).max()), None,
                np.abs(_innovations(rec)[201:300]).max() <= eps_bound),
     ]
@@ -111,15 +106,15 @@ def stochastic_checks(sigma: float = 0.1, seeds=range(SEEDS)) -> tuple[list[dict
              "var_literal_false_alarm_rate": literal}
     ok_first = [k for k in first if k is not None]
     checks = [
-        _check(f"no alarm in healthy windows k ∈ [11,49] ∪ [115,199] (σ = {sigma}, {len(first)} seeds)", 0,
+        check(f"no alarm in healthy windows k ∈ [11,49] ∪ [115,199] (σ = {sigma}, {len(first)} seeds)", 0,
                int(sum(false_alarms)), 0, sum(false_alarms) == 0),
-        _check("first alarm of the step fault at k ∈ [57, 61] ('small delay due to window length')", [57, 61],
+        check("first alarm of the step fault at k ∈ [57, 61] ('small delay due to window length')", [57, 61],
                [min(ok_first, default=None), max(ok_first, default=None)], None,
                len(ok_first) == len(first) and all(57 <= k <= 61 for k in ok_first)),
-        _check("alarm holds on ≥ 95 % of k in 60..100", 0.95, float(min(hold)), None, min(hold) >= 0.95),
-        _check("drift detected within 35 samples of k = 200", 35, [max((d for d in drift if d is not None), default=None)],
+        check("alarm holds on ≥ 95 % of k in 60..100", 0.95, float(min(hold)), None, min(hold) >= 0.95),
+        check("drift detected within 35 samples of k = 200", 35, [max((d for d in drift if d is not None), default=None)],
                None, all(d is not None and d <= 35 for d in drift)),
-        _check("mean f̂ over 60..99 within 0.1 of 8 (worst seed)", 8.0, float(max(mean_f, key=lambda v: abs(v - 8))),
+        check("mean f̂ over 60..99 within 0.1 of 8 (worst seed)", 8.0, float(max(mean_f, key=lambda v: abs(v - 8))),
                0.1, all(abs(v - 8) < 0.1 for v in mean_f)),
     ]
     return checks, stats
@@ -140,7 +135,7 @@ def ftc_check() -> tuple[dict, object, object]:
     ours = {w: {"with": dev(ftc, *b), "without": dev(faulty, *b)} for w, b in windows.items()}
     passed = all(ours[w]["with"] < 0.1 * ours[w]["without"] for w in ("65-99 (after detection of the step)",
                                                                       "200-299 (drift)"))
-    return _check("FTC (104): RMS motor-load deviation from the healthy loop, with / without", "restores the "
+    return check("FTC (104): RMS motor-load deviation from the healthy loop, with / without", "restores the "
                   "healthy loop (eig {0.1, 0.2})", ours, None, passed,
                   note="detection needs the window (k ≈ 59), so the first samples of the step are uncompensated; at "
                        "k = 100 f̂ lags the switch back by one sample and the compensation overshoots once"), faulty, ftc

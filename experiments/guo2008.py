@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from robofdi.evaluate import summarize
+from robofdi.evaluate.reproduction import reproduction_check as check
 from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, write_run_folder
 from robofdi.models.examples import aircraft_lateral
 from robofdi.models.linear import discretize
@@ -24,12 +25,6 @@ from robofdi.scenarios.aircraft import (
 
 EXPERIMENTS = {"guo2008": "Guo et al. 2008: UIO bank + adaptive multiple models, lock-in-place of the right elevator"}
 
-
-def _check(quantity, paper, ours, tolerance, passed, note=""):
-    d = {"quantity": quantity, "paper": paper, "ours": ours, "tolerance": tolerance, "pass": bool(passed)}
-    if note:
-        d["note"] = note
-    return d
 
 
 def switch_time(J: np.ndarray, t: np.ndarray, model: int, onset: float) -> float | None:
@@ -108,15 +103,15 @@ def run(name: str = "guo2008", out: str | Path = "runs", seed: int = 0, progress
     mismatched = float(np.delete(norms, right, axis=1).min())
     F_err = float(np.max(np.abs(design.F - np.exp(-SIGMA * dt) * np.eye(6))))
     reproduction = [
-        _check("uio_algebra: ‖(HC − I)E‖", 0.0, design.decoupling, 1e-12, design.decoupling < 1e-12),
-        _check("F = e^{−σ dt} I (σ = 3, the paper's 'σ = −3' erratum)", 0.0, F_err, 1e-10, F_err < 1e-10),
-        _check("decoupling_error: max |rᵢ(ξ on) − rᵢ(ξ off)|", 0.0, decoupling, 1e-9, decoupling < 1e-9),
-        _check("switch_time: argmin J = right elevator for good [s]", "after the lock at 15 s (Fig. 4)", t_switch,
+        check("uio_algebra: ‖(HC − I)E‖", 0.0, design.decoupling, 1e-12, design.decoupling < 1e-12),
+        check("F = e^{−σ dt} I (σ = 3, the paper's 'σ = −3' erratum)", 0.0, F_err, 1e-10, F_err < 1e-10),
+        check("decoupling_error: max |rᵢ(ξ on) − rᵢ(ξ off)|", 0.0, decoupling, 1e-9, decoupling < 1e-9),
+        check("switch_time: argmin J = right elevator for good [s]", "after the lock at 15 s (Fig. 4)", t_switch,
                0.5, t_switch is not None and 15.0 <= t_switch <= 15.5,
                note=f"before the lock every model explains the data (spec B.2); argmin J on (1, 15) s was the "
                     f"right elevator on {np.mean(pre == right):.0%} of samples"),
-        _check("lock_estimate û₂(20 s)", 1.0, lock, 0.02, abs(lock - 1.0) < 0.02),
-        _check("matched ‖r₂‖ max for t ≥ 20 s vs mismatched min", "matched → 0", {"matched": matched,
+        check("lock_estimate û₂(20 s)", 1.0, lock, 0.02, abs(lock - 1.0) < 0.02),
+        check("matched ‖r₂‖ max for t ≥ 20 s vs mismatched min", "matched → 0", {"matched": matched,
                "mismatched": mismatched}, None, matched < 1e-2 and mismatched > 1.0),
     ]
     summary = summarize(rec, name, [f.to_dict() for f in sc.faults])
