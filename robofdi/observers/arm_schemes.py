@@ -25,7 +25,9 @@ SCHEMES = BOOK_SCHEMES + ("consistency",)
 class ArmSchemeSettings:
     """K1 = K2 = 0.1 I; Γ_η = 0.1 diag(0.1 ×n, 2 ×(n−1), 3) [spec: erratum I₃ → I₆]; Q = 2 Γ_η⁻¹;
     momentum-observer bandwidth K_O [1/s]; residual space of the observers ("torque" or "state"); bandwidth K_O
-    [1/s] of the consistency scheme's momentum rows."""
+    [1/s] of the consistency scheme's momentum rows, its target false-alarm rate [1/h] (thresholds by
+    extreme-value theory, :func:`robofdi.decision.extreme_value_thresholds`) and its isolation confirmation
+    window [samples] (:class:`robofdi.decision.ThresholdDecision` ``confirm``)."""
 
     T: float = 0.002
     K1: float = 0.1
@@ -34,6 +36,8 @@ class ArmSchemeSettings:
     adaptive_step: float = 2.0      # the factor 2 of eq. (39)
     residual_space: str = "torque"
     consistency_gain: float = 100.0
+    consistency_false_alarm_rate: float = 0.1
+    consistency_confirm: int = 3
 
     def gamma_eta(self, n: int) -> np.ndarray:
         return 0.1 * np.concatenate([np.full(n, 0.1), np.full(n - 1, 2.0), [3.0]])

@@ -26,7 +26,9 @@ import mujoco
 import numpy as np
 
 from robofdi.control import ComputedTorque, MotionLimits, calibration_motions, random_point_to_point
-from robofdi.decision import STARTUP_BLANKING, ThresholdDecision, calibrate_thresholds, startup_samples
+from robofdi.decision import (
+    STARTUP_BLANKING, ThresholdDecision, calibrate_thresholds, extreme_value_thresholds, startup_samples,
+)
 from robofdi.errors import RobofdiError
 from robofdi.faults import Fault, FaultInjector, parse_fault_specs
 from robofdi.ftc import FaultCompensation
@@ -231,7 +233,10 @@ def calibrate(scenario: ArmScenario, records: dict[str, Record],
                 else records.values()
             residuals = [diagnose_record(rec, Diagnosis(arm_schemes(model, scheme_settings, theta0, [name], design)[name]),
                                          rates, progress).residual for rec in runs]
-            out[name] = calibrate_thresholds(residuals, scenario.threshold_margin, skip)
+            if name == "consistency":       # on motions the design never saw, for a false-alarm rate per hour
+                out[name] = extreme_value_thresholds(residuals, T, settings.consistency_false_alarm_rate, skip=skip)
+            else:
+                out[name] = calibrate_thresholds(residuals, scenario.threshold_margin, skip)
         return out
 
     state_schemes = [s for s in STATE_SPACE_SCHEMES if s in scenario.schemes]
@@ -299,7 +304,9 @@ def calibration(scenario: ArmScenario, progress: Callable[[int], None] | None = 
 def _diagnoses(scenario: ArmScenario, model: ManipulatorModel, cal: Calibration, settings: ArmSchemeSettings) -> dict:
     diagnoses = {}
     for name, diagnoser in arm_schemes(model, settings, cal.theta0, scenario.schemes, cal.consistency).items():
-        decision = ThresholdDecision(diagnoser.components, cal.thresholds[name], diagnoser.signatures(), blanking=cal.blanking)
+        confirm = settings.consistency_confirm if name == "consistency" else 0
+        decision = ThresholdDecision(diagnoser.components, cal.thresholds[name], diagnoser.signatures(),
+                                     blanking=cal.blanking, confirm=confirm)
         diagnoses[name] = Diagnosis(diagnoser, decision)
     return diagnoses
 
