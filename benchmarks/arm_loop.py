@@ -59,7 +59,7 @@ from robofdi.control import Quintic
 from robofdi.faults import FaultInjector
 from robofdi.loop import ClosedLoop, Diagnosis, DiagnosisRunner, Rates, diagnose_record
 from robofdi.observers import DiagnosticObserver
-from robofdi.observers.arm_schemes import SCHEMES, arm_schemes
+from robofdi.observers.arm_schemes import BOOK_SCHEMES as SCHEMES, arm_schemes
 from robofdi.observers.spectral import ripple_initial_parameters
 from robofdi.scenarios.arm import ArmScenario
 from robofdi.sims import ArmSimulator, SensorModel, StribeckFriction, TorqueRipple

@@ -28,7 +28,7 @@ from robofdi.record import Record
 from robofdi.scenarios.arm import arm_scenario, calibration, calibration_steps, calibration_trajectories, run_scenario
 
 EXPERIMENTS = {"arm": "Any MJCF arm (--robot, --fault SPEC): seeded motion, all arm diagnosers online, fault compensation"}
-HEALTH_SOURCE = "momentum"
+HEALTH_SOURCE = "consistency"
 OPTIONS = ("robot", "faults", "joints", "torque_motors")
 
 

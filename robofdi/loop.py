@@ -32,7 +32,8 @@ from robofdi.protocols import HEALTHY, Accommodation, Controller, Health, Refere
 from robofdi.record import DiagnoserTrace, FaultLabels, Record
 from robofdi.seeding import stream
 
-__all__ = ["Rates", "Diagnosis", "DiagnosisRunner", "ClosedLoop", "RunAborted", "diagnose_record", "ORACLE"]
+__all__ = ["Rates", "Diagnosis", "DiagnosisRunner", "ClosedLoop", "RunAborted", "diagnose_record", "diagnoser_inputs",
+           "ORACLE"]
 
 #: ``health_source`` of the oracle accommodation: health read from the fault labels (a bound, never a diagnosis).
 ORACLE = "oracle"
@@ -170,6 +171,30 @@ def diagnose_record(record: Record, diagnosis: Diagnosis, rates: Rates | None = 
     if progress is not None:
         progress(len(record.time) % 1000)
     return runner.trace()
+
+
+def diagnoser_inputs(record: Record, rates: Rates | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The (y, u) pairs a diagnoser receives when :func:`diagnose_record` replays ``record``: (N, ny)
+    measurements and (N, nu) inputs ū(k−1), one row per diagnosis sample — for designs that learn from
+    fault-free runs sample by sample."""
+    class _Tap:
+        inputs, measurements, components, estimate_components, estimate_modes = [], [], ["tap"], ["tap"], ["level"]
+
+        def __init__(self):
+            self.seen = []
+
+        def reset(self):
+            self.seen = []
+
+        def update(self, y, u):
+            from robofdi.observers.residual import Residual
+
+            self.seen.append((np.array(y, dtype=float), np.array(u, dtype=float)))
+            return Residual(np.zeros(1), np.zeros(1))
+
+    tap = _Tap()
+    diagnose_record(record, Diagnosis(tap), rates)
+    return np.array([y for y, _ in tap.seen]), np.array([u for _, u in tap.seen])
 
 
 def _label_unit(fault: Fault, sim: Simulator) -> str:

@@ -29,7 +29,7 @@ def test_run_arm7_actuator_step_detected_isolated_and_compensated(tmp_path):
     run_dir = tmp_path / "arm-arm7-seed2"
     summary = json.loads((run_dir / "summary.json").read_text())
     assert summary["system"] == "arm7" and summary["joints"] == [f"joint{i}" for i in range(1, 8)]
-    for name in ("recursive", "momentum"):
+    for name in ("recursive", "momentum", "consistency"):
         result = summary["diagnosers"][name]
         det = result["detections"][0]
         assert det["isolated"] == "joint3" and det["delay"] <= 0.02, (name, det)
@@ -48,7 +48,8 @@ def test_run_arm7_actuator_step_detected_isolated_and_compensated(tmp_path):
     assert again.returncode == 0, again.stderr
     summary = json.loads((tmp_path / "again" / "arm-arm7-seed2" / "summary.json").read_text())
     assert summary["calibration_cached"] is True
-    assert summary["diagnosers"]["recursive"]["detections"][0]["isolated"] == "joint5_pos"
+    for name in ("recursive", "consistency"):
+        assert summary["diagnosers"][name]["detections"][0]["isolated"] == "joint5_pos", name
 
 
 @pytest.mark.parametrize("args, message", [

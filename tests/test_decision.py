@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from robofdi import RobofdiError
-from robofdi.decision import Alarms, Signature, ThresholdDecision, calibrate_thresholds
+from robofdi.decision import Alarms, Signature, ThresholdDecision, calibrate_thresholds, extreme_value_thresholds
 from robofdi.decision.isolation import startup_samples
 
 TORQUES = [f"joint{i}_tau" for i in range(1, 4)]
@@ -143,3 +143,57 @@ def test_unknown_signature_component_is_named():
 def test_decision_configuration_is_validated(components, threshold, field):
     with pytest.raises(RobofdiError, match=field):
         ThresholdDecision(components, np.array(threshold), [])
+
+
+def _velocity_sensor_case(confirm):
+    """A velocity-sensor fault: the dynamic row j alarms one sample before the kinematic row j_kin."""
+    sigs = [Signature("j", {"j"}), Signature("j_pos", {"j_kin"}, {"j"}), Signature("j_vel", {"j_kin", "j"})]
+    d = ThresholdDecision(["j", "j_kin"], np.ones(2), sigs, confirm=confirm)
+    out = [d.update(r) for r in ([0.1, 0.1], [3.0, 0.2], [2.0, 4.0], [1.5, 3.0], [1.2, 2.0], [1.1, 1.5])]
+    return out
+
+
+def test_confirmation_decides_over_all_hypotheses_on_the_window():
+    hasty, confirmed = _velocity_sensor_case(0), _velocity_sensor_case(3)
+    assert hasty[1].isolated == ("j",)                       # the first crossing decides: an actuator fault
+    assert [a.alarm.any() for a in confirmed] == [a.alarm.any() for a in hasty]   # alarms are not delayed
+    assert all(a.isolated == () for a in confirmed[:4])
+    assert confirmed[4].isolated == ("j_vel",) and confirmed[4].new == ("j_vel",)
+
+
+def test_confirm_is_validated():
+    with pytest.raises(RobofdiError, match="confirm"):
+        ThresholdDecision(["a"], [1.0], [Signature("a", {"a"})], confirm=-1)
+
+
+def test_extreme_value_threshold_keeps_its_false_alarm_rate_on_fresh_data():
+    """Gaussian white residuals, 2 ms samples, 40 s of calibration: the threshold for λ = 7.2 exceedances per hour
+    (beyond anything the calibration saw) is exceeded by 7 h of fresh data at most at rate λ — the Gumbel tail
+    is conservative for Gaussian maxima — and not absurdly less (> λ/20); never below the calibration maximum."""
+    rng = np.random.default_rng(1)
+    calib = [rng.normal(0, 1, (2500, 2)) for _ in range(8)]
+    h = extreme_value_thresholds(calib, 0.002, rate_per_hour=7.2, block=0.25)
+    assert np.all(h > np.max([np.abs(c).max(axis=0) for c in calib], axis=0))
+    fresh = np.abs(rng.normal(0, 1, (100_000 * 125, 2))).reshape(-1, 125, 2).max(axis=1)    # 100 000 blocks of 0.25 s
+    rate = (fresh > h).mean(axis=0) / 0.25 * 3600
+    assert np.all((rate <= 7.2) & (rate > 7.2 / 20)), rate
+
+
+@pytest.mark.parametrize("kwargs, field", [({"rate_per_hour": 0.0}, "rate_per_hour"), ({"block": 0.001}, "block")])
+def test_extreme_value_thresholds_reject_bad_input(kwargs, field):
+    with pytest.raises(RobofdiError, match=field):
+        extreme_value_thresholds([np.ones((1000, 1))], 0.002, **kwargs)
+    with pytest.raises(RobofdiError, match="20 blocks"):
+        extreme_value_thresholds([np.ones((100, 1))], 0.002)
+
+
+def test_confirmation_ignores_a_single_crossing_and_reports_unknown():
+    """An actuator step raises its dynamic row for good, and a kinematic row for one sample only (integration
+    error of the step in acceleration): isolated as the actuator. A lone one-sample crossing isolates nothing."""
+    sigs = [Signature("j", {"j"}), Signature("j_pos", {"j_kin"}, {"j"}), Signature("j_vel", {"j_kin", "j"})]
+    d = ThresholdDecision(["j", "j_kin"], np.ones(2), sigs, confirm=3)
+    out = [d.update(r) for r in ([3.0, 1.5], [3.0, 0.2], [3.0, 0.2], [3.0, 0.2])]
+    assert out[3].isolated == ("j",)
+    d.reset()
+    out = [d.update(r) for r in ([0.2, 1.5], [0.2, 0.2], [0.2, 0.2], [0.2, 0.2], [0.2, 0.2])]
+    assert all(a.isolated == () for a in out) and out[0].alarm.any()

@@ -15,7 +15,7 @@ from robofdi.observers import (
     RippleModel,
     TimeDelayed,
 )
-from robofdi.observers.arm_schemes import SCHEMES, ArmSchemeSettings, arm_schemes
+from robofdi.observers.arm_schemes import BOOK_SCHEMES as SCHEMES, ArmSchemeSettings, arm_schemes
 
 T = 0.002
 N_JOINTS = 6

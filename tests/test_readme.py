@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+from robofdi.observers.arm_schemes import SCHEMES
 from robofdi.record import load
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -26,7 +27,7 @@ def test_readme_python_example_runs_and_diagnoses(tmp_path, monkeypatch):
     out = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
     lines = out.stdout.strip().splitlines()
-    assert len(lines) == 6                                   # one line per arm diagnoser
+    assert len(lines) == len(SCHEMES)                        # one line per arm diagnoser
     for line in lines:
         assert "isolated joint2" in line and "false alarms 0" in line, line
     record = load(tmp_path / "my_run.h5")

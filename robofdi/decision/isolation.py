@@ -79,6 +79,13 @@ class ThresholdDecision:
     (parsimony: a sensor fault that may raise every torque residual wins over the actuator faults it explains).
     With ``latch`` an isolated fault stays isolated for the rest of the run.
 
+    Confirmation: with ``confirm`` = c > 0 samples, nothing is isolated at the first alarm; c samples later the
+    decision is taken over every hypothesis at once, on the components that alarmed in at least two samples of
+    that window (one isolated crossing is evidence of nothing) and their peak ratios — so isolation does not
+    depend on which residual crossed first (a velocity-sensor fault raising its kinematic row one sample after
+    its dynamic row). When nothing persisted, nothing is isolated ("unknown") and the next alarm opens a new
+    window. Alarms are not delayed.
+
     Start-up blanking: the first ``blanking`` samples after :meth:`reset` raise no alarm — the observer's
     start-up transient. Calibration ignores the same samples (``calibrate_thresholds(skip=blanking)``), so the
     threshold is never tested on samples it was not designed on; :func:`startup_samples` converts the
@@ -90,6 +97,7 @@ class ThresholdDecision:
     signatures: Sequence[Signature]
     latch: bool = True
     blanking: int = 0
+    confirm: int = 0
     _isolated: list[str] = field(default_factory=list, init=False, repr=False)
 
     def __post_init__(self):
@@ -122,8 +130,10 @@ class ThresholdDecision:
                     f"signature {sig.fault!r}: component {unknown[0]!r} is not a residual component; "
                     f"expected one of {list(self.components)}"
                 )
-        if isinstance(self.blanking, bool) or not isinstance(self.blanking, (int, np.integer)) or self.blanking < 0:
-            raise RobofdiError(f"blanking: expected an integer number of samples >= 0, got {self.blanking!r}")
+        for name in ("blanking", "confirm"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
+                raise RobofdiError(f"{name}: expected an integer number of samples >= 0, got {value!r}")
         self._index = {c: j for j, c in enumerate(self.components)}
         self.reset()
 
@@ -131,6 +141,7 @@ class ThresholdDecision:
         """Forget everything isolated so far (start of a new run)."""
         self._isolated = []
         self._samples = 0
+        self._window = None         # (samples left, peak ratio, alarmed) while a first alarm is being confirmed
 
     def update(self, residual: np.ndarray) -> Alarms:
         """One residual sample (m,) in, alarms and isolation out."""
@@ -147,6 +158,20 @@ class ThresholdDecision:
         if self._samples <= self.blanking:
             return Alarms(alarm=np.zeros(m, dtype=bool), isolated=tuple(self._isolated))
         alarm = ratio > 1.0
+        if self.confirm and not self._isolated:
+            if self._window is None and alarm.any():
+                self._window = [self.confirm, ratio.copy(), alarm.astype(int)]
+            elif self._window is not None:
+                self._window[0] -= 1
+                np.maximum(self._window[1], ratio, out=self._window[1])
+                self._window[2] += alarm
+            if self._window is None or self._window[0] > 0:
+                return Alarms(alarm=alarm, isolated=())
+            ratio, persisted = self._window[1], self._window[2] >= 2
+            self._window = None
+            picks = self._isolate(ratio, persisted)
+            self._isolated = list(picks)
+            return Alarms(alarm=alarm, isolated=tuple(self._isolated), new=tuple(self._isolated))
         picks = self._isolate(ratio, alarm)
         previous = list(self._isolated)
         if self.latch:

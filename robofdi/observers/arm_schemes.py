@@ -1,5 +1,6 @@
 """The diagnosis schemes of Caccavale & Villani's robot chapter, plus the momentum baseline, built on one nominal
-model with the chapter's experimental settings (Sec. 7) as defaults."""
+model with the chapter's experimental settings (Sec. 7) as defaults; and the consistency scheme
+(:mod:`robofdi.observers.consistency`), which needs a design learnt from fault-free runs."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -8,18 +9,25 @@ import numpy as np
 
 from robofdi import RobofdiError
 from robofdi.models.manipulator import ManipulatorModel
+from robofdi.observers.consistency import ConsistencyDesign, ConsistencyResidual
 from robofdi.observers.diagnostic import Adaptive, DiagnosticObserver, Recursive, RippleModel, TimeDelayed
 from robofdi.observers.momentum import MomentumObserver
 
-__all__ = ["ArmSchemeSettings", "SCHEMES", "arm_schemes"]
+__all__ = ["ArmSchemeSettings", "SCHEMES", "BOOK_SCHEMES", "arm_schemes"]
 
-SCHEMES = ("simple", "time_delayed", "recursive", "adaptive", "position_only", "momentum")
+#: The book's schemes (ch. 3) and the momentum baseline.
+BOOK_SCHEMES = ("simple", "time_delayed", "recursive", "adaptive", "position_only", "momentum")
+#: Every scheme :func:`arm_schemes` builds.
+SCHEMES = BOOK_SCHEMES + ("consistency",)
 
 
 @dataclass(frozen=True)
 class ArmSchemeSettings:
     """K1 = K2 = 0.1 I; Γ_η = 0.1 diag(0.1 ×n, 2 ×(n−1), 3) [spec: erratum I₃ → I₆]; Q = 2 Γ_η⁻¹;
-    momentum-observer bandwidth K_O [1/s]; residual space of the observers ("torque" or "state")."""
+    momentum-observer bandwidth K_O [1/s]; residual space of the observers ("torque" or "state"); bandwidth K_O
+    [1/s] of the consistency scheme's momentum rows, its target false-alarm rate [1/h] (thresholds by
+    extreme-value theory, :func:`robofdi.decision.extreme_value_thresholds`) and its isolation confirmation
+    window [samples] (:class:`robofdi.decision.ThresholdDecision` ``confirm``)."""
 
     T: float = 0.002
     K1: float = 0.1
@@ -27,18 +35,26 @@ class ArmSchemeSettings:
     momentum_gain: float = 50.0
     adaptive_step: float = 2.0      # the factor 2 of eq. (39)
     residual_space: str = "torque"
+    consistency_gain: float = 100.0
+    consistency_false_alarm_rate: float = 0.1
+    consistency_confirm: int = 3
 
     def gamma_eta(self, n: int) -> np.ndarray:
         return 0.1 * np.concatenate([np.full(n, 0.1), np.full(n - 1, 2.0), [3.0]])
 
 
 def arm_schemes(model: ManipulatorModel, settings: ArmSchemeSettings = ArmSchemeSettings(),
-                theta0: np.ndarray | None = None, schemes=SCHEMES) -> dict:
+                theta0: np.ndarray | None = None, schemes=BOOK_SCHEMES,
+                consistency: ConsistencyDesign | None = None) -> dict:
     """Fresh diagnosers by name (``schemes`` a subset of :data:`SCHEMES`); ``theta0`` initialises the adaptive
-    ripple model (see :func:`robofdi.observers.spectral.ripple_initial_parameters`)."""
+    ripple model (see :func:`robofdi.observers.spectral.ripple_initial_parameters`); ``consistency`` is the
+    consistency scheme's design (:func:`robofdi.observers.consistency.design_consistency`)."""
     unknown = [s for s in schemes if s not in SCHEMES]
     if unknown:
         raise RobofdiError(f"arm_schemes: unknown scheme(s) {unknown}; expected a subset of {list(SCHEMES)}")
+    if "consistency" in schemes and consistency is None:
+        raise RobofdiError("arm_schemes: scheme 'consistency' needs its design (field 'consistency'), learnt from "
+                           "fault-free runs by robofdi.observers.consistency.design_consistency")
     n, s = model.n, settings
     gamma = s.gamma_eta(n)
     common = dict(K1=s.K1, K2=s.K2, residual_space=s.residual_space)
@@ -51,5 +67,6 @@ def arm_schemes(model: ManipulatorModel, settings: ArmSchemeSettings = ArmScheme
         ),
         "position_only": lambda: DiagnosticObserver(model, s.T, Recursive(gamma), velocity="backward_difference", **common),
         "momentum": lambda: MomentumObserver(model, s.T, s.momentum_gain),
+        "consistency": lambda: ConsistencyResidual(model, consistency),
     }
     return {name: build[name]() for name in schemes}

@@ -3,28 +3,36 @@ detection (De Luca & Mattone, ICRA 2003, eq. (10), discretised with the forward 
 
     r(k) = K_O ( M̂(q_k) q̇_k − p₀ − Σ_{j<k} T (ū_j + Ĉᵀ(q_j, q̇_j) q̇_j − ĝ(q_j) − D̂ q̇_j + r_j) )
 
-r is a first-order low-pass estimate of the unmodelled joint torque δτ (N·m), bandwidth K_O.
+r is a first-order low-pass estimate of the unmodelled joint torque δτ (N·m), bandwidth K_O. With an identified
+:class:`~robofdi.models.friction.JointFriction` τ̂_f the bias is β = ĝ + D̂ q̇ − Ĉᵀq̇ + τ̂_f(q̇) (friction-compensated
+residual), τ̂_f identified from fault-free residuals by :func:`identify_friction`.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
+from scipy.signal import lfilter
 
 from robofdi import RobofdiError
+from robofdi.models.friction import JointFriction
 from robofdi.models.manipulator import ManipulatorModel
 from robofdi.observers.residual import Residual, check_measurement
 
-__all__ = ["MomentumObserver"]
+__all__ = ["MomentumObserver", "identify_friction", "observer_filter"]
 
 
 class MomentumObserver:
     """Residual components ``joint{i}`` in N·m; the residual is also the actuator-fault estimate."""
 
-    def __init__(self, model: ManipulatorModel, T: float, gain: float = 50.0):
+    def __init__(self, model: ManipulatorModel, T: float, gain: float = 50.0, friction: JointFriction | None = None):
         if not (np.isfinite(T) and T > 0):
             raise RobofdiError(f"MomentumObserver: field 'T' must be a positive sample time, got {T}")
         if not (np.isfinite(gain) and 0 < gain * T < 1):
             raise RobofdiError(f"MomentumObserver: field 'gain' must be in (0, 1/T) = (0, {1 / T:g}), got {gain}")
-        self.model, self.T, self.gain, self.n = model, float(T), float(gain), model.n
+        if friction is not None and friction.n != model.n:
+            raise RobofdiError(f"MomentumObserver: field 'friction' has {friction.n} joints, the model {model.n}")
+        self.model, self.T, self.gain, self.n, self.friction = model, float(T), float(gain), model.n, friction
         self.inputs = list(model.joint_names)
         self.measurements = [f"{j}_pos" for j in model.joint_names] + [f"{j}_vel" for j in model.joint_names]
         self.components = list(model.joint_names)
@@ -48,6 +56,8 @@ class MomentumObserver:
         else:
             qp, vp = self._prev
             beta = m.gravity(qp) + m.damping * vp - m.coriolis(qp, vp).T @ vp
+            if self.friction is not None:
+                beta = beta + self.friction.torque(vp)
             self._integral = self._integral + self.T * (u - beta + self._r)
             self._r = self.gain * (p - self._p0 - self._integral)
         self._prev = (q, v)
@@ -57,3 +67,35 @@ class MomentumObserver:
         from robofdi.decision import Signature
 
         return [Signature(j, frozenset([j])) for j in self.model.joint_names]
+
+
+def observer_filter(x: np.ndarray, gain: float, T: float) -> np.ndarray:
+    """The residual's own dynamics applied to a signal sampled with the diagnoser (axis 0): f_k = (1 − K_O T)
+    f_{k−1} + K_O T x_{k−1}, f_0 = 0 — how a torque acting at sample k−1 shows in r_k."""
+    a = float(gain) * float(T)
+    return lfilter([0.0, a], [1.0, a - 1.0], np.asarray(x, dtype=float), axis=0)
+
+
+def identify_friction(residuals: Sequence[np.ndarray], velocities: Sequence[np.ndarray], gain: float, T: float,
+                      skip: int = 0, stribeck_velocity: float = 0.05, smoothing: float = 0.01) -> JointFriction:
+    """Least-squares friction identification from fault-free momentum residuals (no friction in the observer):
+    r ≈ −LP(Φ(q̇) c) with Φ the :meth:`JointFriction.regressors` and LP :func:`observer_filter`, per joint
+    (the residual-based identification of e.g. Lee & Song, IEEE ICRA 2016). ``residuals``/``velocities``: one
+    (N_i, n) array per run at the diagnosis rate; samples k < ``skip`` are left out of the fit."""
+    if len(residuals) == 0 or len(residuals) != len(velocities):
+        raise RobofdiError(f"identify_friction: expected as many residual as velocity runs (>= 1), got "
+                           f"{len(residuals)} and {len(velocities)}")
+    rows, targets = [], []
+    for i, (r, v) in enumerate(zip(residuals, velocities)):
+        r, v = np.asarray(r, dtype=float), np.asarray(v, dtype=float)
+        if r.ndim != 2 or r.shape != v.shape:
+            raise RobofdiError(f"identify_friction: run {i}: residual {r.shape} and velocity {v.shape} must be "
+                               "(N, n) arrays of the same shape")
+        phi = observer_filter(JointFriction.regressors(v, stribeck_velocity, smoothing), gain, T)
+        rows.append(phi[skip:])
+        targets.append(r[skip:])
+    phi, r = np.concatenate(rows), np.concatenate(targets)
+    if phi.shape[0] < 4 * 10:
+        raise RobofdiError(f"identify_friction: {phi.shape[0]} samples after skip; expected at least 40")
+    coef = np.array([np.linalg.lstsq(-phi[:, j], r[:, j], rcond=None)[0] for j in range(r.shape[1])])
+    return JointFriction.from_coefficients(coef, stribeck_velocity, smoothing)

@@ -26,14 +26,17 @@ import mujoco
 import numpy as np
 
 from robofdi.control import ComputedTorque, MotionLimits, calibration_motions, random_point_to_point
-from robofdi.decision import STARTUP_BLANKING, ThresholdDecision, calibrate_thresholds, startup_samples
+from robofdi.decision import (
+    STARTUP_BLANKING, ThresholdDecision, calibrate_thresholds, extreme_value_thresholds, startup_samples,
+)
 from robofdi.errors import RobofdiError
 from robofdi.faults import Fault, FaultInjector, parse_fault_specs
 from robofdi.ftc import FaultCompensation
-from robofdi.loop import ORACLE, ClosedLoop, Diagnosis, Rates, diagnose_record
+from robofdi.loop import ORACLE, ClosedLoop, Diagnosis, Rates, diagnose_record, diagnoser_inputs
 from robofdi.models import ManipulatorModel, ModelMismatch
 from robofdi.observers import DiagnosticObserver
-from robofdi.observers.arm_schemes import SCHEMES, ArmSchemeSettings, arm_schemes
+from robofdi.observers.arm_schemes import BOOK_SCHEMES, SCHEMES, ArmSchemeSettings, arm_schemes
+from robofdi.observers.consistency import ConsistencyDesign, design_consistency
 from robofdi.observers.spectral import ripple_initial_parameters
 from robofdi.record import Record
 from robofdi.seeding import rng
@@ -43,6 +46,9 @@ __all__ = ["ArmScenario", "arm_scenario", "Calibration", "calibration_trajectori
            "calibration", "run_scenario", "build_loop", "check_scenario", "cache_dir"]
 
 ACCOMMODATIONS = (None, "compensation")
+#: Random motions added to the derived calibration suite when the consistency scheme runs: the first half
+#: designs it (with the worst-case motions), the second half, never seen by the design, sets its thresholds.
+CONSISTENCY_RANDOM_MOTIONS = 6
 #: Schemes whose thresholds are also calibrated in the book's state space (reported next to the book's).
 STATE_SPACE_SCHEMES = ("time_delayed", "recursive")
 
@@ -71,7 +77,7 @@ class ArmScenario:
     torque_motors: bool = False
     seed: int = 0
     rates: Rates | None = None
-    schemes: tuple = SCHEMES
+    schemes: tuple = BOOK_SCHEMES
     settings: ArmSchemeSettings = field(default_factory=ArmSchemeSettings)
     mismatch: ModelMismatch = field(default_factory=lambda: ModelMismatch(mass=0.02, inertia=0.02, damping=0.05))
     ripple_mode: str = "physical"
@@ -147,7 +153,17 @@ def calibration_trajectories(scenario: ArmScenario, sim: ArmSimulator | None = N
     sim = sim or scenario.simulator()
     model = model or scenario.nominal_model(sim)
     limits = MotionLimits.from_ranges(sim.joint_range[:, 0], sim.joint_range[:, 1], model.torque_limit)
-    return calibration_motions(model, limits, scenario.seed)
+    n_random = CONSISTENCY_RANDOM_MOTIONS if "consistency" in scenario.schemes else 0
+    return calibration_motions(model, limits, scenario.seed, n_random=n_random)
+
+
+def consistency_split(names) -> tuple[list[str], list[str]]:
+    """Calibration motions that design the consistency scheme, and those held out to set its thresholds: the
+    second half of the ``random_*`` motions (none held out when there are fewer than two)."""
+    names = list(names)
+    randoms = [k for k in names if k.startswith("random_")]
+    held = randoms[len(randoms) // 2:] if len(randoms) >= 2 else []
+    return [k for k in names if k not in held], held
 
 
 def _controller(model: ManipulatorModel) -> ComputedTorque:
@@ -179,18 +195,21 @@ def calibration_records(scenario: ArmScenario, progress: Callable[[int], None] |
 
 @dataclass
 class Calibration:
-    """Calibrated thresholds per scheme (residual space of the scheme), the adaptive model's θ₀, and the
-    start-up blanking [samples] used for both."""
+    """Calibrated thresholds per scheme (residual space of the scheme), the adaptive model's θ₀, the start-up
+    blanking [samples] used for both, and the consistency scheme's design (None when it does not run)."""
 
     thresholds: dict[str, np.ndarray]
     theta0: np.ndarray
     blanking: int
     state_thresholds: dict[str, np.ndarray] = field(default_factory=dict)
+    consistency: ConsistencyDesign | None = None
 
 
 def calibrate(scenario: ArmScenario, records: dict[str, Record],
               progress: Callable[[int], None] | None = None) -> Calibration:
-    """θ₀ from the first calibration run's simple residual, then thresholds per scheme (blanked start-up skipped)."""
+    """θ₀ from the first calibration run's simple residual, the consistency design (when it runs) from its design
+    motions (:func:`consistency_split`), then thresholds per scheme (blanked start-up skipped; the consistency
+    scheme's on its held-out motions)."""
     sim = scenario.simulator()
     model = scenario.nominal_model(sim)
     rates = scenario.loop_rates(sim)
@@ -201,17 +220,28 @@ def calibrate(scenario: ArmScenario, records: dict[str, Record],
     simple = diagnose_record(first, Diagnosis(DiagnosticObserver(model, T, residual_space="state")), rates, progress)
     theta0 = ripple_initial_parameters(first.signals["y_meas"][::rates.ratio][skip:, :n], simple.residual[skip:, n:])
 
+    design = None
+    if "consistency" in scenario.schemes:
+        designing, held = consistency_split(records)
+        design = design_consistency(model, [diagnoser_inputs(records[k], rates) for k in designing], T,
+                                    settings.consistency_gain, skip)
+
     def thresholds(scheme_settings, names):
         out = {}
         for name in names:
-            residuals = [diagnose_record(rec, Diagnosis(arm_schemes(model, scheme_settings, theta0, [name])[name]),
-                                         rates, progress).residual for rec in records.values()]
-            out[name] = calibrate_thresholds(residuals, scenario.threshold_margin, skip)
+            runs = [records[k] for k in (consistency_split(records)[1] or records)] if name == "consistency" \
+                else records.values()
+            residuals = [diagnose_record(rec, Diagnosis(arm_schemes(model, scheme_settings, theta0, [name], design)[name]),
+                                         rates, progress).residual for rec in runs]
+            if name == "consistency":       # on motions the design never saw, for a false-alarm rate per hour
+                out[name] = extreme_value_thresholds(residuals, T, settings.consistency_false_alarm_rate, skip=skip)
+            else:
+                out[name] = calibrate_thresholds(residuals, scenario.threshold_margin, skip)
         return out
 
     state_schemes = [s for s in STATE_SPACE_SCHEMES if s in scenario.schemes]
     return Calibration(thresholds(settings, scenario.schemes), theta0, skip,
-                       thresholds(replace(settings, residual_space="state"), state_schemes))
+                       thresholds(replace(settings, residual_space="state"), state_schemes), design)
 
 
 def calibration_steps(scenario: ArmScenario, records_duration: float, rates: Rates) -> int:
@@ -250,8 +280,10 @@ def calibration(scenario: ArmScenario, progress: Callable[[int], None] | None = 
     path = cache_dir() / f"calibration-{_calibration_key(scenario, sim, trajectories)}.npz"
     if cache and path.is_file():
         with np.load(path) as data:
+            design = {k[3:]: data[k] for k in data.files if k.startswith("cs_")}
             cal = Calibration({k[3:]: data[k] for k in data.files if k.startswith("th_")}, data["theta0"],
-                              int(data["blanking"]), {k[3:]: data[k] for k in data.files if k.startswith("st_")})
+                              int(data["blanking"]), {k[3:]: data[k] for k in data.files if k.startswith("st_")},
+                              ConsistencyDesign.from_arrays(design) if design else None)
         if set(cal.thresholds) == set(scenario.schemes):
             return cal, True
     cal = calibrate(scenario, calibration_records(replace(scenario, calibration=trajectories), progress), progress)
@@ -259,8 +291,10 @@ def calibration(scenario: ArmScenario, progress: Callable[[int], None] | None = 
         try:
             path.parent.mkdir(parents=True, exist_ok=True)
             tmp = path.with_suffix(".tmp.npz")
+            design = cal.consistency.arrays() if cal.consistency is not None else {}
             np.savez(tmp, theta0=cal.theta0, blanking=cal.blanking, **{f"th_{k}": v for k, v in cal.thresholds.items()},
-                     **{f"st_{k}": v for k, v in cal.state_thresholds.items()})
+                     **{f"st_{k}": v for k, v in cal.state_thresholds.items()},
+                     **{f"cs_{k}": v for k, v in design.items()})
             tmp.replace(path)
         except OSError:
             pass  # a read-only cache only costs the next run its calibration
@@ -269,8 +303,10 @@ def calibration(scenario: ArmScenario, progress: Callable[[int], None] | None = 
 
 def _diagnoses(scenario: ArmScenario, model: ManipulatorModel, cal: Calibration, settings: ArmSchemeSettings) -> dict:
     diagnoses = {}
-    for name, diagnoser in arm_schemes(model, settings, cal.theta0, scenario.schemes).items():
-        decision = ThresholdDecision(diagnoser.components, cal.thresholds[name], diagnoser.signatures(), blanking=cal.blanking)
+    for name, diagnoser in arm_schemes(model, settings, cal.theta0, scenario.schemes, cal.consistency).items():
+        confirm = settings.consistency_confirm if name == "consistency" else 0
+        decision = ThresholdDecision(diagnoser.components, cal.thresholds[name], diagnoser.signatures(),
+                                     blanking=cal.blanking, confirm=confirm)
         diagnoses[name] = Diagnosis(diagnoser, decision)
     return diagnoses
 
@@ -333,8 +369,10 @@ def arm_scenario(robot: str | Path = "arm6.xml", faults=(), seed: int = 0, joint
                  **overrides) -> ArmScenario:
     """Any MJCF arm on a seeded point-to-point motion inside its joint ranges and torque limits, faults injected
     online. ``faults``: Fault objects or SPEC strings (:mod:`robofdi.faults.spec`); none = a step of 25 % of the
-    torque limit on a seeded random joint at 40 % of the motion. Everything is checked at once, before any
-    calibration; ``overrides`` go to :class:`ArmScenario`."""
+    torque limit on a seeded random joint at 40 % of the motion. Every scheme runs (the book's, the momentum
+    baseline and the consistency scheme) unless ``schemes`` says otherwise. Everything is checked at once,
+    before any calibration; ``overrides`` go to :class:`ArmScenario`."""
+    overrides.setdefault("schemes", SCHEMES)
     faults = tuple(faults)
     if faults and all(isinstance(f, str) for f in faults):
         faults = parse_fault_specs(faults)

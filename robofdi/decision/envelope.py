@@ -1,0 +1,76 @@
+"""Operating-point-dependent residual bounds (dynamic thresholds), designed once per robot.
+
+A fault-free residual of a robot is not equally large everywhere: friction is uncertain near zero velocity
+(stiction, the Stribeck hump), model errors grow with the torque. The bound
+
+    |r_i(k)| ≤ b_i(k) = c_iᵀ LP(φ_i(k)),   φ_i = [1, |τ_i|, exp(−(q̇_i/v_r)²), exp(−(q̇_i/v_b)²)],   c_i ≥ 0
+
+follows the operating point (LP: the residual's own dynamics, so that bound and residual lag alike). The
+coefficients are the tightest such bound over fault-free runs — a linear programme (minimise the mean bound
+subject to covering every sample; the adaptive-threshold idea of Frank & Ding 1997, J. Process Control 7(6),
+with the envelope found by LP instead of by hand). A residual divided by its bound is ≤ 1 on the design runs;
+how far above 1 it goes on motions the design never saw is measured and becomes the margin.
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from scipy.optimize import linprog
+
+from robofdi.errors import RobofdiError
+
+__all__ = ["ENVELOPE_FEATURES", "envelope_features", "design_envelope"]
+
+#: Names of the features φ, in order.
+ENVELOPE_FEATURES = ("constant", "torque", "rest", "low_speed")
+REST_VELOCITY = 0.02      # v_r [rad/s]: the stiction zone
+LOW_SPEED_VELOCITY = 0.15  # v_b [rad/s]: the Stribeck zone
+
+
+def envelope_features(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """(..., n, 4) features φ of the module docstring from torques u (..., n) [N·m] and velocities v [rad/s]."""
+    u, v = np.asarray(u, dtype=float), np.asarray(v, dtype=float)
+    return np.stack([np.ones_like(u), np.abs(u), np.exp(-(v / REST_VELOCITY) ** 2),
+                     np.exp(-(v / LOW_SPEED_VELOCITY) ** 2)], axis=-1)
+
+
+def design_envelope(features: Sequence[np.ndarray], residuals: Sequence[np.ndarray], skip: int = 0,
+                    max_samples: int = 20000) -> np.ndarray:
+    """Coefficients c (n, F) >= 0 of the tightest bound c_iᵀ φ_i(k) >= |r_i(k)| over the runs (a linear
+    programme per component, scipy's HiGHS). ``features``: one (N, n, F) array of *filtered* features per
+    run; ``residuals``: one (N, n) array per run; samples k < ``skip`` left out. Long data: the programme starts
+    from ``max_samples`` evenly spaced samples plus the largest |r|, and adds every sample the bound misses until
+    none is left (cutting planes), so the bound covers every sample."""
+    if len(features) == 0 or len(features) != len(residuals):
+        raise RobofdiError(f"design_envelope: expected as many feature as residual runs (>= 1), got "
+                           f"{len(features)} and {len(residuals)}")
+    X = np.concatenate([np.asarray(f, dtype=float)[skip:] for f in features])
+    R = np.abs(np.concatenate([np.asarray(r, dtype=float)[skip:] for r in residuals]))
+    if X.ndim != 3 or R.shape != X.shape[:2]:
+        raise RobofdiError(f"design_envelope: features {X.shape} must be (N, n, F) and residuals (N, n)")
+    if X.shape[0] == 0:
+        raise RobofdiError(f"design_envelope: no samples left after skip={skip}")
+    n, F = X.shape[1], X.shape[2]
+    coef = np.zeros((n, F))
+    for i in range(n):
+        # scaled to O(1) (the solver's tolerances are absolute), the result scaled back
+        col = np.maximum(np.abs(X[:, i]).max(axis=0), 1e-300)
+        top = max(float(R[:, i].max()), 1e-300)
+        A, b = X[:, i] / col, R[:, i] / top
+        rows = np.arange(A.shape[0])
+        if rows.size > max_samples:     # start from a subset, then add every violated sample (cutting planes)
+            rows = np.unique(np.concatenate([np.linspace(0, rows.size - 1, max_samples).astype(int),
+                                             np.argsort(b)[-max_samples // 10:]]))
+        for _ in range(20):
+            res = linprog(c=A.mean(axis=0) + 1e-9, A_ub=-A[rows], b_ub=-b[rows], bounds=[(0, None)] * F,
+                          method="highs")
+            if res.status != 0:
+                raise RobofdiError(f"design_envelope: component {i}: the linear programme failed ({res.message})")
+            x = res.x * (1 + 1e-6)          # clear of the solver's feasibility tolerance
+            violated = np.flatnonzero(A @ x < b)
+            if violated.size == 0:
+                break
+            rows = np.union1d(rows, violated)
+        coef[i] = x * top / col
+    return coef

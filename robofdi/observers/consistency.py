@@ -1,0 +1,173 @@
+"""The consistency residual: what a robotics engineer deploys on an arm, beyond the book's schemes.
+
+Two structurally separated residual sets, each normalised by its own fault-free scale (dimensionless, ≤ 1 on
+the design runs):
+
+* ``joint<i>`` — dynamic consistency: the generalised-momentum residual (De Luca & Mattone 2003, eq. (10)) with
+  friction identified from fault-free runs (:func:`~robofdi.observers.momentum.identify_friction`), divided by
+  an operating-point bound (:mod:`robofdi.decision.envelope`). It estimates the unmodelled joint torque, so an
+  actuator fault raises exactly its own joint, and no estimation runs inside it that could absorb a slow fault.
+* ``joint<i>_kin`` — kinematic consistency between the joint's position and velocity sensors
+  (:mod:`robofdi.observers.kinematic`), which no actuator fault can raise.
+
+Signatures (the hypotheses): actuator fault on joint i raises ``joint<i>``; a position-sensor fault raises
+``joint<i>_kin`` (the dynamic rows may follow through gravity); a velocity-sensor fault raises ``joint<i>_kin``
+and ``joint<i>`` (the measured velocity enters the momentum M(q) q̇).
+
+Everything it needs from fault-free data is one :class:`ConsistencyDesign`, computed once per robot by
+:func:`design_consistency` from a motion suite.
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from robofdi.decision.envelope import design_envelope, envelope_features
+from robofdi.errors import RobofdiError
+from robofdi.models.friction import JointFriction
+from robofdi.models.manipulator import ManipulatorModel
+from robofdi.observers.kinematic import (
+    WINDOWS, KinematicConsistency, design_window_scales, identify_skew, kinematic_increments,
+)
+from robofdi.observers.momentum import MomentumObserver, identify_friction
+from robofdi.observers.residual import Residual, check_measurement
+
+__all__ = ["ConsistencyDesign", "ConsistencyResidual", "design_consistency", "DEFAULT_GAIN"]
+
+#: Momentum-observer bandwidth K_O [1/s] of the consistency residual: fast enough that an abrupt fault of twice
+#: the smallest detectable size crosses its bound within a few 2 ms samples.
+DEFAULT_GAIN = 150.0
+
+
+@dataclass(frozen=True, eq=False)
+class ConsistencyDesign:
+    """What :class:`ConsistencyResidual` learns once per robot: ``friction`` (identified), ``envelope`` (n, 4)
+    bound coefficients of the dynamic rows, ``skew`` (n,) [s] and ``window_scales`` (n, len(windows), 2) of the
+    kinematic rows (:func:`~robofdi.observers.kinematic.design_window_scales`), the observer ``gain`` K_O [1/s],
+    sample time ``T`` [s] and the kinematic ``windows`` [s]."""
+
+    friction: JointFriction
+    envelope: np.ndarray
+    skew: np.ndarray
+    window_scales: np.ndarray
+    gain: float
+    T: float
+    windows: tuple = WINDOWS
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """Flat arrays (for caching in an .npz); :meth:`from_arrays` inverts it."""
+        f = self.friction
+        return {"friction": f.coefficients, "friction_shape": np.array([f.stribeck_velocity, f.smoothing]),
+                "envelope": self.envelope, "skew": self.skew, "window_scales": self.window_scales,
+                "gain_T": np.array([self.gain, self.T]), "windows": np.array(self.windows, dtype=float)}
+
+    @classmethod
+    def from_arrays(cls, a: dict) -> ConsistencyDesign:
+        shape = a["friction_shape"]
+        return cls(JointFriction.from_coefficients(a["friction"], float(shape[0]), float(shape[1])),
+                   np.asarray(a["envelope"]), np.asarray(a["skew"]), np.asarray(a["window_scales"]),
+                   float(a["gain_T"][0]), float(a["gain_T"][1]), tuple(float(w) for w in a["windows"]))
+
+
+class ConsistencyResidual:
+    """Diagnoser (see the module docstring). Residual components ``joint<i>`` and ``joint<i>_kin``
+    (dimensionless); estimates: actuator torque ``joint<i>`` [N·m] (level), position offset ``joint<i>_pos``
+    [rad] (increment) and velocity bias ``joint<i>_vel`` [rad/s] (level)."""
+
+    def __init__(self, model: ManipulatorModel, design: ConsistencyDesign):
+        n = model.n
+        if design.envelope.shape != (n, 4) or design.skew.shape != (n,):
+            raise RobofdiError(f"ConsistencyResidual: design is for {design.skew.shape[0]} joints, the model has {n}")
+        self.model, self.design, self.n, self.T = model, design, n, design.T
+        self._momentum = MomentumObserver(model, design.T, design.gain, design.friction)
+        self._kinematic = KinematicConsistency(design.T, design.skew, design.window_scales, design.windows)
+        self._a = design.gain * design.T
+        names = list(model.joint_names)
+        self.inputs = names
+        self.measurements = [f"{j}_pos" for j in names] + [f"{j}_vel" for j in names]
+        self.components = names + [f"{j}_kin" for j in names]
+        self.estimate_components = names + [f"{j}_pos" for j in names] + [f"{j}_vel" for j in names]
+        self.estimate_modes = ["level"] * n + ["increment"] * n + ["level"] * n
+        self.units = {"residual": ["1"] * (2 * n), "estimate": ["N·m"] * n + ["rad"] * n + ["rad/s"] * n}
+        self.reset()
+
+    def reset(self) -> None:
+        self._momentum.reset()
+        self._kinematic.reset()
+        self._features = None
+        self._v_prev = None
+
+    def bound(self) -> np.ndarray:
+        """The current operating-point bound of the dynamic rows [N·m]."""
+        return np.maximum(np.einsum("nf,nf->n", self._features, self.design.envelope), 1e-12)
+
+    def update(self, y: np.ndarray, u: np.ndarray) -> Residual:
+        """y = [q; q̇](k), u = ū(k−1)."""
+        n = self.n
+        y = check_measurement(y, 2 * n, "y")
+        u = check_measurement(u, n, "u")
+        r = self._momentum.update(y, u).r
+        q, v = y[:n], y[n:]
+        if self._features is None:      # at rest before the start
+            self._features = envelope_features(np.zeros(n), v)
+        else:       # the residual's own first-order dynamics: a torque acting over (k−1, k] shows in r_k
+            self._features = (1 - self._a) * self._features + self._a * envelope_features(u, self._v_prev)
+        self._v_prev = v
+        kin, e = self._kinematic.update(q, v)
+        z = np.concatenate([r / self.bound(), kin])
+        estimate = np.concatenate([r, e, -e / self.T])
+        return Residual(z, estimate)
+
+    def signatures(self):
+        from robofdi.decision import Signature
+
+        names = list(self.model.joint_names)
+        dynamic = frozenset(names)
+        sigs = [Signature(j, frozenset([j])) for j in names]
+        sigs += [Signature(f"{j}_pos", frozenset([f"{j}_kin"]), dynamic) for j in names]
+        sigs += [Signature(f"{j}_vel", frozenset([f"{j}_kin", j]), dynamic) for j in names]
+        return sigs
+
+
+def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray, np.ndarray]], T: float,
+                       gain: float = DEFAULT_GAIN, skip: int = 0, windows: Sequence[float] = WINDOWS
+                       ) -> ConsistencyDesign:
+    """Learn a :class:`ConsistencyDesign` from fault-free runs, each given as the (Y, U) the diagnoser sees
+    ((N, 2n) measurements, (N, n) inputs ū(k−1); see :func:`robofdi.loop.diagnoser_inputs`): friction, then the
+    operating-point bound of the friction-compensated residual, then the kinematic skew and window scales."""
+    n = model.n
+    if not runs:
+        raise RobofdiError("design_consistency: expected at least one fault-free run")
+    for i, (Y, U) in enumerate(runs):
+        if np.shape(Y)[1:] != (2 * n,) or np.shape(U) != (np.shape(Y)[0], n):
+            raise RobofdiError(f"design_consistency: run {i}: expected Y (N, {2 * n}) and U (N, {n}), got "
+                               f"{np.shape(Y)} and {np.shape(U)}")
+
+    def replay(observer):
+        out = []
+        for Y, U in runs:
+            observer.reset()
+            out.append(np.array([observer.update(y, u).r for y, u in zip(Y, U)]))
+        return out
+
+    plain = replay(MomentumObserver(model, T, gain))
+    friction = identify_friction(plain, [np.asarray(Y)[:, n:] for Y, _ in runs], gain, T, skip)
+    unit = ConsistencyDesign(friction, np.ones((n, 4)), np.zeros(n), np.ones((n, len(windows), 2)), gain, T, tuple(windows))
+    features, residuals = [], []
+    for Y, U in runs:
+        d = ConsistencyResidual(model, unit)
+        rows, feats = [], []
+        for y, u in zip(Y, U):
+            res = d.update(y, u)
+            rows.append(res.estimate[:n])
+            feats.append(d._features.copy())
+        residuals.append(np.array(rows))
+        features.append(np.array(feats))
+    envelope = design_envelope(features, residuals, skip)
+    qs = [np.asarray(Y)[:, :n] for Y, _ in runs]
+    vs = [np.asarray(Y)[:, n:] for Y, _ in runs]
+    skew = identify_skew(qs, vs, T, skip)
+    scales = design_window_scales([kinematic_increments(q, v, T, skew) for q, v in zip(qs, vs)], vs, T, skip, windows)
+    return ConsistencyDesign(friction, envelope, skew, scales, gain, T, tuple(windows))

@@ -1,0 +1,120 @@
+"""The consistency residual (issue 10 building blocks) on the real MuJoCo arm with the honest harness:
+friction identified from fault-free runs, operating-point bounds, kinematic sensor consistency."""
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from robofdi import RobofdiError
+from robofdi.decision import ThresholdDecision
+from robofdi.loop import Diagnosis, diagnose_record, diagnoser_inputs
+from robofdi.models.friction import JointFriction
+from robofdi.observers.consistency import ConsistencyDesign, ConsistencyResidual, design_consistency
+from robofdi.observers.kinematic import KinematicConsistency, design_window_scales, kinematic_increments
+from robofdi.scenarios.arm import arm_scenario, calibration, calibration_records, run_scenario
+
+SKIP = 5
+
+
+@pytest.fixture(scope="module")
+def designed():
+    """arm6 (seed 0): design on the calibration suite, as the scheme's calibration does."""
+    base = arm_scenario("arm6.xml", faults=["actuator_additive:joint1:0@0.5"], seed=0, schemes=("momentum",))
+    sim = base.simulator()
+    model = base.nominal_model(sim)
+    rates = base.loop_rates(sim)
+    records = calibration_records(replace(base, faults=()))
+    runs = [diagnoser_inputs(r, rates) for r in records.values()]
+    design = design_consistency(model, runs, 1.0 / rates.diagnosis_hz, skip=SKIP)
+    return base, sim, model, rates, runs, design
+
+
+MARGIN = 2.0   # the bound's margin for motions the design never saw
+
+
+def _trace(record, model, design, rates):
+    d = ConsistencyResidual(model, design)
+    decision = ThresholdDecision(d.components, np.full(len(d.components), MARGIN), d.signatures(), blanking=SKIP)
+    return diagnose_record(record, Diagnosis(d, decision), rates)
+
+
+def _first_isolation(tr):
+    k = next((k for k, iso in enumerate(tr.isolated) if iso), None)
+    return (None, None) if k is None else (tr.time[k], tr.isolated[k])
+
+
+def test_identified_coulomb_friction_matches_the_drive(designed):
+    _, sim, _, _, _, design = designed
+    # the plant's Coulomb friction is the MJCF's frictionloss; the diagnoser never read it
+    truth = sim.model.dof_frictionloss[[sim.model.jnt_dofadr[sim.model.joint(j).id] for j in sim.joint_names]]
+    np.testing.assert_allclose(design.friction.coulomb, truth, rtol=0.10)
+
+
+def test_the_design_covers_its_runs_and_its_cache_round_trip(designed):
+    _, _, model, _, runs, design = designed
+    again = ConsistencyDesign.from_arrays(design.arrays())
+    for Y, U in runs[:1]:
+        d, e = ConsistencyResidual(model, design), ConsistencyResidual(model, again)
+        z = np.array([d.update(y, u).r for y, u in zip(Y, U)])
+        z2 = np.array([e.update(y, u).r for y, u in zip(Y, U)])
+        np.testing.assert_array_equal(z, z2)
+        assert np.abs(z[SKIP:]).max() <= 1.0 + 1e-6
+
+
+def test_unseen_fault_free_motion_stays_inside_twice_the_bound(designed):
+    base, _, model, rates, _, design = designed
+    sc = arm_scenario("arm6.xml", faults=["actuator_additive:joint1:0@0.5"], seed=0, schemes=("momentum",))
+    sc = replace(sc, motion=arm_scenario("arm6.xml", faults=["actuator_additive:joint1:0@0.5"], seed=7).motion,
+                 faults=())
+    rec = run_scenario(sc, calibration(sc)[0])
+    z = np.abs(_trace(rec, model, design, rates).residual[SKIP:])
+    assert z.max() < 2.0, z.max(axis=0)
+
+
+def test_actuator_step_raises_its_joint_only_and_no_sensor_row(designed):
+    base, _, model, rates, _, design = designed
+    sc = arm_scenario("arm6.xml", faults=["actuator_additive:joint3:60@1.0"], seed=3, schemes=("momentum",))
+    tr = _trace(run_scenario(sc, calibration(sc)[0]), model, design, rates)
+    n, t = model.n, tr.time
+    z = np.abs(tr.residual)
+    before, after = t < 1.0, (t >= 1.0) & (t < 1.2)
+    assert z[before & (t > SKIP * 0.002)].max() < 2.0
+    first = t[after][np.argmax(z[after, 2] > 2.0)]
+    assert z[after, 2].max() > 2.0 and first - 1.0 <= 0.012          # within 6 samples of 2 ms
+    assert z[after, n:].max() < 2.0                                  # kinematic rows: actuator faults cannot raise them
+    assert _first_isolation(tr)[1] == "joint3"
+    np.testing.assert_allclose(tr.estimate[(t > 1.15) & (t < 1.2), 2].mean(), 60.0, rtol=0.15)
+
+
+def test_position_sensor_bias_raises_its_kinematic_row(designed):
+    base, _, model, rates, _, design = designed
+    sc = arm_scenario("arm6.xml", faults=["sensor_bias:joint2_pos:0.001@1.0"], seed=4, schemes=("momentum",))
+    tr = _trace(run_scenario(sc, calibration(sc)[0]), model, design, rates)
+    n, t = model.n, tr.time
+    z = np.abs(tr.residual)
+    after = (t >= 1.0) & (t < 1.05)
+    assert z[after, n + 1].max() > 2.0
+    assert t[after][np.argmax(z[after, n + 1] > 2.0)] - 1.0 <= 0.0021
+    assert np.delete(z[after, n:], 1, axis=1).max() < 2.0
+    time, isolated = _first_isolation(tr)
+    assert isolated == "joint2_pos" and time - 1.0 <= 0.0021
+    np.testing.assert_allclose(tr.estimate[t > 1.1, tr.estimate_components.index("joint2_pos")].mean(), 1e-3, rtol=0.1)
+
+
+def test_kinematic_stepping_matches_the_offline_sums():
+    rng = np.random.default_rng(0)
+    T, n = 0.002, 2
+    v = np.cumsum(rng.normal(0, 0.01, (400, n)), axis=0)
+    q = np.cumsum(v, axis=0) * T + rng.normal(0, 1e-6, (400, n))
+    e = kinematic_increments(q, v, T)
+    scales = design_window_scales([e], [v], T, windows=(0.0, 0.1))
+    k = KinematicConsistency(T, np.zeros(n), scales, windows=(0.0, 0.1))
+    ratios = np.array([k.update(qq, vv)[0] for qq, vv in zip(q, v)])
+    assert ratios.max() <= 1.0 + 1e-6 and ratios.max() > 0.99      # tight: the bound touches the data
+
+
+def test_bad_inputs_are_named():
+    with pytest.raises(RobofdiError, match="viscous"):
+        JointFriction(np.ones(2), np.ones(3), np.ones(2), np.zeros(2))
+    with pytest.raises(RobofdiError, match="scales"):
+        KinematicConsistency(0.002, np.zeros(2), np.ones((2, 4)))
