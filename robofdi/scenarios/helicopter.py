@@ -5,6 +5,12 @@ Harness (spec_linear_papers.md A.7 [HARNESS]; the paper gives no controller, ini
 :class:`KalmanFaultEstimator`; u = −K x̂ + [sin πt, cos 0.6πt]; x(0) = [1, 0.5, 0, 0]; 10 s at T = 0.01 s.
 Faults: r₁ = 0.4 on the collective from 4 s, r₂ = 0.5 + 0.3 sin πt on the cyclic from 2 s (eq. (29), E = −B).
 Unknown-input variant (§V): ζ = 0.1 through D = [0, 0, 0, 0.01]ᵀ [HARNESS], r₃ = 0.3 + 0.1 cos 2πt on u₁ from 2 s.
+
+Two harnesses differ only in what feeds the accommodation (29) u = (I − R̂)⁻¹u_nom (both clip R̂ to [0, 0.95]):
+"loop" (default) feeds the windowed LS r̂ of the diagnosis, gated by its calibrated threshold decision; "digest"
+(spec A.7 [HARNESS], the setting of its item-4 numbers) feeds the element-wise r̂ᵢ = f̂ᵢ(k−1)/u_R,i(k−1) of every
+sample, ungated, from the start. Per-sample f̂ noise (std ≈ 56, 26) is as large as u_nom, so that R̂ is mostly noise
+and often at 0.95: u is amplified up to 20×, which raises the SNR of the windowed LS estimate.
 """
 from __future__ import annotations
 
@@ -14,7 +20,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from robofdi.control.linear import StateFeedback, lqr_gain
-from robofdi.decision import ThresholdDecision, calibrate_thresholds
+from robofdi.decision import Alarms, ThresholdDecision, calibrate_thresholds
 from robofdi.errors import RobofdiError
 from robofdi.evaluate import summarize
 from robofdi.faults import Fault, Oscillation
@@ -26,7 +32,7 @@ from robofdi.observers.kalman import COVARIANCE_MODES, KalmanFaultEstimator
 from robofdi.record import Record
 from robofdi.sims.linear import LinearPlant
 
-__all__ = ["HelicopterScenario", "PAPER_FAULTS", "UNKNOWN_INPUT_FAULTS", "UNKNOWN_INPUT_D", "build_loop",
+__all__ = ["HelicopterScenario", "HARNESSES", "PAPER_FAULTS", "UNKNOWN_INPUT_FAULTS", "UNKNOWN_INPUT_D", "build_loop",
            "calibrate", "run_helicopter", "fault_estimates"]
 
 #: The paper's faults (Sec. V, Fig. 1): r₁ = 0.4 from 4 s on u₁, r₂ = 0.5 + 0.3 sin(πt) from 2 s on u₂.
@@ -42,6 +48,8 @@ UNKNOWN_INPUT_FAULTS = (Fault("r3", "actuator_loss_of_effectiveness", "collectiv
 UNKNOWN_INPUT_D = np.array([[0.0], [0.0], [0.0], [0.01]])
 FAULT_OUTPUTS = ("y_u", "y_minus_w")      # y₂ of the paper's partition (Ā₁₁ = 1.0521, Ā₂₁ = 10.5091)
 X0 = (1.0, 0.5, 0.0, 0.0)
+#: What feeds the accommodation: the diagnosis' gated LS r̂ ("loop") or the ungated element-wise r̂ ("digest").
+HARNESSES = ("loop", "digest")
 
 
 @dataclass(frozen=True)
@@ -52,6 +60,7 @@ class HelicopterScenario:
     diagnosed health (eq. (29)). window: samples of the LS effectiveness estimate (None: 25 with noise, 1 without).
     unknown_input: ζ (None: no unknown input) acting through UNKNOWN_INPUT_D, estimated by the augmented filter.
     mismatch: relative parameter error of the diagnoser's and controller's belief (0: the paper's exact model).
+    harness: "loop" or "digest" — what feeds the accommodation (module docstring; spec A.7 [HARNESS]).
     """
 
     faults: Sequence[Fault] = PAPER_FAULTS
@@ -64,8 +73,11 @@ class HelicopterScenario:
     unknown_input: float | None = None
     mismatch: float = 0.0
     calibration_runs: int = 3
+    harness: str = "loop"
 
     def __post_init__(self):
+        if self.harness not in HARNESSES:
+            raise RobofdiError(f"HelicopterScenario: field 'harness' must be one of {HARNESSES}, got {self.harness!r}")
         if self.covariance_mode not in COVARIANCE_MODES:
             raise RobofdiError(f"HelicopterScenario: field 'covariance_mode' must be one of {COVARIANCE_MODES}, "
                                f"got {self.covariance_mode!r}")
@@ -86,9 +98,26 @@ def _estimator(sc: HelicopterScenario, belief, window: int) -> KalmanFaultEstima
                                 unknown_input=None if sc.unknown_input is None else UNKNOWN_INPUT_D)
 
 
+class Ungated:
+    """Decision protocol of the digest harness: every component counts as isolated at every sample, no alarm —
+    the element-wise R̂ reaches the accommodation (29) without a decision (spec A.7 [HARNESS]). Not a diagnosis:
+    its trace detects nothing."""
+
+    def __init__(self, components: Sequence[str]):
+        self.components = tuple(components)
+        self.threshold = np.full(len(self.components), np.inf)
+
+    def reset(self) -> None:
+        """Stateless."""
+
+    def update(self, residual: np.ndarray) -> Alarms:
+        return Alarms(alarm=np.zeros(len(self.components), dtype=bool), isolated=self.components)
+
+
 def build_loop(sc: HelicopterScenario, threshold=None) -> ClosedLoop:
     """The closed loop of ``sc``: plant (truth), LQR on the estimator's x̂, the Kalman fault estimator with a
-    threshold decision (``threshold`` per actuator; None: 1, i.e. no alarm), accommodation when asked."""
+    threshold decision (``threshold`` per actuator; None: 1, i.e. no alarm), accommodation when asked — fed by
+    that diagnosis (harness "loop") or by the ungated element-wise r̂ of diagnosis "elementwise" (harness "digest")."""
     truth = helicopter()
     E = None if sc.unknown_input is None else UNKNOWN_INPUT_D
     if E is not None:
@@ -109,8 +138,13 @@ def build_loop(sc: HelicopterScenario, threshold=None) -> ClosedLoop:
     threshold = np.ones(2) if threshold is None else threshold
     decision = ThresholdDecision(fe.components, threshold, fe.signatures(), blanking=sc.samples + 1)
     acc = EffectivenessCompensation(fe.components) if sc.accommodation else None
-    return ClosedLoop(plant, controller, reference, sc.faults, {"kalman_fe": Diagnosis(fe, decision)},
-                      accommodation=acc, health_source="kalman_fe" if sc.accommodation else None,
+    diagnoses = {"kalman_fe": Diagnosis(fe, decision)}
+    source = "kalman_fe"
+    if sc.harness == "digest" and sc.accommodation:
+        source = "elementwise"
+        diagnoses[source] = Diagnosis(_estimator(sc, belief, 1), Ungated(fe.components))
+    return ClosedLoop(plant, controller, reference, sc.faults, diagnoses,
+                      accommodation=acc, health_source=source if sc.accommodation else None,
                       reference_columns=[f"ref_{n}" for n in truth.output_names])
 
 
