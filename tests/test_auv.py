@@ -7,7 +7,7 @@ import pytest
 
 from robofdi.errors import RobofdiError
 from robofdi.models.auv import (
-    AuvModel, AuvModelMismatch, ODIN_THRUSTER, T_body_from_euler, T_euler_from_body, rotation_from_euler,
+    AuvModel, AuvModelMismatch, ODIN_THRUSTER, T_body_from_euler, T_euler_from_body,
 )
 from robofdi.sims.auv import AuvSensors, AuvSimulator
 
