@@ -28,14 +28,20 @@ from robofdi.faults import Fault, FaultInjector
 from robofdi.ftc.allocation import ALLOCATORS, ThrustReallocation
 from robofdi.loop import ORACLE, ClosedLoop, Diagnosis, diagnose_record
 from robofdi.models.auv import AuvModel, AuvModelMismatch
-from robofdi.observers.auv import CurrentMap, ForceObserver, VoltageResidual, identify_current_characteristic
+from robofdi.observers.auv import (
+    CurrentMap, DepthSwitchingControl, DepthVote, ForceObserver, VoltageResidual, identify_current_characteristic,
+    identify_depth_arx, vertical_force,
+)
 from robofdi.record import Record
 from robofdi.sims.auv import AuvSensors, AuvSimulator
 
 __all__ = ["AuvScenario", "AuvCalibration", "DIAGNOSERS", "VARIANTS", "FAULT_TARGETS", "fault_targets", "draw_mission",
-           "odin_mission", "calibrate", "build_loop", "run_scenario", "tracking_rms", "thruster_names"]
+           "odin_mission", "calibrate", "build_loop", "run_scenario", "tracking_rms", "thruster_names",
+           "current_map_regions", "check_scenario"]
 
 DIAGNOSERS = ("voltage_residual", "current_map", "force_observer")
+#: Every diagnoser a scenario may run (depth_vote: the ODIN depth-sensor scheme, with its ARX virtual sensor).
+ALL_DIAGNOSERS = DIAGNOSERS + ("depth_vote",)
 VARIANTS = ("no_ftc", "oracle", "diagnosed")
 
 
@@ -83,9 +89,9 @@ def odin_mission(duration: float, start_depth: float = 5.0, side: float = 2.0, s
     return Mission.through(wp, durations)
 
 
-def draw_mission(seed: int, duration: float, limits: MissionLimits = MissionLimits(), name: str = "mission") -> Mission:
+def draw_mission(seed: int, duration: float, limits: MissionLimits | None = None, name: str = "mission") -> Mission:
     """A random mission of ``duration`` s from ``seed`` (stream ``("mission", name)``)."""
-    return random_mission(seed, duration, limits, name=name)
+    return random_mission(seed, duration, limits or MissionLimits(), name=name)
 
 
 @dataclass(frozen=True)
@@ -96,7 +102,8 @@ class AuvScenario:
     current [m/s] world-frame ocean current; control_dt [s] (diagnosis at the control rate); allocation: one of
     :data:`~robofdi.ftc.allocation.ALLOCATORS`; variant: one of :data:`VARIANTS`; health_source: the diagnoser whose
     health the "diagnosed" variant uses; calibration_runs × calibration_duration [s] of fault-free missions;
-    threshold_margin ≥ 1; blanking [s] of start-up samples.
+    threshold_margin ≥ 1; blanking [s] of start-up samples; current_map_filter [s]: time constant of the current
+    map's filters (a flooded thruster's mismatch is persistent; 0.5 s as the digest's persistence).
     """
 
     name: str = "ch4-auv"
@@ -116,9 +123,12 @@ class AuvScenario:
     thrust_limit: float = 40.0
     calibration_runs: int = 2
     calibration_duration: float = 240.0
-    threshold_margin: float = 1.5
-    blanking: float = 1.0
+    threshold_margin: float = 2.0
+    blanking: float = 3.0
     start_depth: float = 5.0
+    current_map_filter: float = 0.5
+    depth_redundancy: bool = False
+    floor_depth: float = 20.0
 
     def __post_init__(self):
         object.__setattr__(self, "faults", tuple(self.faults))
@@ -127,9 +137,9 @@ class AuvScenario:
             raise RobofdiError(f"AuvScenario: field 'mission' must be 'odin' or 'random', got {self.mission!r}")
         if not (np.isfinite(self.duration) and self.duration > 0):
             raise RobofdiError(f"AuvScenario: field 'duration' must be > 0 s, got {self.duration!r}")
-        unknown = [d for d in self.diagnosers if d not in DIAGNOSERS]
+        unknown = [d for d in self.diagnosers if d not in ALL_DIAGNOSERS]
         if unknown:
-            raise RobofdiError(f"AuvScenario: unknown diagnoser {unknown[0]!r}; expected some of {DIAGNOSERS}")
+            raise RobofdiError(f"AuvScenario: unknown diagnoser {unknown[0]!r}; expected some of {ALL_DIAGNOSERS}")
         if self.allocation not in ALLOCATORS:
             raise RobofdiError(f"AuvScenario: field 'allocation' must be one of {ALLOCATORS}, got {self.allocation!r}")
         if self.variant not in VARIANTS:
@@ -147,7 +157,7 @@ class AuvScenario:
 
     def simulator(self) -> AuvSimulator:
         return AuvSimulator(self.mjcf, self.control_dt, current=self.current, sensors=self.sensors,
-                            thrust_limit=self.thrust_limit, seed=self.seed)
+                            thrust_limit=self.thrust_limit, floor_depth=self.floor_depth, seed=self.seed)
 
     def nominal_model(self, sim: AuvSimulator) -> AuvModel:
         return sim.nominal_model(self.mismatch)
@@ -170,13 +180,20 @@ class AuvCalibration:
     thresholds: Mapping[str, np.ndarray]
     blanking: int
     sample_time: float
+    arx: np.ndarray | None = None
 
 
-def _diagnosers(scenario: AuvScenario, model: AuvModel, channels, characteristic) -> dict:
+def _depth_vote(scenario: AuvScenario, model: AuvModel, channels, arx) -> DepthVote:
+    return DepthVote(model, channels, scenario.control_dt, arx, scenario.floor_depth, thrust_limit=scenario.thrust_limit)
+
+
+def _diagnosers(scenario: AuvScenario, model: AuvModel, channels, characteristic, arx=None) -> dict:
     T = scenario.control_dt
     make = {
+        "depth_vote": lambda: _depth_vote(scenario, model, channels, arx),
         "voltage_residual": lambda: VoltageResidual(model, channels, T, thrust_limit=scenario.thrust_limit),
-        "current_map": lambda: CurrentMap(model, channels, T, characteristic, thrust_limit=scenario.thrust_limit),
+        "current_map": lambda: CurrentMap(model, channels, T, characteristic, tau=scenario.current_map_filter,
+                                          thrust_limit=scenario.thrust_limit),
         "force_observer": lambda: ForceObserver(model, channels, T, thrust_limit=scenario.thrust_limit),
     }
     return {name: make[name]() for name in scenario.diagnosers}
@@ -196,14 +213,20 @@ def _reference_columns() -> tuple[list[str], list[str]]:
     return cols, units
 
 
+#: Envelope of the calibration missions: wider than the missions flown (yaw ±45° vs ±30°, 0.25 m/s vs 0.2 m/s), so
+#: thresholds cover the operating envelope rather than one trajectory.
+CALIBRATION_LIMITS = MissionLimits(half_width=2.5, depth=(3.0, 8.0), yaw=np.pi / 4, speed=0.25, dwell=3.0)
+
+
 def calibration_records(scenario: AuvScenario, progress: Callable[[int], None] | None = None) -> list[Record]:
-    """Fault-free random missions (their own mission streams and noise), no diagnoser in the loop."""
+    """Fault-free random missions over :data:`CALIBRATION_LIMITS` (their own mission streams and noise), no
+    diagnoser in the loop."""
     sim = scenario.simulator()
     model = scenario.nominal_model(sim)
     cols, units = _reference_columns()
     records = []
     for k in range(scenario.calibration_runs):
-        ref = draw_mission(scenario.seed, scenario.calibration_duration, name=f"calibration{k}")
+        ref = draw_mission(scenario.seed, scenario.calibration_duration, CALIBRATION_LIMITS, name=f"calibration{k}")
         loop = ClosedLoop(sim, _controller(model), ref, accommodation=_allocation(scenario, model),
                           reference_columns=cols, reference_units=units)
         records.append(loop.run(scenario.calibration_duration, scenario.start_pose, seed=scenario.seed,
@@ -222,13 +245,29 @@ def calibrate(scenario: AuvScenario, progress: Callable[[int], None] | None = No
     p = len(sim.actuators)
     speed = np.vstack([r.signals["y_meas"][:, 13:13 + p] for r in records])
     current = np.vstack([r.signals["y_meas"][:, 13 + p:13 + 2 * p] for r in records])
-    theta = identify_current_characteristic(speed, current, scenario.control_dt)
+    theta = identify_current_characteristic(speed, current, scenario.control_dt, scenario.current_map_filter)
+    arx = identify_depth_arx(*_arx_series(records, model, 5))
     skip = startup_samples(scenario.control_dt, scenario.blanking)
     thresholds = {}
-    for name, diagnoser in _diagnosers(scenario, model, channels, theta).items():
+    for name, diagnoser in _diagnosers(scenario, model, channels, theta, arx).items():
         residuals = [diagnose_record(r, Diagnosis(diagnoser)).residual for r in records]
         thresholds[name] = calibrate_thresholds(residuals, scenario.threshold_margin, skip)
-    return AuvCalibration(theta, thresholds, skip, scenario.control_dt)
+    return AuvCalibration(theta, thresholds, skip, scenario.control_dt, arx)
+
+
+def _arx_series(records: list[Record], model: AuvModel, decimation: int) -> tuple[np.ndarray, np.ndarray]:
+    """Pressure depth [m] every ``decimation`` samples and the mean downward thruster force [N] over the interval
+    ending there, concatenated over the records (the first samples of each run dropped)."""
+    zs, Fs = [], []
+    for r in records:
+        y, u = r.signals["y_meas"], r.signals["u"]
+        down = np.array([-vertical_force(model, y[k, 4:7], u[k]) for k in range(len(u))])
+        n = (len(u) - 1) // decimation
+        z = y[decimation::decimation, 2][:n]
+        F = down[: n * decimation].reshape(n, decimation).mean(axis=1)
+        zs.append(z[10:])
+        Fs.append(F[10:])
+    return np.concatenate(zs), np.concatenate(Fs)
 
 
 def build_loop(scenario: AuvScenario, cal: AuvCalibration) -> ClosedLoop:
@@ -239,12 +278,15 @@ def build_loop(scenario: AuvScenario, cal: AuvCalibration) -> ClosedLoop:
     sim = scenario.simulator()
     model = scenario.nominal_model(sim)
     diagnoses = {}
-    for name, d in _diagnosers(scenario, model, sim.sensor_channels, cal.characteristic).items():
+    for name, d in _diagnosers(scenario, model, sim.sensor_channels, cal.characteristic, cal.arx).items():
         decision = ThresholdDecision(d.components, cal.thresholds[name], d.signatures(), blanking=cal.blanking)
         diagnoses[name] = Diagnosis(d, decision)
     health = {"no_ftc": None, "oracle": ORACLE, "diagnosed": scenario.health_source}[scenario.variant]
     cols, units = _reference_columns()
-    return ClosedLoop(sim, _controller(model), scenario.reference(), scenario.faults, diagnoses,
+    controller = _controller(model)
+    if scenario.depth_redundancy:
+        controller = DepthSwitchingControl(controller, _depth_vote(scenario, model, sim.sensor_channels, cal.arx))
+    return ClosedLoop(sim, controller, scenario.reference(), scenario.faults, diagnoses,
                       accommodation=_allocation(scenario, model), health_source=health,
                       reference_columns=cols, reference_units=units)
 
@@ -260,6 +302,34 @@ def tracking_rms(record: Record, since: float = 0.0) -> float:
     keep = record.time >= since
     err = record.signals["reference"][keep, :3] - record.truth_state[keep, :3]
     return float(np.sqrt(np.mean(np.sum(err**2, axis=1)))) if keep.any() else float("nan")
+
+
+def current_map_regions(record: Record, faults, window: float = 1.0) -> dict:
+    """Per thruster fault: the current map's region (:func:`~robofdi.observers.auv.current_map_region`) that holds
+    most often over ``window`` s from the first sample isolating the fault's target (a persistence, as the
+    digest's 0.5 s band persistence), with that isolation time [s]; region None when never isolated."""
+    from collections import Counter
+
+    from robofdi.observers.auv import current_map_region
+
+    tr = record.diagnosers["current_map"]
+    names = record.columns["signals/u"]
+    p = len(names)
+    out = {}
+    for f in faults:
+        if f.target not in names:
+            continue
+        i = names.index(f.target)
+        hit = np.flatnonzero((tr.time >= f.onset) & np.array([f.target in str(s).split("+") for s in tr.isolated]))
+        if not hit.size:
+            out[f.name] = {"region": None, "time": None, "kind": f.kind}
+            continue
+        t0 = float(tr.time[hit[0]])
+        span = (tr.time >= t0) & (tr.time < t0 + window)
+        votes = Counter(current_map_region(r[i], r[p + i], tr.threshold[i], tr.threshold[p + i]) for r in tr.residual[span])
+        votes = Counter({k: v for k, v in votes.items() if k != "nominal"}) or votes
+        out[f.name] = {"region": votes.most_common(1)[0][0], "time": t0, "kind": f.kind}
+    return out
 
 
 def run_scenario(scenario: AuvScenario, cal: AuvCalibration, progress: Callable[[int], None] | None = None,
