@@ -1,8 +1,9 @@
 """Book chapter 4 (Antonelli, "A Survey of Fault Detection/Tolerance Strategies for AUVs and ROVs"): the ODIN
 experiments on an ODIN-like 8-thruster AUV in MuJoCo.
 
-    robofdi run ch4-auv      [--seed N] [--out DIR]
-    robofdi run ch4-flooded  [--seed N] [--out DIR]
+    robofdi run ch4-auv          [--seed N] [--out DIR]
+    robofdi run ch4-flooded      [--seed N] [--out DIR]
+    robofdi run ch4-depth-sensor [--seed N] [--out DIR]
 
 ch4-auv (Sec. 6, Figs. 10–11): a 6-DOF square/depth/yaw task in an ocean current; thruster 2 (horizontal) and
 thruster 6 (vertical) are switched off by zeroing their drive voltage, as ODIN's were at 260 s and 300 s. The
@@ -13,6 +14,10 @@ holds the position RMS after the second failure of each.
 
 ch4-flooded (Romeo, Sec. 6 and Fig. 8): a flooded thruster and, later, a rotor failure on another; the current
 map detects both and its region map tells them apart (summary.json["regions"]).
+
+ch4-depth-sensor (ODIN [48], Fig. 7): the pressure depth reading is zeroed; pressure, sonar (over a sea floor of
+known depth) and an ARX virtual sensor vote, and the faulty sensor is switched out after 1 s while depth control
+goes on (summary.json["depth_switch"]).
 """
 from __future__ import annotations
 
@@ -31,12 +36,14 @@ from robofdi.faults import Fault
 from robofdi.ftc.allocation import capability
 from robofdi.record import Record
 from robofdi.scenarios.auv import (
-    AuvCalibration, AuvScenario, calibrate, check_scenario, current_map_regions, run_scenario, tracking_rms,
+    AuvCalibration, AuvScenario, calibrate, check_scenario, current_map_regions, depth_switch_time, run_scenario,
+    tracking_rms,
 )
 
 EXPERIMENTS = {
     "ch4-auv": "ODIN-like AUV, thrusters 2 and 6 off (Figs. 10-11): no FTC vs oracle vs diagnosed-health allocation",
     "ch4-flooded": "Romeo-like flooded thruster then a rotor failure: current map detects both, regions tell them apart",
+    "ch4-depth-sensor": "ODIN depth-sensor zeroing: pressure/sonar/ARX vote, faulty sensor switched out after 1 s",
 }
 
 #: ODIN's switch-off times [s] and the factor of our shortened timeline.
@@ -57,6 +64,16 @@ def ch4_flooded_scenario(seed: int = 0) -> AuvScenario:
     faults = (Fault("thruster3_flooded", "component_thruster_flooding", "thruster3", onset=30.0, magnitude=0.3),
               Fault("thruster1_off", "actuator_float", "thruster1", onset=70.0))
     return AuvScenario(name="ch4-flooded", duration=100.0, seed=seed, faults=faults, variant="no_ftc")
+
+
+def ch4_depth_sensor_scenario(seed: int = 0) -> AuvScenario:
+    """Pressure depth zeroed at 30 s of a 60 s ODIN task; the depth vote switches to the sonar after 1 s."""
+    return AuvScenario(name="ch4-depth-sensor", duration=60.0, seed=seed, variant="no_ftc", depth_redundancy=True,
+                       diagnosers=("voltage_residual", "current_map", "force_observer", "depth_vote"),
+                       faults=(Fault("depth_zero", "sensor_dropout", "depth", onset=30.0),))
+
+
+SCENARIOS = {"ch4-auv": ch4_auv_scenario, "ch4-flooded": ch4_flooded_scenario, "ch4-depth-sensor": ch4_depth_sensor_scenario}
 
 
 def _cache_path(scenario: AuvScenario) -> Path:
@@ -227,6 +244,52 @@ def _run_ch4_flooded(name, run_dir, seed, bar, replay):
     return summary
 
 
+def _run_ch4_depth_sensor(name, run_dir, seed, bar, replay):
+    sc = ch4_depth_sensor_scenario(seed)
+    check_scenario(sc)
+    cal, cached = calibration(sc, progress=bar.update)
+    bar.set_description(f"{name}: run")
+    record, summary = run_scenario(sc, cal, progress=bar.update)
+    onset = sc.faults[0].onset
+    switch = depth_switch_time(record)
+    depth_error = np.abs(record.truth_state[:, 2] - record.signals["reference"][:, 2])
+    settle = [float(t) for t, e in zip(record.time, depth_error) if switch is not None and t > switch + 1.0 and e < 0.1]
+    summary["depth_switch"] = {
+        "onset": onset, "switch_time": switch, "switch_delay": None if switch is None else switch - onset,
+        "max_depth_error_before_onset": float(depth_error[(record.time > sc.blanking) & (record.time < onset)].max()),
+        "max_depth_error_after_onset": float(depth_error[record.time >= onset].max()),
+        "depth_error_below_0.1m_from": settle[0] if settle else None,
+        "final_depth_error": float(depth_error[-1]),
+        "units": {"onset": "s", "switch_time": "s", "switch_delay": "s", "max_depth_error_before_onset": "m",
+                  "max_depth_error_after_onset": "m", "depth_error_below_0.1m_from": "s", "final_depth_error": "m"}}
+    summary["calibration_cached"] = cached
+    write_run_folder(run_dir, record, summary, replay=False)
+    _plot_depth(record, sc, switch, run_dir / "figures" / "depth_switch.png")
+    return summary
+
+
+def _plot_depth(record: Record, sc: AuvScenario, switch, path: Path) -> Path:
+    """Depth (true, pressure reading, sonar) around the sensor fault, with onset and switch times."""
+    import matplotlib.pyplot as plt
+
+    y = record.signals["y_meas"]
+    fig, ax = plt.subplots(figsize=(9, 3.2))
+    ax.plot(record.time, -record.signals["reference"][:, 2], "k--", lw=0.8, label="reference")
+    ax.plot(record.time, -record.truth_state[:, 2], lw=1.0, label="true depth")
+    ax.plot(record.time, y[:, 2], lw=0.6, label="pressure sensor")
+    ax.plot(record.time, sc.floor_depth - y[:, 3], lw=0.6, label="sonar (H − altitude)")
+    ax.axvline(sc.faults[0].onset, color="0.4", ls=":", label="onset")
+    if switch is not None:
+        ax.axvline(switch, color="C3", ls="--", lw=0.8, label="switch")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("depth [m]")
+    ax.legend(fontsize=7, ncol=3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def _plot_currents(record: Record, sc: AuvScenario, path: Path) -> Path:
     """Fig. 8 of the survey: expected (identified characteristic) vs measured motor current of the faulty thrusters."""
     import matplotlib.pyplot as plt
@@ -259,11 +322,12 @@ def run(name: str = "ch4-auv", out: str | Path = "runs", seed: int = 0, progress
 
     if name not in EXPERIMENTS:
         raise RobofdiError(f"unknown experiment {name!r}; expected one of {', '.join(EXPERIMENTS)}")
-    sc = ch4_auv_scenario(seed) if name == "ch4-auv" else ch4_flooded_scenario(seed)
+    sc = SCENARIOS[name](seed)
     cached = _cache_path(sc).is_file()
     runs = 4 if name == "ch4-auv" else 1
     run_dir = prepare_run_dir(out, name, seed)
+    runner = {"ch4-auv": _run_ch4_auv, "ch4-flooded": _run_ch4_flooded, "ch4-depth-sensor": _run_ch4_depth_sensor}[name]
     bar = tqdm(total=_steps(sc, runs, cached), desc=f"{name}: calibrate", unit="step", disable=not progress, leave=False)
     with bar, keep_partial(run_dir):
-        summary = (_run_ch4_auv if name == "ch4-auv" else _run_ch4_flooded)(name, run_dir, seed, bar, replay)
+        summary = runner(name, run_dir, seed, bar, replay)
     return summary, run_dir

@@ -10,13 +10,13 @@ from robofdi.faults import Fault
 from robofdi.models.auv import AuvModel
 from robofdi.observers.auv import VoltageResidual, effectiveness_identifiability
 from robofdi.scenarios.auv import (
-    AuvScenario, calibrate, check_scenario, current_map_regions, fault_targets, run_scenario, tracking_rms,
+    ALL_DIAGNOSERS, AuvScenario, calibrate, depth_switch_time, check_scenario, current_map_regions, fault_targets, run_scenario, tracking_rms,
 )
 from robofdi.sims.auv import AuvSimulator
 
 pytestmark = pytest.mark.slow
 
-BASE = AuvScenario(name="test-auv", duration=40.0, calibration_runs=2, calibration_duration=180.0)
+BASE = AuvScenario(name="test-auv", duration=40.0, calibration_runs=2, calibration_duration=180.0, diagnosers=ALL_DIAGNOSERS)
 
 
 @pytest.fixture(scope="module")
@@ -94,6 +94,22 @@ def test_diagnosed_health_allocation_keeps_tracking_after_two_failures(cal):
     rms["fault_free"] = tracking_rms(free, 30.0)
     assert rms["diagnosed"] <= 2.0 * rms["fault_free"], rms
     assert rms["diagnosed"] <= 1.2 * rms["oracle"], rms
+
+
+def test_zeroed_depth_sensor_is_switched_out_after_one_second_and_depth_control_goes_on(cal):
+    sc = replace(BASE, variant="no_ftc", duration=30.0, depth_redundancy=True,
+                 faults=(Fault("depth_zero", "sensor_dropout", "depth", onset=15.0),))
+    record, summary = run_scenario(sc, cal)
+    detection = summary["diagnosers"]["depth_vote"]["detections"][0]
+    assert detection["isolated"] == "depth" and detection["delay"] <= 0.1
+    r = record.diagnosers["depth_vote"]
+    k = np.searchsorted(r.time, 15.5)
+    # the isolation table: R1 = z_p − z_s and R2 = z_p − z_ARX large (≈ −depth), R3 = z_s − z_ARX small
+    assert abs(r.residual[k, 0]) > 3.0 and abs(r.residual[k, 1]) > 3.0 and abs(r.residual[k, 2]) < 1.0
+    switch = depth_switch_time(record)
+    assert switch is not None and abs(switch - 16.0) <= 0.1
+    error = np.abs(record.truth_state[:, 2] - record.signals["reference"][:, 2])
+    assert error[record.time > 22.0].max() < 0.1
 
 
 def test_same_seed_same_record(cal):

@@ -306,7 +306,8 @@ class DepthVote(_Telemetry):
 
     pressure depth z_p, sonar depth z_s = H − altitude over a sea floor of known depth H, and a virtual sensor z_ARX:
     the ARX model (:func:`identify_depth_arx`) run at ``arx_period`` on the commanded vertical force, re-anchored
-    to the accepted depth every ``reanchor`` s while all residuals are small. Residuals [m]:
+    to the accepted depth every ``reanchor`` s while that depth is trustworthy (pressure and sonar agree within
+    ``switch_threshold``, or only one of them is left). Residuals [m]:
     R1 = z_p − z_s, R2 = z_p − z_ARX, R3 = z_s − z_ARX (isolation: pressure {R1, R2}, sonar {R1, R3}).
 
     The switch (ODIN's "programmed time"): when a sensor's two residuals stay above ``switch_threshold`` for
@@ -316,7 +317,7 @@ class DepthVote(_Telemetry):
     SOURCES = ("depth", "altitude")
 
     def __init__(self, model: AuvModel, measurements: Sequence[str], sample_time: float, arx, floor_depth: float,
-                 arx_period: float = 0.1, reanchor: float = 10.0, switch_threshold: float = 0.2,
+                 arx_period: float = 0.1, reanchor: float = 2.0, switch_threshold: float = 0.2,
                  switch_delay: float = 1.0, thrust_limit: float = 40.0):
         super().__init__(model, measurements, sample_time, thrust_limit)
         self.arx = np.asarray(arx, dtype=float)
@@ -368,8 +369,9 @@ class DepthVote(_Telemetry):
             self._z_arx = float(self.arx @ [z1, z2, F_last, F2, 1.0])
             self._hist = [self._z_arx, z1, F_last]
         r = np.array([zp - zs, zp - self._z_arx, zs - self._z_arx])
-        quiet = np.all(np.abs(r) < self.switch_threshold)
-        if quiet and self._k % self.reanchor_samples == 0:
+        # re-anchor while the accepted depth is trustworthy: both physical sensors agree, or only one is left
+        trusted = bool(self.disconnected) or abs(r[0]) < self.switch_threshold
+        if trusted and self._k % self.reanchor_samples == 0:
             self._hist[0] = self._hist[1] = self._z_arx = accepted
         over = np.abs(r) > self.switch_threshold
         for j, (name, pair) in enumerate((("depth", (0, 1)), ("altitude", (0, 2)))):

@@ -37,7 +37,7 @@ from robofdi.sims.auv import AuvSensors, AuvSimulator
 
 __all__ = ["AuvScenario", "AuvCalibration", "DIAGNOSERS", "VARIANTS", "FAULT_TARGETS", "fault_targets", "draw_mission",
            "odin_mission", "calibrate", "build_loop", "run_scenario", "tracking_rms", "thruster_names",
-           "current_map_regions", "check_scenario"]
+           "current_map_regions", "check_scenario", "depth_switch_time", "ALL_DIAGNOSERS"]
 
 DIAGNOSERS = ("voltage_residual", "current_map", "force_observer")
 #: Every diagnoser a scenario may run (depth_vote: the ODIN depth-sensor scheme, with its ARX virtual sensor).
@@ -330,6 +330,17 @@ def current_map_regions(record: Record, faults, window: float = 1.0) -> dict:
         votes = Counter({k: v for k, v in votes.items() if k != "nominal"}) or votes
         out[f.name] = {"region": votes.most_common(1)[0][0], "time": t0, "kind": f.kind}
     return out
+
+
+def depth_switch_time(record: Record, diagnoser: str = "depth_vote") -> float | None:
+    """When the depth vote disconnected the pressure sensor [s]: the first sample whose identified pressure error
+    (pressure − accepted depth) is non-zero — before the switch the accepted depth is the pressure itself."""
+    tr = record.diagnosers.get(diagnoser)
+    if tr is None:
+        return None
+    col = tr.estimate_components.index("depth")
+    hit = np.flatnonzero(np.abs(tr.estimate[:, col]) > 0)
+    return float(tr.time[hit[0]]) if hit.size else None
 
 
 def run_scenario(scenario: AuvScenario, cal: AuvCalibration, progress: Callable[[int], None] | None = None,
