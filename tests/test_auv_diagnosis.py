@@ -10,7 +10,8 @@ from robofdi.faults import Fault
 from robofdi.models.auv import AuvModel
 from robofdi.observers.auv import VoltageResidual, effectiveness_identifiability
 from robofdi.scenarios.auv import (
-    ALL_DIAGNOSERS, AuvScenario, calibrate, depth_switch_time, check_scenario, current_map_regions, fault_targets, run_scenario, tracking_rms,
+    ALL_DIAGNOSERS, AuvScenario, calibrate, check_scenario, current_map_regions, depth_switch_time, fault_targets,
+    run_scenario, tracking_rms,
 )
 from robofdi.sims.auv import AuvSimulator
 
