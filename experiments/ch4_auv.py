@@ -239,7 +239,7 @@ def _run_ch4_flooded(name, run_dir, seed, bar, replay):
     regions = current_map_regions(record, sc.faults)
     summary["regions"] = regions
     summary["calibration_cached"] = cached
-    write_run_folder(run_dir, record, summary, replay=False)
+    write_run_folder(run_dir, record, summary, replay=replay)
     _plot_currents(record, sc, run_dir / "figures" / "fig8_currents.png")
     return summary
 
@@ -263,7 +263,7 @@ def _run_ch4_depth_sensor(name, run_dir, seed, bar, replay):
         "units": {"onset": "s", "switch_time": "s", "switch_delay": "s", "max_depth_error_before_onset": "m",
                   "max_depth_error_after_onset": "m", "depth_error_below_0.1m_from": "s", "final_depth_error": "m"}}
     summary["calibration_cached"] = cached
-    write_run_folder(run_dir, record, summary, replay=False)
+    write_run_folder(run_dir, record, summary, replay=replay)
     _plot_depth(record, sc, switch, run_dir / "figures" / "depth_switch.png")
     return summary
 

@@ -57,7 +57,8 @@ def thruster_detection_times(record, diagnoser: str | None, thrusters) -> dict[s
 
 
 def build_auv_replay(vis: meshcat.Visualizer, record, diagnoser: str | None = None, fps: int = 10) -> Animation:
-    """Draw the vehicle of ``record`` (its MJCF in ``record.meta["mjcf"]``) and animate it at ``fps``."""
+    """Draw the vehicle of ``record`` (its MJCF in ``record.meta["mjcf"]``) and animate it at ``fps``; thrusters
+    turn red when ``diagnoser`` (default: the run's health source, else its first diagnoser) isolates them."""
     from robofdi.models.auv import thruster_layout
     from robofdi.models.manipulator import resolve_asset
 
@@ -94,6 +95,7 @@ def build_auv_replay(vis: meshcat.Visualizer, record, diagnoser: str | None = No
         th["arrow"]["shaft"].set_object(g.Cylinder(1.0, 0.012), g.MeshLambertMaterial(color=0x11aa44))
         th["arrow"]["shaft"].set_transform(tf.translation_matrix([0, 0.5, 0]))
 
+    diagnoser = diagnoser or record.meta.get("health_source") or next(iter(record.diagnosers), None)
     detected = thruster_detection_times(record, diagnoser, names)
     onset = {}
     for f in record.meta.get("faults", []):
