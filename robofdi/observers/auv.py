@@ -5,8 +5,10 @@
   identified from fault-free data (:func:`identify_current_characteristic`); the region of the mismatch separates
   rotor failure, blocking and flooding (:func:`current_map_region`).
 * :class:`ForceObserver` — a generalised-momentum observer on the whole vehicle (eq. (3) of the survey, in the
-  discrete form of De Luca & Mattone eq. (10)): the generalised force deficit τ_demand − τ_actual, and the
-  per-thruster effectiveness from the propeller-speed telemetry.
+  discrete form of De Luca & Mattone eq. (10)): the generalised force deficit τ_actual − τ_demand, and the
+  per-thruster thrust change from the propeller-speed telemetry.
+* :class:`DepthVote` — ODIN's pressure / sonar / ARX virtual-sensor vote with the 1 s switch [48], and
+  :class:`DepthSwitchingControl`, which hands the accepted depth to the controller.
 
 Every diagnoser takes y with the channels of :class:`robofdi.sims.auv.AuvSimulator` (navigation, then propeller
 speeds, motor currents and voltages) and u = ū(k−1), the thrust demands [N] held over the last interval.
@@ -22,7 +24,8 @@ from robofdi.errors import RobofdiError
 from robofdi.models.auv import AXES, AuvModel, rotation_from_euler
 from robofdi.observers.residual import Residual, check_measurement
 
-__all__ = ["VoltageResidual", "CurrentMap", "ForceObserver", "identify_current_characteristic", "CurrentFeatures",
+__all__ = ["VoltageResidual", "CurrentMap", "ForceObserver", "DepthVote", "DepthSwitchingControl",
+           "identify_current_characteristic", "identify_depth_arx", "vertical_force", "CurrentFeatures",
            "current_map_region", "effectiveness_identifiability", "REGIONS"]
 
 #: What :func:`current_map_region` can answer.

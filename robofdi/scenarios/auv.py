@@ -121,7 +121,7 @@ class AuvScenario:
     variant: str = "diagnosed"
     health_source: str = "voltage_residual"
     thrust_limit: float = 40.0
-    calibration_runs: int = 2
+    calibration_runs: int = 3
     calibration_duration: float = 240.0
     threshold_margin: float = 2.0
     blanking: float = 3.0
