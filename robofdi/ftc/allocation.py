@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from scipy.optimize import linprog
@@ -66,6 +67,17 @@ def check_allocation(B, tau, effectiveness=None, lower=None, upper=None):
     return B, tau, e, lo, hi
 
 
+@lru_cache(maxsize=64)
+def _pinv_cached(B_bytes: bytes, shape: tuple, e_bytes: bytes) -> np.ndarray:
+    B = np.frombuffer(B_bytes).reshape(shape)
+    return np.linalg.pinv(B * np.frombuffer(e_bytes))
+
+
+def _weighted_pinv(B: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """(B diag(e))⁺, cached per (B, e): a loop re-allocates with the same health for long stretches."""
+    return _pinv_cached(np.ascontiguousarray(B).tobytes(), B.shape, np.ascontiguousarray(e).tobytes())
+
+
 def _result(B, e, u, tau) -> AllocationResult:
     attained = B @ (e * u)
     return AllocationResult(u, attained, tau - attained)
@@ -75,7 +87,7 @@ def pseudo_inverse_allocation(B, tau, effectiveness=None) -> AllocationResult:
     """Minimum-norm u with B diag(e) u = τ: u = (B diag(e))⁺ τ — the weighted pseudo-inverse of Sec. 5
     (least squares when B diag(e) has lost rank 6)."""
     B, tau, e, _, _ = check_allocation(B, tau, effectiveness)
-    u = np.linalg.pinv(B * e) @ tau
+    u = _weighted_pinv(B, e) @ tau
     return _result(B, e, u, tau)
 
 
@@ -105,7 +117,7 @@ def constrained_allocation(B, tau, lower, upper, effectiveness=None, regularisat
     if not np.all(np.isfinite(lo)) or not np.all(np.isfinite(hi)):
         raise RobofdiError("allocation: constrained allocation needs finite saturation limits")
     Be = B * e
-    u = np.linalg.pinv(Be) @ tau
+    u = _weighted_pinv(B, e) @ tau
     if np.all(u >= lo - 1e-12) and np.all(u <= hi + 1e-12):
         return _result(B, e, np.clip(u, lo, hi), tau)
     from qpsolvers import solve_qp
