@@ -131,6 +131,18 @@ def voltage_detectability(record: Record, threshold: np.ndarray, window: float =
     return out
 
 
+def _save(fig, bottom_axes, path: Path) -> Path:
+    """Time axis label on the bottom row, tight layout, saved at 110 dpi and closed."""
+    import matplotlib.pyplot as plt
+
+    for ax in np.atleast_1d(bottom_axes):
+        ax.set_xlabel("time [s]")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def plot_thrusters(records: dict[str, Record], onsets, path: Path) -> Path:
     """Fig. 10 of the survey: thruster demands per group (vertical left, horizontal right), one row per variant."""
     import matplotlib.pyplot as plt
@@ -148,12 +160,7 @@ def plot_thrusters(records: dict[str, Record], onsets, path: Path) -> Path:
             ax.legend(fontsize=6, ncol=4, loc="upper left")
     axes[0, 0].set_title("vertical thrusters 5-8", fontsize=9)
     axes[0, 1].set_title("horizontal thrusters 1-4", fontsize=9)
-    for ax in axes[-1]:
-        ax.set_xlabel("time [s]")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, axes[-1], path)
 
 
 def plot_task_space(records: dict[str, Record], onsets, path: Path) -> Path:
@@ -174,12 +181,7 @@ def plot_task_space(records: dict[str, Record], onsets, path: Path) -> Path:
             for t in onsets:
                 ax.axvline(t, color="0.4", ls=":", lw=0.8)
     axes[0, 0].legend(fontsize=7, ncol=2)
-    for ax in axes[-1]:
-        ax.set_xlabel("time [s]")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, axes[-1], path)
 
 
 def _run_ch4_auv(name, run_dir, seed, bar, replay):
@@ -224,18 +226,24 @@ def _run_ch4_auv(name, run_dir, seed, bar, replay):
     plot_thrusters(variants, onsets, run_dir / "figures" / "fig10_thrusters.png")
     plot_task_space(variants, onsets, run_dir / "figures" / "fig11_task_space.png")
     if replay:
-        from robofdi.viz.auv_replay import write_auv_replay_html
+        from robofdi.viz import write_replay_html
 
-        write_auv_replay_html(main, run_dir / "replay.html", diagnoser=sc.health_source)
+        write_replay_html(main, run_dir / "replay.html", diagnoser=sc.health_source)
     return summary
 
 
-def _run_ch4_flooded(name, run_dir, seed, bar, replay):
-    sc = ch4_flooded_scenario(seed)
+def _single_run(name: str, sc: AuvScenario, bar) -> tuple[Record, dict, bool]:
+    """Check, calibrate (cached) and run one scenario: (record, summary, calibration came from the cache)."""
     check_scenario(sc)
     cal, cached = calibration(sc, progress=bar.update)
     bar.set_description(f"{name}: run")
     record, summary = run_scenario(sc, cal, progress=bar.update)
+    return record, summary, cached
+
+
+def _run_ch4_flooded(name, run_dir, seed, bar, replay):
+    sc = ch4_flooded_scenario(seed)
+    record, summary, cached = _single_run(name, sc, bar)
     regions = current_map_regions(record, sc.faults)
     summary["regions"] = regions
     summary["calibration_cached"] = cached
@@ -246,10 +254,7 @@ def _run_ch4_flooded(name, run_dir, seed, bar, replay):
 
 def _run_ch4_depth_sensor(name, run_dir, seed, bar, replay):
     sc = ch4_depth_sensor_scenario(seed)
-    check_scenario(sc)
-    cal, cached = calibration(sc, progress=bar.update)
-    bar.set_description(f"{name}: run")
-    record, summary = run_scenario(sc, cal, progress=bar.update)
+    record, summary, cached = _single_run(name, sc, bar)
     onset = sc.faults[0].onset
     switch = depth_switch_time(record)
     depth_error = np.abs(record.truth_state[:, 2] - record.signals["reference"][:, 2])
@@ -281,13 +286,9 @@ def _plot_depth(record: Record, sc: AuvScenario, switch, path: Path) -> Path:
     ax.axvline(sc.faults[0].onset, color="0.4", ls=":", label="onset")
     if switch is not None:
         ax.axvline(switch, color="C3", ls="--", lw=0.8, label="switch")
-    ax.set_xlabel("time [s]")
     ax.set_ylabel("depth [m]")
     ax.legend(fontsize=7, ncol=3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, ax, path)
 
 
 def _plot_currents(record: Record, sc: AuvScenario, path: Path) -> Path:
@@ -309,11 +310,7 @@ def _plot_currents(record: Record, sc: AuvScenario, path: Path) -> Path:
         ax.set_ylabel(f"{f.target} [A]")
         ax.set_title(f"{f.name} ({f.kind})", fontsize=9)
         ax.legend(fontsize=7)
-    axes[-1, 0].set_xlabel("time [s]")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return _save(fig, axes[-1], path)
 
 
 def run(name: str = "ch4-auv", out: str | Path = "runs", seed: int = 0, progress: bool = True, replay: bool = True):

@@ -12,8 +12,6 @@ Tree (below ``auv_scene``, shifted up by the start depth so the orbit camera loo
 """
 from __future__ import annotations
 
-import contextlib
-import io
 from pathlib import Path
 
 import meshcat
@@ -120,18 +118,11 @@ def build_auv_replay(vis: meshcat.Visualizer, record, diagnoser: str | None = No
 
 
 def write_auv_replay_html(record, path: str | Path, diagnoser: str | None = None, fps: int = 10) -> Path:
-    """Write the self-contained HTML replay (meshcat's JS inlined, offline) to ``path``; returns the path."""
-    from robofdi.viz.replay import _as_record, close_visualizer
+    """Write the self-contained HTML replay (meshcat's JS inlined, offline) to ``path``; returns the path
+    (:func:`robofdi.viz.write_replay_html`, which sends AUV records here)."""
+    from robofdi.viz.replay import _as_record, _is_auv, write_replay_html
 
     record = _as_record(record)
-    path = Path(path)
-    with contextlib.redirect_stdout(io.StringIO()):
-        vis = meshcat.Visualizer()
-    try:
-        build_auv_replay(vis, record, diagnoser, fps)
-        html = vis.static_html()
-    finally:
-        close_visualizer(vis)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(html, encoding="utf-8")
-    return path
+    if not _is_auv(record):
+        raise RobofdiError("AUV replay: the record is not an AUV run (truth/state must start with x y z qw qx qy qz)")
+    return write_replay_html(record, path, diagnoser, fps)

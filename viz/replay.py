@@ -364,15 +364,21 @@ def write_replay_html(record, path: str | Path, diagnoser: str | None = None, fp
     :func:`robofdi.viz.auv_replay.write_auv_replay_html` (at most 10 frames per second).
     """
     record = _as_record(record)
-    if _is_auv(record):
-        from .auv_replay import write_auv_replay_html
-
-        return write_auv_replay_html(record, path, diagnoser or record.meta.get("health_source"), min(int(fps), 10))
     path = Path(path)
+    if _is_auv(record):
+        from .auv_replay import build_auv_replay
+
+        shown = diagnoser or record.meta.get("health_source")
+
+        def build(vis):
+            build_auv_replay(vis, record, shown, min(int(fps), 10))
+    else:
+        def build(vis):
+            build_replay(vis, record, diagnoser=diagnoser, fps=fps)
     with contextlib.redirect_stdout(io.StringIO()):
         vis = meshcat.Visualizer()
     try:
-        build_replay(vis, record, diagnoser=diagnoser, fps=fps)
+        build(vis)
         html = vis.static_html()
     finally:
         close_visualizer(vis)
