@@ -371,7 +371,7 @@ def test_every_kind_is_covered():
                "actuator_lock_in_place",
                "actuator_float", "actuator_hard_over", "sensor_bias", "sensor_drift",
                "sensor_freeze", "sensor_dropout", "sensor_scale", "sensor_noise", "sensor_delay", "sensor_outliers",
-               "component_friction", "component_mass"}
+               "component_friction", "component_mass", "component_thruster_blocking", "component_thruster_flooding"}
     assert set(FAULT_KINDS) == covered
 
 

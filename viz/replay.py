@@ -352,17 +352,33 @@ def _as_record(record_or_path):
     return record_or_path
 
 
+def _is_auv(record) -> bool:
+    """A record of robofdi.sims.auv (hull pose first in truth/state): replayed by :mod:`robofdi.viz.auv_replay`."""
+    return list(record.columns.get("truth/state", [])[:7]) == ["x", "y", "z", "qw", "qx", "qy", "qz"]
+
+
 def write_replay_html(record, path: str | Path, diagnoser: str | None = None, fps: int = 50) -> Path:
     """Write a self-contained HTML replay (meshcat's JS inlined, works offline) to ``path``; returns the path.
 
-    ``record`` is a :class:`robofdi.record.Record` or the path of a saved one.
+    ``record`` is a :class:`robofdi.record.Record` or the path of a saved one. AUV records go to
+    :func:`robofdi.viz.auv_replay.write_auv_replay_html` (at most 10 frames per second).
     """
     record = _as_record(record)
     path = Path(path)
+    if _is_auv(record):
+        from .auv_replay import build_auv_replay
+
+        shown = diagnoser or record.meta.get("health_source")
+
+        def build(vis):
+            build_auv_replay(vis, record, shown, min(int(fps), 10))
+    else:
+        def build(vis):
+            build_replay(vis, record, diagnoser=diagnoser, fps=fps)
     with contextlib.redirect_stdout(io.StringIO()):
         vis = meshcat.Visualizer()
     try:
-        build_replay(vis, record, diagnoser=diagnoser, fps=fps)
+        build(vis)
         html = vis.static_html()
     finally:
         close_visualizer(vis)
@@ -419,9 +435,15 @@ def view(record_path, diagnoser: str | None = None, open_browser: bool = True, f
             with contextlib.redirect_stdout(io.StringIO()):
                 vis = meshcat.Visualizer()
             arm()
-            rep = build_replay(vis, record, diagnoser=diagnoser, fps=fps)
+            if _is_auv(record):
+                from .auv_replay import build_auv_replay
+
+                shown = diagnoser or record.meta.get("health_source")
+                build_auv_replay(vis, record, shown, min(int(fps), 10))
+            else:
+                shown = build_replay(vis, record, diagnoser=diagnoser, fps=fps).diagnoser
             url = vis.url()
-            print(f"robofdi view: {url}  (diagnoser: {rep.diagnoser or 'none'}; "
+            print(f"robofdi view: {url}  (diagnoser: {shown or 'none'}; "
                   f"use the 'Animations' panel to replay; Ctrl-C to quit)", flush=True)
             if open_browser:
                 webbrowser.open(url, new=2)

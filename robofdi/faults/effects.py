@@ -182,6 +182,8 @@ _EFFECTS = {
     "sensor_outliers": Outliers,
     "component_friction": Level,
     "component_mass": Level,
+    "component_thruster_blocking": Level,
+    "component_thruster_flooding": Level,
 }
 
 

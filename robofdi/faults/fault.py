@@ -65,6 +65,10 @@ FAULT_KINDS: dict[str, FaultKind] = {
     "sensor_outliers": FaultKind({"probability": _PROBABILITY}, description="y ± m·p with the given probability per sample"),
     "component_friction": FaultKind(unit="1", description="joint friction × (1 + m·p) (friction rise)"),
     "component_mass": FaultKind(unit="kg", description="m·p kg added to a body (damage, payload change)"),
+    "component_thruster_blocking": FaultKind(profiles="unit", unit="1",
+                                             description="rotor stalled while m·p > 0 (solid body in the blades)"),
+    "component_thruster_flooding": FaultKind(unit="1", description="flooded thruster: motor drive × (1 + m·p), "
+                                                                   "leakage current"),
 }
 
 

@@ -1,0 +1,359 @@
+"""The AUV's configuration → calibrated closed loop (shared by experiments ch4-*, campaigns and tests).
+
+The pieces a campaign engine needs, each usable alone:
+
+* :func:`draw_mission` — a random mission from a seed (:func:`robofdi.control.auv.random_mission`);
+* :data:`FAULT_TARGETS` / :func:`fault_targets` — per fault kind, its targets on the vehicle and magnitude limits;
+* :func:`calibrate` — fault-free missions (their own seeds, never the test mission) → :class:`AuvCalibration`
+  (the identified current characteristic and every diagnoser's thresholds; a small picklable dataclass);
+* :func:`run_scenario` — one scenario with given faults, seed and accommodation variant → (Record, summary).
+
+Variants of accommodation (all use the same allocator, so the comparison is fair): ``"no_ftc"`` (allocation with
+every thruster assumed healthy), ``"oracle"`` (the fault labels: a bound, explicitly named) and ``"diagnosed"``
+(the health of :attr:`AuvScenario.health_source`, one diagnosis sample late).
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from robofdi.control.auv import POSE_NAMES, MissionLimits, TaskSpaceAuvControl, random_mission
+from robofdi.control.trajectory import Sequence as Mission
+from robofdi.decision import ThresholdDecision, calibrate_thresholds, startup_samples
+from robofdi.errors import RobofdiError
+from robofdi.evaluate import summarize
+from robofdi.faults import Fault, FaultInjector
+from robofdi.ftc.allocation import ALLOCATORS, ThrustReallocation
+from robofdi.loop import ORACLE, ClosedLoop, Diagnosis, diagnose_record
+from robofdi.models.auv import AuvModel, AuvModelMismatch
+from robofdi.observers.auv import (
+    CurrentMap, DepthSwitchingControl, DepthVote, ForceObserver, VoltageResidual, identify_current_characteristic,
+    identify_depth_arx, vertical_force,
+)
+from robofdi.record import Record
+from robofdi.sims.auv import AuvSensors, AuvSimulator
+
+__all__ = ["AuvScenario", "AuvCalibration", "DIAGNOSERS", "VARIANTS", "FAULT_TARGETS", "fault_targets", "draw_mission",
+           "odin_mission", "calibrate", "build_loop", "run_scenario", "tracking_rms", "thruster_names",
+           "current_map_regions", "check_scenario", "depth_switch_time", "ALL_DIAGNOSERS"]
+
+DIAGNOSERS = ("voltage_residual", "current_map", "force_observer")
+#: Every diagnoser a scenario may run (depth_vote: the ODIN depth-sensor scheme, with its ARX virtual sensor).
+ALL_DIAGNOSERS = DIAGNOSERS + ("depth_vote",)
+VARIANTS = ("no_ftc", "oracle", "diagnosed")
+
+
+def thruster_names(n: int = 8) -> list[str]:
+    return [f"thruster{i}" for i in range(1, n + 1)]
+
+
+#: Fault kind -> (targets, (min, max) magnitude in the kind's unit) on the shipped vehicle. Thruster kinds act on
+#: every thruster; the sensor kinds on the channels named.
+FAULT_TARGETS: dict[str, tuple[tuple[str, ...], tuple[float, float]]] = {
+    "actuator_float": (tuple(thruster_names()), (0.0, 0.0)),                       # rotor failure (drive zeroed)
+    "actuator_loss_of_effectiveness": (tuple(thruster_names()), (0.3, 1.0)),
+    "actuator_lock_in_place": (tuple(thruster_names()), (0.0, 0.0)),               # stuck command
+    "component_thruster_blocking": (tuple(thruster_names()), (1.0, 1.0)),
+    "component_thruster_flooding": (tuple(thruster_names()), (0.2, 0.6)),
+    "sensor_dropout": (("depth", "u", "v", "w"), (0.0, 0.0)),                      # depth zeroing, DVL dropout
+    "sensor_bias": (("yaw",), (-0.3, 0.3)),                                        # compass bias [rad]
+}
+
+
+def fault_targets(kind: str | None = None):
+    """:data:`FAULT_TARGETS`, or one kind's (targets, limits); an unknown kind is a clear error."""
+    if kind is None:
+        return dict(FAULT_TARGETS)
+    if kind not in FAULT_TARGETS:
+        raise RobofdiError(f"fault_targets: kind {kind!r} is not used on the AUV; expected one of {sorted(FAULT_TARGETS)}")
+    return FAULT_TARGETS[kind]
+
+
+def odin_mission(duration: float, start_depth: float = 5.0, side: float = 2.0, speed: float = 0.2,
+                 dwell: float = 3.0) -> Mission:
+    """ODIN-like 6-DOF task (digest §6.8): a ``side`` m square in x–y with ±1 m depth steps and ±30° yaw, peak
+    speed ``speed``, repeated until ``duration``."""
+    corners = [(side, 0.0, 1.0, np.pi / 6), (side, side, 0.0, -np.pi / 6), (0.0, side, -1.0, 0.0), (0.0, 0.0, 0.0, 0.0)]
+    wp = [np.array([0.0, 0.0, -start_depth, 0.0, 0.0, 0.0])]
+    durations, t, k = [], 0.0, 0
+    while t < duration:
+        x, y, dz, yaw = corners[k % 4]
+        nxt = np.array([x, y, -start_depth - dz, 0.0, 0.0, yaw])
+        d = max(4.0, 1.875 * np.linalg.norm(nxt[:3] - wp[-1][:3]) / speed)
+        wp += [nxt, nxt]
+        durations += [d, dwell]
+        t += d + dwell
+        k += 1
+    return Mission.through(wp, durations)
+
+
+def draw_mission(seed: int, duration: float, limits: MissionLimits | None = None, name: str = "mission") -> Mission:
+    """A random mission of ``duration`` s from ``seed`` (stream ``("mission", name)``)."""
+    return random_mission(seed, duration, limits or MissionLimits(), name=name)
+
+
+@dataclass(frozen=True)
+class AuvScenario:
+    """One AUV scenario: vehicle, mission, faults, diagnosers, accommodation.
+
+    mission: "odin" (:func:`odin_mission`) or "random" (:func:`draw_mission` from ``seed``); duration [s];
+    current [m/s] world-frame ocean current; control_dt [s] (diagnosis at the control rate); allocation: one of
+    :data:`~robofdi.ftc.allocation.ALLOCATORS`; variant: one of :data:`VARIANTS`; health_source: the diagnoser whose
+    health the "diagnosed" variant uses; calibration_runs × calibration_duration [s] of fault-free missions;
+    threshold_margin ≥ 1; blanking [s] of start-up samples; current_map_filter [s]: time constant of the current
+    map's filters (a flooded thruster's mismatch is persistent; 0.5 s as the digest's persistence).
+    """
+
+    name: str = "ch4-auv"
+    mjcf: str = "auv.xml"
+    mission: str = "odin"
+    duration: float = 120.0
+    seed: int = 0
+    faults: tuple = ()
+    current: tuple = (0.10, 0.05, 0.0)
+    control_dt: float = 0.02
+    sensors: AuvSensors = field(default_factory=AuvSensors)
+    mismatch: AuvModelMismatch = field(default_factory=AuvModelMismatch)
+    diagnosers: tuple = DIAGNOSERS
+    allocation: str = "constrained"
+    variant: str = "diagnosed"
+    health_source: str = "voltage_residual"
+    thrust_limit: float = 40.0
+    calibration_runs: int = 3
+    calibration_duration: float = 240.0
+    threshold_margin: float = 2.0
+    blanking: float = 3.0
+    start_depth: float = 5.0
+    current_map_filter: float = 0.5
+    depth_redundancy: bool = False
+    floor_depth: float = 20.0
+
+    def __post_init__(self):
+        object.__setattr__(self, "faults", tuple(self.faults))
+        object.__setattr__(self, "diagnosers", tuple(self.diagnosers))
+        if self.mission not in ("odin", "random"):
+            raise RobofdiError(f"AuvScenario: field 'mission' must be 'odin' or 'random', got {self.mission!r}")
+        if not (np.isfinite(self.duration) and self.duration > 0):
+            raise RobofdiError(f"AuvScenario: field 'duration' must be > 0 s, got {self.duration!r}")
+        unknown = [d for d in self.diagnosers if d not in ALL_DIAGNOSERS]
+        if unknown:
+            raise RobofdiError(f"AuvScenario: unknown diagnoser {unknown[0]!r}; expected some of {ALL_DIAGNOSERS}")
+        if self.allocation not in ALLOCATORS:
+            raise RobofdiError(f"AuvScenario: field 'allocation' must be one of {ALLOCATORS}, got {self.allocation!r}")
+        if self.variant not in VARIANTS:
+            raise RobofdiError(f"AuvScenario: field 'variant' must be one of {VARIANTS}, got {self.variant!r}")
+        if self.variant == "diagnosed" and self.health_source not in self.diagnosers:
+            raise RobofdiError(f"AuvScenario: field 'health_source' must be one of the diagnosers {self.diagnosers}, "
+                               f"got {self.health_source!r}")
+        if not (isinstance(self.calibration_runs, int) and self.calibration_runs >= 1):
+            raise RobofdiError(f"AuvScenario: field 'calibration_runs' must be an integer >= 1, got {self.calibration_runs!r}")
+        if not (np.isfinite(self.threshold_margin) and self.threshold_margin >= 1):
+            raise RobofdiError(f"AuvScenario: field 'threshold_margin' must be >= 1, got {self.threshold_margin!r}")
+        for f in self.faults:
+            if not isinstance(f, Fault):
+                raise RobofdiError(f"AuvScenario: field 'faults' must hold Fault objects, got {f!r}")
+
+    def simulator(self) -> AuvSimulator:
+        return AuvSimulator(self.mjcf, self.control_dt, current=self.current, sensors=self.sensors,
+                            thrust_limit=self.thrust_limit, floor_depth=self.floor_depth, seed=self.seed)
+
+    def nominal_model(self, sim: AuvSimulator) -> AuvModel:
+        return sim.nominal_model(self.mismatch)
+
+    def reference(self) -> Mission:
+        if self.mission == "odin":
+            return odin_mission(self.duration, self.start_depth)
+        return draw_mission(self.seed, self.duration)
+
+    @property
+    def start_pose(self) -> np.ndarray:
+        return np.array([0.0, 0.0, self.start_depth, 0.0, 0.0, 0.0])
+
+
+@dataclass(frozen=True)
+class AuvCalibration:
+    """What calibration learned (picklable): the current characteristic θ (3,) and each diagnoser's thresholds."""
+
+    characteristic: np.ndarray
+    thresholds: Mapping[str, np.ndarray]
+    blanking: int
+    sample_time: float
+    arx: np.ndarray | None = None
+
+
+def _depth_vote(scenario: AuvScenario, model: AuvModel, channels, arx) -> DepthVote:
+    return DepthVote(model, channels, scenario.control_dt, arx, scenario.floor_depth, thrust_limit=scenario.thrust_limit)
+
+
+def _diagnosers(scenario: AuvScenario, model: AuvModel, channels, characteristic, arx=None) -> dict:
+    T = scenario.control_dt
+    make = {
+        "depth_vote": lambda: _depth_vote(scenario, model, channels, arx),
+        "voltage_residual": lambda: VoltageResidual(model, channels, T, thrust_limit=scenario.thrust_limit),
+        "current_map": lambda: CurrentMap(model, channels, T, characteristic, tau=scenario.current_map_filter,
+                                          thrust_limit=scenario.thrust_limit),
+        "force_observer": lambda: ForceObserver(model, channels, T, thrust_limit=scenario.thrust_limit),
+    }
+    return {name: make[name]() for name in scenario.diagnosers}
+
+
+def _controller(model: AuvModel) -> TaskSpaceAuvControl:
+    return TaskSpaceAuvControl(model, kp=(1.0, 1.0, 1.0, 4.0, 4.0, 4.0), kv=(2.0, 2.0, 2.0, 4.0, 4.0, 4.0))
+
+
+def _allocation(scenario: AuvScenario, model: AuvModel) -> ThrustReallocation:
+    return ThrustReallocation(model.B, model.thrusters, scenario.thrust_limit, scenario.allocation)
+
+
+def _reference_columns() -> tuple[list[str], list[str]]:
+    cols = [f"{n}_{part}" for part in ("d", "dot_d", "ddot_d") for n in POSE_NAMES]
+    units = ["m"] * 3 + ["rad"] * 3 + ["m/s"] * 3 + ["rad/s"] * 3 + ["m/s²"] * 3 + ["rad/s²"] * 3
+    return cols, units
+
+
+#: Envelope of the calibration missions: wider than the missions flown (yaw ±45° vs ±30°, 0.25 m/s vs 0.2 m/s), so
+#: thresholds cover the operating envelope rather than one trajectory.
+CALIBRATION_LIMITS = MissionLimits(half_width=2.5, depth=(3.0, 8.0), yaw=np.pi / 4, speed=0.25, dwell=3.0)
+
+
+def calibration_records(scenario: AuvScenario, progress: Callable[[int], None] | None = None) -> list[Record]:
+    """Fault-free random missions over :data:`CALIBRATION_LIMITS` (their own mission streams and noise), no
+    diagnoser in the loop."""
+    sim = scenario.simulator()
+    model = scenario.nominal_model(sim)
+    cols, units = _reference_columns()
+    records = []
+    for k in range(scenario.calibration_runs):
+        ref = draw_mission(scenario.seed, scenario.calibration_duration, CALIBRATION_LIMITS, name=f"calibration{k}")
+        loop = ClosedLoop(sim, _controller(model), ref, accommodation=_allocation(scenario, model),
+                          reference_columns=cols, reference_units=units)
+        records.append(loop.run(scenario.calibration_duration, scenario.start_pose, seed=scenario.seed,
+                                run_key=f"calibration{k}", scenario=f"calibration:{k}", progress=progress))
+    return records
+
+
+def calibrate(scenario: AuvScenario, progress: Callable[[int], None] | None = None,
+              records: list[Record] | None = None) -> AuvCalibration:
+    """Identify the current characteristic on the calibration telemetry, then each diagnoser's thresholds
+    (margin × peak |r| over the calibration runs, the start-up blanking skipped)."""
+    records = records if records is not None else calibration_records(scenario, progress)
+    sim = scenario.simulator()
+    model = scenario.nominal_model(sim)
+    channels = sim.sensor_channels
+    p = len(sim.actuators)
+    speed = np.vstack([r.signals["y_meas"][:, 13:13 + p] for r in records])
+    current = np.vstack([r.signals["y_meas"][:, 13 + p:13 + 2 * p] for r in records])
+    theta = identify_current_characteristic(speed, current, scenario.control_dt, scenario.current_map_filter)
+    arx = identify_depth_arx(*_arx_series(records, model, 5))
+    skip = startup_samples(scenario.control_dt, scenario.blanking)
+    thresholds = {}
+    for name, diagnoser in _diagnosers(scenario, model, channels, theta, arx).items():
+        residuals = [diagnose_record(r, Diagnosis(diagnoser)).residual for r in records]
+        thresholds[name] = calibrate_thresholds(residuals, scenario.threshold_margin, skip)
+    return AuvCalibration(theta, thresholds, skip, scenario.control_dt, arx)
+
+
+def _arx_series(records: list[Record], model: AuvModel, decimation: int) -> tuple[np.ndarray, np.ndarray]:
+    """Pressure depth [m] every ``decimation`` samples and the mean downward thruster force [N] over the interval
+    ending there, concatenated over the records (the first samples of each run dropped)."""
+    zs, Fs = [], []
+    for r in records:
+        y, u = r.signals["y_meas"], r.signals["u"]
+        down = np.array([-vertical_force(model, y[k, 4:7], u[k]) for k in range(len(u))])
+        n = (len(u) - 1) // decimation
+        z = y[decimation::decimation, 2][:n]
+        F = down[: n * decimation].reshape(n, decimation).mean(axis=1)
+        zs.append(z[10:])
+        Fs.append(F[10:])
+    return np.concatenate(zs), np.concatenate(Fs)
+
+
+def build_loop(scenario: AuvScenario, cal: AuvCalibration) -> ClosedLoop:
+    """The scenario's closed loop: controller, allocation (health per ``scenario.variant``), diagnoses, faults."""
+    if abs(cal.sample_time - scenario.control_dt) > 1e-12:
+        raise RobofdiError(f"build_loop: the calibration is for a sample time of {cal.sample_time} s, the scenario "
+                           f"runs at {scenario.control_dt} s")
+    sim = scenario.simulator()
+    model = scenario.nominal_model(sim)
+    diagnoses = {}
+    for name, d in _diagnosers(scenario, model, sim.sensor_channels, cal.characteristic, cal.arx).items():
+        decision = ThresholdDecision(d.components, cal.thresholds[name], d.signatures(), blanking=cal.blanking)
+        diagnoses[name] = Diagnosis(d, decision)
+    health = {"no_ftc": None, "oracle": ORACLE, "diagnosed": scenario.health_source}[scenario.variant]
+    cols, units = _reference_columns()
+    controller = _controller(model)
+    if scenario.depth_redundancy:
+        controller = DepthSwitchingControl(controller, _depth_vote(scenario, model, sim.sensor_channels, cal.arx))
+    return ClosedLoop(sim, controller, scenario.reference(), scenario.faults, diagnoses,
+                      accommodation=_allocation(scenario, model), health_source=health,
+                      reference_columns=cols, reference_units=units)
+
+
+def check_scenario(scenario: AuvScenario) -> None:
+    """Raise before any calibration if a fault names an unknown target or kind for this vehicle."""
+    sim = scenario.simulator()
+    FaultInjector(scenario.faults, sim.actuators, sim.sensor_channels, 0, component_kinds=sim.component_kinds)
+
+
+def tracking_rms(record: Record, since: float = 0.0) -> float:
+    """RMS position tracking error [m] (3-D) for t ≥ ``since``."""
+    keep = record.time >= since
+    err = record.signals["reference"][keep, :3] - record.truth_state[keep, :3]
+    return float(np.sqrt(np.mean(np.sum(err**2, axis=1)))) if keep.any() else float("nan")
+
+
+def current_map_regions(record: Record, faults, window: float = 1.0) -> dict:
+    """Per thruster fault: the current map's region (:func:`~robofdi.observers.auv.current_map_region`) that holds
+    most often over ``window`` s from the first sample isolating the fault's target (a persistence, as the
+    digest's 0.5 s band persistence), with that isolation time [s]; region None when never isolated."""
+    from collections import Counter
+
+    from robofdi.observers.auv import current_map_region
+
+    tr = record.diagnosers["current_map"]
+    names = record.columns["signals/u"]
+    p = len(names)
+    out = {}
+    for f in faults:
+        if f.target not in names:
+            continue
+        i = names.index(f.target)
+        hit = np.flatnonzero((tr.time >= f.onset) & np.array([f.target in str(s).split("+") for s in tr.isolated]))
+        if not hit.size:
+            out[f.name] = {"region": None, "time": None, "kind": f.kind}
+            continue
+        t0 = float(tr.time[hit[0]])
+        span = (tr.time >= t0) & (tr.time < t0 + window)
+        votes = Counter(current_map_region(r[i], r[p + i], tr.threshold[i], tr.threshold[p + i]) for r in tr.residual[span])
+        votes = Counter({k: v for k, v in votes.items() if k != "nominal"}) or votes
+        out[f.name] = {"region": votes.most_common(1)[0][0], "time": t0, "kind": f.kind}
+    return out
+
+
+def depth_switch_time(record: Record, diagnoser: str = "depth_vote") -> float | None:
+    """When the depth vote disconnected the pressure sensor [s]: the first sample whose identified pressure error
+    (pressure − accepted depth) is non-zero — before the switch the accepted depth is the pressure itself."""
+    tr = record.diagnosers.get(diagnoser)
+    if tr is None:
+        return None
+    col = tr.estimate_components.index("depth")
+    hit = np.flatnonzero(np.abs(tr.estimate[:, col]) > 0)
+    return float(tr.time[hit[0]]) if hit.size else None
+
+
+def run_scenario(scenario: AuvScenario, cal: AuvCalibration, progress: Callable[[int], None] | None = None,
+                 run_key: str = "run") -> tuple[Record, dict]:
+    """One run → (record, summary.json contents). The same seed and run_key give the same noise whatever the
+    variant, so variants differ only by their accommodation."""
+    loop = build_loop(scenario, cal)
+    meta = {"mjcf": scenario.mjcf, "variant": scenario.variant, "allocation": scenario.allocation,
+            "current": list(scenario.current), "mission": scenario.mission, "thrust_limit": scenario.thrust_limit}
+    record = loop.run(scenario.duration, scenario.start_pose, seed=scenario.seed, run_key=run_key,
+                      scenario=scenario.name, meta=meta, progress=progress)
+    return record, summarize(record, scenario.name)
+
+
+def with_variant(scenario: AuvScenario, variant: str) -> AuvScenario:
+    return replace(scenario, variant=variant)
