@@ -181,6 +181,9 @@ _EFFECTS = {
     "sensor_outliers": Outliers,
     "component_friction": Level,
     "component_mass": Level,
+    "component_open_winding": Level,
+    "component_valve_sticking": Level,
+    "component_leak": Level,
 }
 
 

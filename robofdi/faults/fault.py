@@ -64,6 +64,10 @@ FAULT_KINDS: dict[str, FaultKind] = {
     "sensor_outliers": FaultKind({"probability": _PROBABILITY}, description="y ± m·p with the given probability per sample"),
     "component_friction": FaultKind(unit="1", description="joint friction × (1 + m·p) (friction rise)"),
     "component_mass": FaultKind(unit="kg", description="m·p kg added to a body (damage, payload change)"),
+    "component_open_winding": FaultKind(profiles="unit", unit="1",
+                                        description="servovalve coil current × (1 − m·p); m = 1 an open circuit"),
+    "component_valve_sticking": FaultKind(unit="1", description="spool stick–slip with a stiction band of m·p (stroke)"),
+    "component_leak": FaultKind(unit="mm^2", description="orifice of m·p mm² from a motor line to tank (ruptured line)"),
 }
 
 

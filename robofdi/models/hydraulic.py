@@ -1,0 +1,91 @@
+"""The wheel actuator's nominal model (belief): Leuschen, Walker & Cavallaro eqs. (8)–(10).
+
+    θ̈ = −(B_m/J_t) θ̇ + (d_m/J_t) p_l [− (d_m/J_t) p_L]                         (9), load term per ``load_model``
+    ṗ_l = −(4β_e d_m/v_t) θ̇ − (4β_e C_tm/v_t) p_l + (4β_e K_f/v_t) sqrt(2(p_s − p_l)/ρ) u_v
+    y = [θ̇, p_l]                                                                   (10)
+
+Parameters are catalogue values (:data:`CATALOGUE`): the Black Bruin 404-080 ratings and nominal oil data, the
+supply taken as a constant 3000 psi — not the simulated rig's (which sags, leaks more, and has other oil).
+``load_model``: "none" (eq. (9) as printed: the pump's torque is missing, a bias R1 = T_l/J_t) or
+"measured_pump_pressure" (the measured pump ΔP p_L enters as a known input; spec digest §3 [ERRATUM] 1).
+``supply``: "constant" (p_s a parameter) or "measured" (p_s a measured input — better modelling, §6.4).
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import sympy as sp
+
+from robofdi.errors import RobofdiError
+from robofdi.redundancy.model import ControlAffineModel
+
+__all__ = ["HydraulicParameters", "CATALOGUE", "PSI", "hydraulic_model", "hydraulic_domain", "LOAD_MODELS", "SUPPLY_MODELS"]
+
+PSI = 6894.757293168
+LOAD_MODELS = ("none", "measured_pump_pressure")
+SUPPLY_MODELS = ("constant", "measured")
+
+
+@dataclass(frozen=True)
+class HydraulicParameters:
+    """Motor/valve parameters in SI units (m³/rad, kg m², N m s/rad, m³/(s Pa), Pa, m³, m², kg/m³)."""
+
+    d_m: float = 2990.0 / 250e5          # displacement from the 2990 N m @ 250 bar rating
+    J_t: float = 1.5
+    B_m: float = 5.0
+    C_tm: float = 1.0e-12
+    beta_e: float = 1.0e9
+    v_t: float = 2.0e-3
+    K_f: float = 5.0e-6
+    rho: float = 860.0
+    p_s: float = 3000.0 * PSI
+
+    def __post_init__(self):
+        for k, v in asdict(self).items():
+            if not (isinstance(v, (int, float)) and v > 0):
+                raise RobofdiError(f"HydraulicParameters: field {k!r} must be a number > 0, got {v!r}")
+
+
+#: The catalogue model: ratings of the Black Bruin 404-080 and the book's 3000 psi supply (spec digest §6.1).
+CATALOGUE = HydraulicParameters()
+
+
+def hydraulic_model(params: HydraulicParameters = CATALOGUE, load_model: str = "measured_pump_pressure",
+                    supply: str = "constant") -> ControlAffineModel:
+    """Eqs. (8)–(10) as a :class:`ControlAffineModel`; inputs u_v (and p_L, p_s as measured inputs per the options)."""
+    if load_model not in LOAD_MODELS:
+        raise RobofdiError(f"hydraulic_model: field 'load_model' must be one of {LOAD_MODELS}, got {load_model!r}")
+    if supply not in SUPPLY_MODELS:
+        raise RobofdiError(f"hydraulic_model: field 'supply' must be one of {SUPPLY_MODELS}, got {supply!r}")
+    theta, omega, p_l, u_v, p_L = sp.symbols("theta omega p_l u_v p_L")
+    d_m, J_t, B_m, C_tm, beta_e, v_t, K_f, rho, p_s = sp.symbols("d_m J_t B_m C_tm beta_e v_t K_f rho p_s", positive=True)
+    values = {d_m: params.d_m, J_t: params.J_t, B_m: params.B_m, C_tm: params.C_tm, beta_e: params.beta_e,
+              v_t: params.v_t, K_f: params.K_f, rho: params.rho, p_s: params.p_s}
+    inputs, names, units = [u_v], ["valve"], ["1"]
+    supply_p = p_s
+    if supply == "measured":
+        # p_s measured: the model keeps the √ term in p_s, affine in u_v only through a measured gain — written as
+        # an input φ_s = u_v·sqrt(2(p_s − p_l)/ρ) is not control-affine in p_s, so p_s is a slowly varying parameter
+        # refreshed from its sensor (see HydraulicNLAR).
+        pass
+    omega_dot = -(B_m / J_t) * omega + (d_m / J_t) * p_l
+    if load_model == "measured_pump_pressure":
+        omega_dot -= (d_m / J_t) * p_L
+        inputs.append(p_L)
+        names.append("pump_pressure")
+        units.append("Pa")
+    p_dot = (-(4 * beta_e * d_m / v_t) * omega - (4 * beta_e * C_tm / v_t) * p_l
+             + (4 * beta_e * K_f / v_t) * sp.sqrt(2 * (supply_p - p_l) / rho) * u_v)
+    return ControlAffineModel.from_equations(
+        [theta, omega, p_l], inputs, [omega, omega_dot, p_dot], [omega, p_l], values,
+        output_names=("shaft_speed", "load_pressure"), input_names=tuple(names),
+        output_units=("rad/s", "Pa"), input_units=tuple(units), name=f"hydraulic[{load_model}]")
+
+
+def hydraulic_domain(model: ControlAffineModel) -> dict:
+    """Where eqs. (8)–(10) are valid and generic: u_v > 0, p_l < p_s (spec digest §3 [ERRATUM] 2)."""
+    by = {str(s): s for s in (*model.states, *model.inputs)}
+    dom = {by["omega"]: (0.1, 2.0), by["p_l"]: (1e5, 5e6), by["u_v"]: (0.01, 0.5), by["theta"]: (0.0, 6.0)}
+    if "p_L" in by:
+        dom[by["p_L"]] = (0.0, 3e6)
+    return dom
