@@ -23,7 +23,7 @@ def _book(design):
     S = {str(s): s for s in design.model.params}
     B, J, d, C, b, v, K, rho, ps = (S[k] for k in ("B_m", "J_t", "d_m", "C_tm", "beta_e", "v_t", "K_f", "rho", "p_s"))
     y1, y1d, y1dd, y2, y2d, y2dd, u, ud = sp.symbols(
-        "shaft_speed shaft_speed_d1 shaft_speed_d2 load_pressure load_pressure_d1 load_pressure_d2 valve valve_d1")
+        "shaft_speed shaft_speed_d1 shaft_speed_d2 load_pressure load_pressure_d1 load_pressure_d2 servovalve servovalve_d1")
     phi = sp.sqrt(2 * (ps - y2) / rho)
     R1 = -y1d - B / J * y1 + d / J * y2
     R2_printed = -y1dd + (B**2 / J**2 - 4 * b * d**2 / (J * v)) * y1 + (-B * d / J**2 - 4 * b * d * C / (J * v)) * y2

@@ -14,12 +14,14 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
+import numpy as np
 import sympy as sp
 
 from robofdi.errors import RobofdiError
 from robofdi.redundancy.model import ControlAffineModel
 
-__all__ = ["HydraulicParameters", "CATALOGUE", "PSI", "hydraulic_model", "hydraulic_domain", "LOAD_MODELS", "SUPPLY_MODELS"]
+__all__ = ["HydraulicParameters", "CATALOGUE", "PSI", "hydraulic_model", "hydraulic_domain", "linearised_model", "flow_gains",
+           "LOAD_MODELS", "SUPPLY_MODELS"]
 
 PSI = 6894.757293168
 LOAD_MODELS = ("none", "measured_pump_pressure")
@@ -61,7 +63,7 @@ def hydraulic_model(params: HydraulicParameters = CATALOGUE, load_model: str = "
     d_m, J_t, B_m, C_tm, beta_e, v_t, K_f, rho, p_s = sp.symbols("d_m J_t B_m C_tm beta_e v_t K_f rho p_s", positive=True)
     values = {d_m: params.d_m, J_t: params.J_t, B_m: params.B_m, C_tm: params.C_tm, beta_e: params.beta_e,
               v_t: params.v_t, K_f: params.K_f, rho: params.rho, p_s: params.p_s}
-    inputs, names, units = [u_v], ["valve"], ["1"]
+    inputs, names, units = [u_v], ["servovalve"], ["1"]
     supply_p = p_s
     if supply == "measured":
         # p_s measured: the model keeps the √ term in p_s, affine in u_v only through a measured gain — written as
@@ -89,3 +91,31 @@ def hydraulic_domain(model: ControlAffineModel) -> dict:
     if "p_L" in by:
         dom[by["p_L"]] = (0.0, 3e6)
     return dom
+
+
+def flow_gains(params: HydraulicParameters, u0: float, p0: float) -> tuple[float, float, float]:
+    """(Q0, k_q, k_c) of the symmetric valve law Q = K_f u sqrt(2(p_s − sgn(u) p)/ρ) linearised at (u0, p0):
+    Q ≈ Q0 + k_q (u − u0) − k_c (p − p0) — digest §5.1 (u0 = 0 takes the book's one-sided form)."""
+    s = 1.0 if u0 >= 0 else -1.0
+    phi = float(np.sqrt(2 * max(params.p_s - s * p0, 1.0) / params.rho))
+    return params.K_f * u0 * phi, params.K_f * phi, params.K_f * abs(u0) / (params.rho * phi)
+
+
+def linearised_model(params: HydraulicParameters = CATALOGUE, u0: float = 0.0, p0: float = 0.0,
+                     load_model: str = "measured_pump_pressure") -> ControlAffineModel:
+    """Eqs. (8)–(10) with the valve law linearised at (u0, p0): M = k_c + C_tm replaces C_tm (linear AR's model)."""
+    theta, omega, p_l, u_v, p_L = sp.symbols("theta omega p_l u_v p_L")
+    Q0, kq, kc = flow_gains(params, u0, p0)
+    P = params
+    omega_dot = -(P.B_m / P.J_t) * omega + (P.d_m / P.J_t) * p_l
+    inputs, names, units = [u_v], ["servovalve"], ["1"]
+    if load_model == "measured_pump_pressure":
+        omega_dot -= (P.d_m / P.J_t) * p_L
+        inputs.append(p_L)
+        names.append("pump_pressure")
+        units.append("Pa")
+    p_dot = 4 * P.beta_e / P.v_t * (-P.d_m * omega - (P.C_tm + kc) * p_l + Q0 - kq * u0 + kc * p0 + kq * u_v)
+    return ControlAffineModel.from_equations(
+        [theta, omega, p_l], inputs, [omega, omega_dot, p_dot], [omega, p_l], {},
+        output_names=("shaft_speed", "load_pressure"), input_names=tuple(names),
+        output_units=("rad/s", "Pa"), input_units=tuple(units), name=f"hydraulic-linear@({u0:.3g},{p0:.3g})")

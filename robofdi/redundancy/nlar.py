@@ -112,28 +112,35 @@ class NLARDesign:
                     top = max(top, k)
         return top
 
-    def arguments(self) -> list[sp.Symbol]:
-        """Symbols the kept tests take, in a fixed order: each output's derivatives 0…rⱼ, then each input's 0…q."""
+    def arguments(self, measured: Mapping | None = None) -> list[sp.Symbol]:
+        """Symbols the kept tests take, in a fixed order: each output's derivatives 0…rⱼ, then each input's 0…q,
+        then the signals of ``measured`` parameters (see :meth:`residual_function`)."""
         q = self.max_input_order()
         args = [derivative_symbol(n, k) for j, n in enumerate(self.model.output_names) for k in range(self.orders[j] + 1)]
         args += [derivative_symbol(n, k) for n in self.model.input_names for k in range(q + 1)]
+        args += [sp.Symbol(v) for v in (measured or {}).values()]
         return args
 
-    def residual_function(self, params: Mapping | None = None, names=None):
+    def residual_function(self, params: Mapping | None = None, names=None, measured: Mapping | None = None):
         """Fast numeric tests: a function of :meth:`arguments` (positional floats) returning the kept tests, built
         by sympy.lambdify with common subexpressions eliminated; ``params`` (symbol or name → value) override the
-        model's nominal values."""
+        model's nominal values; ``measured`` (parameter name → signal name) turns slowly varying parameters into
+        measured signals (e.g. the supply pressure p_s from its sensor; its time derivative is neglected)."""
         values = dict(self.model.params)
-        if params:
-            by_name = {str(k): k for k in values}
-            for k, v in params.items():
-                key = by_name.get(str(k))
-                if key is None:
-                    raise RobofdiError(f"residual_function: unknown parameter {k!r}; expected some of {sorted(by_name)}")
-                values[key] = float(v)
+        by_name = {str(k): k for k in values}
+        for k, v in (params or {}).items():
+            key = by_name.get(str(k))
+            if key is None:
+                raise RobofdiError(f"residual_function: unknown parameter {k!r}; expected some of {sorted(by_name)}")
+            values[key] = float(v)
+        for k, sig in (measured or {}).items():
+            key = by_name.get(str(k))
+            if key is None:
+                raise RobofdiError(f"residual_function: unknown measured parameter {k!r}; expected one of {sorted(by_name)}")
+            values[key] = sp.Symbol(sig)
         names = list(self.independent if names is None else names)
         exprs = [self.tests[n].subs(values) for n in names]
-        return sp.lambdify(self.arguments(), exprs, modules="math", cse=True)
+        return sp.lambdify(self.arguments(measured), exprs, modules="math", cse=True)
 
 
 def _total_derivative(expr, model: ControlAffineModel, depth: int) -> sp.Expr:

@@ -15,7 +15,7 @@ from robofdi.errors import RobofdiError
 from robofdi.observers.residual import Residual, check_measurement
 from robofdi.redundancy.derivatives import DerivativeEstimator, SavitzkyGolay
 
-__all__ = ["SignalMap", "RedundancyResidual"]
+__all__ = ["SignalMap", "RedundancyResidual", "nlar_residual"]
 
 
 class SignalMap:
@@ -109,3 +109,43 @@ class RedundancyResidual:
 
     def signatures(self) -> Sequence[Signature]:
         return self._sigs
+
+
+def nlar_residual(design, measurements: Sequence[str], inputs: Sequence[str], filter: SavitzkyGolay,
+                  signatures: Sequence[Signature] = (), params=None, sources: dict | None = None,
+                  residual_units: Sequence[str] | None = None, measured: dict | None = None) -> RedundancyResidual:
+    """The kept NLAR tests of ``design`` (:class:`~robofdi.redundancy.nlar.NLARDesign`) as a Diagnoser.
+
+    Each model output / input is read from the simulator's channel of the same name — a sensor channel, else an
+    actuator — unless ``sources`` maps its name to ("y" | "u", index). ``params`` override nominal values;
+    ``measured`` (parameter name → signal name) reads parameters from signals (e.g. p_s from the supply sensor).
+    """
+    model = design.model
+    measured = dict(measured or {})
+    names = [*model.output_names, *model.input_names, *measured.values()]
+    sources = dict(sources or {})
+    resolved = []
+    for name in names:
+        if name in sources:
+            resolved.append(sources[name])
+        elif name in measurements:
+            resolved.append(("y", list(measurements).index(name)))
+        elif name in inputs:
+            resolved.append(("u", list(inputs).index(name)))
+        else:
+            raise RobofdiError(f"nlar_residual: model signal {name!r} is neither a sensor channel {list(measurements)} "
+                               f"nor an actuator {list(inputs)}; map it with 'sources'")
+    q = design.max_input_order()
+    orders = list(design.orders) + [q] * model.m + [0] * len(measured)
+    units = residual_units or [_test_unit(design, n) for n in design.independent]
+    return RedundancyResidual(design.residual_function(params, measured=measured), design.independent, units,
+                              measurements, inputs, SignalMap(names, resolved, orders), filter, signatures)
+
+
+def _test_unit(design, name: str) -> str:
+    """Unit of test ``name``: the unit of its measured row, y_j^(k) → unit/s^k."""
+    r = list(design.tests).index(name)
+    others = [i for i in range(len(design.rows)) if i != design.pivots[0]]
+    j, k = design.rows[others[r]]
+    unit = design.model.output_units[j] or "1"
+    return unit if k == 0 else f"{unit}/s" if k == 1 else f"{unit}/s^{k}"
