@@ -16,7 +16,7 @@ from robofdi import RobofdiError, __version__
 
 # experiment name → module of robofdi.experiments (the repository's experiments/); each module has
 # EXPERIMENTS {name: description} and run().
-MODULES = ("robofdi.experiments.ch3_industrial_robot", "robofdi.experiments.arm")
+MODULES = ("robofdi.experiments.ch3_industrial_robot", "robofdi.experiments.arm", "robofdi.experiments.ch6_hydraulic")
 # options of `robofdi run` that only some experiments take (module attribute OPTIONS lists them)
 EXPERIMENT_OPTIONS = {"robot": "--robot", "faults": "--fault", "joints": "--joints", "torque_motors": "--torque-motors"}
 

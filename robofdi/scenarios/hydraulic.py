@@ -38,7 +38,8 @@ from robofdi.seeding import rng
 from robofdi.sims.hydraulic import HydraulicRig, RigParameters, RigSensors
 
 __all__ = ["HydraulicScenario", "HydraulicCalibration", "operating_profile", "FAULT_TARGETS", "DIAGNOSERS",
-           "calibrate", "run_scenario", "build_loop", "nominal_operating_point", "fit_pressure_parameters"]
+           "calibrate", "run_scenario", "build_loop", "nominal_operating_point", "fit_pressure_parameters", "TABLE1",
+           "table1_fault", "fault_free_rms", "leak_flow_share"]
 
 DIAGNOSERS = ("nlar", "linear_ar", "plar", "nnar", "nlar_better")
 
@@ -242,3 +243,31 @@ def fault_free_rms(record: Record, name: str, since: float = 0.5) -> dict:
     keep = tr.time >= since
     return {c: float(np.sqrt(np.mean(tr.residual[keep, j] ** 2))) for j, c in enumerate(tr.components)}
 
+
+
+#: The chapter's Table 1 faults, as run by ``ch6-hydraulic`` (name → kind, target, magnitude, onset offset, end).
+#: The sticking valve acts from the ramp on (stick–slip only shows while the command moves: Fig. 7 is on the ramp).
+TABLE1 = {
+    "open_winding": ("component_open_winding", "servovalve", 1.0),
+    "sticking_valve": ("component_valve_sticking", "servovalve", 0.01),
+    "tachometer_loss": ("sensor_dropout", "shaft_speed", 0.0),
+    "leak": ("component_leak", "motor", 0.008),
+}
+
+
+def table1_fault(name: str, onset: float = 5.0, magnitude: float | None = None) -> Fault:
+    """The Table-1 fault ``name`` (open winding: open circuit; sticking: 1 % stroke stiction band from 0.5 s;
+    tachometer: reads zero; leak: 0.008 mm² to tank, ≈ 2 % of the motor flow at 5 rpm)."""
+    if name not in TABLE1:
+        raise RobofdiError(f"table1_fault: unknown fault {name!r}; expected one of {list(TABLE1)}")
+    kind, target, default = TABLE1[name]
+    start = 0.5 if name == "sticking_valve" else onset
+    return Fault(name, kind, target, onset=start, magnitude=default if magnitude is None else magnitude)
+
+
+def leak_flow_share(area_mm2: float, rpm: float = 5.0, rig: RigParameters | None = None,
+                    load_pressure: float = 1.27e6) -> float:
+    """Leak flow through ``area_mm2`` as a share of the motor flow d_m θ̇ at ``rpm`` (rig truth, for reporting)."""
+    rig = rig or RigParameters()
+    q_leak = area_mm2 * 1e-6 * np.sqrt((rig.supply_pressure + load_pressure) / rig.rho)
+    return float(q_leak / (rig.d_m * rpm * RPM))
