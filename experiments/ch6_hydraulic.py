@@ -99,31 +99,39 @@ def leak_study(base: HydraulicScenario, cal, sizes=LEAK_SIZES, onset: float = 5.
             "units": {"area_mm2": "mm^2", "flow_share": "1 (leak flow / motor flow at the target speed)", "delay": "s"}}
 
 
-def fault_free_study(base: HydraulicScenario, cal, runs: int, seed: int, progress=None) -> tuple[dict, dict]:
-    """False alarms over ``runs`` fault-free runs (random seeds and operating profiles) and the RMS of NLAR vs
-    linear AR residuals after each ramp."""
+def fault_free_study(base: HydraulicScenario, cal, runs: int, seed: int, progress=None) -> dict:
+    """False alarms over ``runs`` fault-free runs (random seeds and operating profiles)."""
     alarms = {d: 0 for d in base.diagnosers}
-    rms = {"nlar": [], "linear_ar": [], "plar": []}
     profiles = []
     for i in range(runs):
         s_i = 5000 + 100 * seed + i
         prof = operating_profile(s_i)
         sc = replace(base, name=f"fault-free-{i}", seed=s_i, **prof)
-        rec = run_scenario(sc, cal, run_key=f"fault_free/{i}", progress=progress)
-        s = summarize(rec, "ch6-hydraulic", [])
+        s = summarize(run_scenario(sc, cal, run_key=f"fault_free/{i}", progress=progress), "ch6-hydraulic", [])
         for d in alarms:
             if d in s["diagnosers"]:
                 alarms[d] += s["diagnosers"][d]["false_alarms"]
-        for d in rms:
-            if d in rec.diagnosers:
-                rms[d].append(fault_free_rms(rec, d, since=prof["ramp_time"] + 0.5))
         profiles.append({**prof, "seed": s_i})
-    rms_mean = {d: {c: float(np.sqrt(np.mean([r[c] ** 2 for r in v]))) for c in v[0]} for d, v in rms.items() if v}
-    ratio = {c: rms_mean["linear_ar"][c] / rms_mean["nlar"][c] for c in NLAR_TESTS} if "linear_ar" in rms_mean else {}
-    return ({"runs": runs, "false_alarms": alarms, "profiles": profiles},
-            {"rms": rms_mean, "linear_over_nlar": ratio,
-             "units": {"R1": "rad/s^2", "R2": "rad/s^3", "R4": "Pa/s", "R5": "Pa/s^2"},
-             "window": "t >= ramp end + 0.5 s, every fault-free run"})
+    return {"runs": runs, "false_alarms": alarms, "profiles": profiles}
+
+
+#: Operating range of the RMS comparison: target speeds [rpm] on a light load (the valve opening spans 0.05–0.6).
+RMS_SPEEDS = (5.0, 15.0, 30.0, 45.0)
+
+
+def rms_study(base: HydraulicScenario, cal, seed: int, speeds=RMS_SPEEDS, progress=None) -> dict:
+    """Fault-free residual RMS of NLAR vs linear AR (and PLAR) at each target speed, after the ramp."""
+    out = {}
+    for rpm in speeds:
+        sc = replace(base, name=f"rms-{rpm:g}", target_rpm=rpm, ramp_time=2.0, throttle_area=6e-6,
+                     seed=7000 + 100 * seed + int(rpm), diagnosers=("nlar", "linear_ar", "plar", "nlar_better"),
+                     rig=replace(base.rig, overspeed=4 * rpm * 2 * np.pi / 60))
+        rec = run_scenario(sc, cal, run_key=f"rms/{rpm:g}", progress=progress)
+        rms = {d: fault_free_rms(rec, d, since=2.5) for d in sc.diagnosers}
+        out[f"{rpm:g} rpm"] = {**rms, "linear_over_nlar": {c: rms["linear_ar"][c] / rms["nlar"][c] for c in NLAR_TESTS},
+                               "valve_opening": float(np.mean(rec.signals["u"][rec.time >= 2.5, 0]))}
+    return {"by_speed": out, "units": {"R1": "rad/s^2", "R2": "rad/s^3", "R4": "Pa/s", "R5": "Pa/s^2", "valve_opening": "1"},
+            "window": "t >= 2.5 s (after the 2 s ramp), light load (throttle 6 mm²)"}
 
 
 def run(name: str = "ch6-hydraulic", out: str | Path = "runs", seed: int = 0, progress: bool = True,
@@ -137,7 +145,8 @@ def run(name: str = "ch6-hydraulic", out: str | Path = "runs", seed: int = 0, pr
     base = HydraulicScenario("baseline", duration=duration, seed=seed)
     run_dir = prepare_run_dir(out, name, seed)
     ticks = int(duration * 1000)
-    total = (calibration_runs + len(SCENARIOS) + fault_free_runs) * ticks + len(LEAK_SIZES) * int((onset + 2) * 1000)
+    total = ((calibration_runs + len(SCENARIOS) + fault_free_runs + len(RMS_SPEEDS)) * ticks
+             + len(LEAK_SIZES) * int((onset + 2) * 1000))
     bar = tqdm(total=total, desc=f"{name}: calibrate", unit="step", disable=not progress, leave=False)
     with bar, keep_partial(run_dir):
         cal, cached = _calibration(base, seed, calibration_runs, bar.update)
@@ -153,7 +162,9 @@ def run(name: str = "ch6-hydraulic", out: str | Path = "runs", seed: int = 0, pr
                                            derivative_filter_delay=sc.filter().delay,
                                            profile=sc.profile(), scenario=sc_name)
         bar.set_description(f"{name}: fault-free runs")
-        false_alarms, rms = fault_free_study(base, cal, fault_free_runs, seed, bar.update)
+        false_alarms = fault_free_study(base, cal, fault_free_runs, seed, bar.update)
+        bar.set_description(f"{name}: NLAR vs linear AR")
+        rms = rms_study(base, cal, seed, progress=bar.update)
         bar.set_description(f"{name}: leak study")
         leak = leak_study(base, cal, onset=onset, progress=bar.update)
     for sc_name, rec in records.items():
@@ -276,13 +287,13 @@ def plot_linear_vs_plar(base: HydraulicScenario, cal, path: Path) -> None:
 
     sc = replace(base, name="fig11", target_rpm=60.0, ramp_time=4.0, throttle_area=6e-6, duration=6.0,
                  rig=replace(base.rig, overspeed=4 * 60 * 2 * np.pi / 60),
-                 diagnosers=("linear_ar", "plar"))
+                 diagnosers=("nlar", "linear_ar", "plar"))
     runs = {"fault-free": run_scenario(sc, cal, run_key="fig11/ff"),
             "leak 0.13 mm²": run_scenario(replace(sc, faults=(table1_fault("leak", 4.5, 0.128),)), cal,
                                           run_key="fig11/leak")}
     fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
     for ax, (label, rec) in zip(axes, runs.items()):
-        for d, colour in (("linear_ar", "0.6"), ("plar", "k")):
+        for d, colour in (("linear_ar", "0.6"), ("plar", "k"), ("nlar", "tab:blue")):
             tr = rec.diagnosers[d]
             ax.plot(tr.time, tr.residual[:, 2], color=colour, lw=0.8, label=d)
         ax.set_title(label)

@@ -40,8 +40,8 @@ class RigParameters:
     v_t: float = 2.1e-3
     K_f: float = 4.85e-6
     rho: float = 870.0
-    supply_pressure: float = 2950.0 * PSI
-    supply_sag: float = 1.0e10                  # Pa per m³/s of valve flow
+    supply_pressure: float = 2900.0 * PSI
+    supply_sag: float = 1.5e9                   # Pa per m³/s of valve flow (≈ 28 bar at the HPSS's 114 l/min)
     valve_tau: float = 0.010                    # s
     throttle_area: float = 1.2e-6               # m², the load valve (smaller = more load)
     overspeed: float = 4 * 5 * 2 * np.pi / 60   # rad/s, the rig's limiter: valve current cut above it
