@@ -9,7 +9,7 @@ import numpy as np
 import sympy as sp
 
 from robofdi.errors import RobofdiError
-from robofdi.models.hydraulic import HydraulicParameters, flow_gains, linearised_model
+from robofdi.models.hydraulic import HydraulicParameters, linearised_model
 from robofdi.redundancy.derivatives import SavitzkyGolay, estimate_derivatives
 from robofdi.redundancy.nlar import derive_nlar
 from robofdi.redundancy.residuals import RedundancyResidual, SignalMap, nlar_residual
@@ -33,17 +33,18 @@ def plar_regions(params: HydraulicParameters) -> list[tuple[float, float]]:
 
 
 def plar_classes(params: HydraulicParameters, symmetry: str = "point5") -> int:
-    """Distinct linearisations among the nine regions: "book4" (gains depend on |u|, |p| only — the book's count)
-    or "point5" (the symmetric valve law is only point-symmetric, Q(−u, −p) = −Q(u, p); digest §5.1 [RECON])."""
+    """Symmetry classes of the nine regions, i.e. the linearisations needed: "book4" (gains depend on |u|, |p|
+    only — the book's count) or "point5" (the symmetric valve law is only point-symmetric, Q(−u, −p) = −Q(u, p);
+    digest §5.1 [RECON]). :func:`plar_residual` linearises all nine centres directly."""
     if symmetry not in ("book4", "point5"):
         raise RobofdiError(f"plar_classes: field 'symmetry' must be 'book4' or 'point5', got {symmetry!r}")
     keys = set()
     for u, p in plar_regions(params):
+        su, sp_ = int(np.sign(round(u, 9))), int(np.sign(round(p, 3)))
         if symmetry == "book4":
-            keys.add((abs(u) > 0, abs(p) > 0))
-        else:
-            _, kq, kc = flow_gains(params, u, p)
-            keys.add((round(kq, 12), round(kc, 15), abs(u) > 0))
+            keys.add((abs(su), abs(sp_)))
+        else:                                        # orbit {(u, p), (−u, −p)}: its lexicographically larger member
+            keys.add(max((su, sp_), (-su, -sp_)))
     return len(keys)
 
 
