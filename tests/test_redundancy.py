@@ -171,3 +171,20 @@ def test_too_few_samples_and_bad_filter_settings_are_refused():
         SavitzkyGolay(dt=0.001, window=40)
     with pytest.raises(RobofdiError, match="'max_derivative'"):
         SavitzkyGolay(dt=0.001, window=41, order=1, max_derivative=2)
+
+
+def test_linear_ar_is_the_engine_on_the_linearised_model():
+    """Linear AR (parity space): the engine on eqs. (8)–(10) with Q ≈ Q0 + k_q(u − u0) − k_c(p − p0) gives the pressure
+    test −ṗ − 4β_e d_m θ̇/v_t − 4β_e (C_tm + k_c) p/v_t + 4β_e/v_t (Q0 + k_q (u − u0) + k_c p0) (digest §5.1)."""
+    from robofdi.models.hydraulic import CATALOGUE as P
+    from robofdi.models.hydraulic import flow_gains, linearised_model
+
+    u0, p0 = 0.06, 1.2e6
+    d = derive_nlar(linearised_model(P, u0, p0), {sp.Symbol("omega"): (0.1, 2.0), sp.Symbol("p_l"): (1e5, 5e6)})
+    assert d.count == 4 and d.independent == ["R1", "R2", "R4", "R5"]
+    Q0, kq, kc = flow_gains(P, u0, p0)
+    w, p, pd, u = sp.symbols("shaft_speed load_pressure load_pressure_d1 servovalve")
+    k = 4 * P.beta_e / P.v_t
+    expected = -pd - k * P.d_m * w - k * (P.C_tm + kc) * p + k * (Q0 + kq * (u - u0) + kc * p0)
+    diff = sp.expand(d.tests["R4"] - expected)
+    assert all(abs(float(c)) < 1e-6 * k * 1e-6 for c in sp.Poly(diff, w, p, pd, u).coeffs())
