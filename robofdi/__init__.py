@@ -39,6 +39,8 @@ _API = {
     "Health": "robofdi.protocols",
     "LinearModel": "robofdi.models", "LinearPlant": "robofdi.sims", "ObserverResidual": "robofdi.observers",
     "StateFeedback": "robofdi.control",
+    "ControlAffineModel": "robofdi.redundancy", "derive_nlar": "robofdi.redundancy",
+    "HydraulicScenario": "robofdi.scenarios.hydraulic",
 }
 __all__ = ["ASSETS", "RobofdiError", "__version__", "assets_dir", *_API]
 
