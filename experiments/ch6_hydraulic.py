@@ -145,7 +145,7 @@ def run(name: str = "ch6-hydraulic", out: str | Path = "runs", seed: int = 0, pr
     base = HydraulicScenario("baseline", duration=duration, seed=seed)
     run_dir = prepare_run_dir(out, name, seed)
     ticks = int(duration * 1000)
-    total = ((calibration_runs + len(SCENARIOS) + fault_free_runs + len(RMS_SPEEDS)) * ticks
+    total = ((calibration_runs + len(SCENARIOS) + 1 + fault_free_runs + len(RMS_SPEEDS)) * ticks
              + len(LEAK_SIZES) * int((onset + 2) * 1000))
     bar = tqdm(total=total, desc=f"{name}: calibrate", unit="step", disable=not progress, leave=False)
     with bar, keep_partial(run_dir):
@@ -165,6 +165,15 @@ def run(name: str = "ch6-hydraulic", out: str | Path = "runs", seed: int = 0, pr
         false_alarms = fault_free_study(base, cal, fault_free_runs, seed, bar.update)
         bar.set_description(f"{name}: NLAR vs linear AR")
         rms = rms_study(base, cal, seed, progress=bar.update)
+        bar.set_description(f"{name}: printed R2, R5")
+        printed = run_scenario(replace(base, name="printed", diagnosers=("nlar",), r2_variant="as_printed",
+                                       r5_variant="as_printed"), cal, run_key="printed", progress=bar.update)
+        errata = {"fault_free_rms_after_ramp": {
+            "corrected": fault_free_rms(records["baseline"], "nlar", since=base.ramp_time + 0.5),
+            "as_printed": fault_free_rms(printed, "nlar", since=base.ramp_time + 0.5)},
+            "note": "R2 as printed misses the valve term; R5 as printed has sqrt(2(p_s - y2)/rho) for "
+                    "sqrt(2/(rho (p_s - y2))) (spec digest 4.3)",
+            "units": {"R1": "rad/s^2", "R2": "rad/s^3", "R4": "Pa/s", "R5": "Pa/s^2"}}
         bar.set_description(f"{name}: leak study")
         leak = leak_study(base, cal, onset=onset, progress=bar.update)
     for sc_name, rec in records.items():
@@ -192,6 +201,7 @@ def run(name: str = "ch6-hydraulic", out: str | Path = "runs", seed: int = 0, pr
         "fault_free": false_alarms,
         "nlar_vs_linear_rms": rms,
         "leak_study": leak,
+        "errata": errata,
         "acceptance": acceptance(summaries, false_alarms, leak),
     })
     write_summary(summary, run_dir / "summary.json")

@@ -188,3 +188,16 @@ def test_linear_ar_is_the_engine_on_the_linearised_model():
     expected = -pd - k * P.d_m * w - k * (P.C_tm + kc) * p + k * (Q0 + kq * (u - u0) + kc * p0)
     diff = sp.expand(d.tests["R4"] - expected)
     assert all(abs(float(c)) < 1e-6 * k * 1e-6 for c in sp.Poly(diff, w, p, pd, u).coeffs())
+
+
+def test_printed_variants_are_the_chapters_forms(design):
+    """r2_variant / r5_variant = "as_printed" swap in the printed (16) and (19); the corrected ones stay the default."""
+    from robofdi.models.hydraulic import with_variants
+
+    book = _book(design)
+    printed = with_variants(design, "as_printed", "as_printed")
+    assert _same(design, printed.tests["R2"], book["R2_printed"])
+    assert _same(design, printed.tests["R5"], book["R5_printed"])
+    assert with_variants(design).tests == design.tests
+    with pytest.raises(RobofdiError, match="r2_variant"):
+        with_variants(design, "typo")

@@ -8,7 +8,9 @@ Parameters are catalogue values (:data:`CATALOGUE`): the Black Bruin 404-080 rat
 supply taken as a constant 3000 psi — not the simulated rig's (which sags, leaks more, and has other oil).
 ``load_model``: "none" (eq. (9) as printed: the pump's torque is missing, a bias R1 = T_l/J_t) or
 "measured_pump_pressure" (the measured pump ΔP p_L enters as a known input; spec digest §3 [ERRATUM] 1).
-``supply``: "constant" (p_s a parameter) or "measured" (p_s a measured input — better modelling, §6.4).
+The supply pressure p_s is a parameter; better modelling reads it from its sensor
+(``NLARDesign.residual_function(measured={"p_s": "supply_pressure"})``). :func:`printed_tests` gives the chapter's
+R2 and R5 exactly as printed (``r2_variant`` / ``r5_variant`` = "as_printed"), to show the errata's effect.
 """
 from __future__ import annotations
 
@@ -21,11 +23,11 @@ from robofdi.errors import RobofdiError
 from robofdi.redundancy.model import ControlAffineModel
 
 __all__ = ["HydraulicParameters", "CATALOGUE", "PSI", "hydraulic_model", "hydraulic_domain", "linearised_model", "flow_gains",
-           "LOAD_MODELS", "SUPPLY_MODELS"]
+           "LOAD_MODELS", "VARIANTS", "printed_tests", "with_variants"]
 
 PSI = 6894.757293168
 LOAD_MODELS = ("none", "measured_pump_pressure")
-SUPPLY_MODELS = ("constant", "measured")
+VARIANTS = ("corrected", "as_printed")
 
 
 @dataclass(frozen=True)
@@ -52,24 +54,15 @@ class HydraulicParameters:
 CATALOGUE = HydraulicParameters()
 
 
-def hydraulic_model(params: HydraulicParameters = CATALOGUE, load_model: str = "measured_pump_pressure",
-                    supply: str = "constant") -> ControlAffineModel:
-    """Eqs. (8)–(10) as a :class:`ControlAffineModel`; inputs u_v (and p_L, p_s as measured inputs per the options)."""
+def hydraulic_model(params: HydraulicParameters = CATALOGUE, load_model: str = "measured_pump_pressure") -> ControlAffineModel:
+    """Eqs. (8)–(10) as a :class:`ControlAffineModel`; inputs u_v (and the measured pump ΔP p_L per ``load_model``)."""
     if load_model not in LOAD_MODELS:
         raise RobofdiError(f"hydraulic_model: field 'load_model' must be one of {LOAD_MODELS}, got {load_model!r}")
-    if supply not in SUPPLY_MODELS:
-        raise RobofdiError(f"hydraulic_model: field 'supply' must be one of {SUPPLY_MODELS}, got {supply!r}")
     theta, omega, p_l, u_v, p_L = sp.symbols("theta omega p_l u_v p_L")
     d_m, J_t, B_m, C_tm, beta_e, v_t, K_f, rho, p_s = sp.symbols("d_m J_t B_m C_tm beta_e v_t K_f rho p_s", positive=True)
     values = {d_m: params.d_m, J_t: params.J_t, B_m: params.B_m, C_tm: params.C_tm, beta_e: params.beta_e,
               v_t: params.v_t, K_f: params.K_f, rho: params.rho, p_s: params.p_s}
     inputs, names, units = [u_v], ["servovalve"], ["1"]
-    supply_p = p_s
-    if supply == "measured":
-        # p_s measured: the model keeps the √ term in p_s, affine in u_v only through a measured gain — written as
-        # an input φ_s = u_v·sqrt(2(p_s − p_l)/ρ) is not control-affine in p_s, so p_s is a slowly varying parameter
-        # refreshed from its sensor (see HydraulicNLAR).
-        pass
     omega_dot = -(B_m / J_t) * omega + (d_m / J_t) * p_l
     if load_model == "measured_pump_pressure":
         omega_dot -= (d_m / J_t) * p_L
@@ -77,7 +70,7 @@ def hydraulic_model(params: HydraulicParameters = CATALOGUE, load_model: str = "
         names.append("pump_pressure")
         units.append("Pa")
     p_dot = (-(4 * beta_e * d_m / v_t) * omega - (4 * beta_e * C_tm / v_t) * p_l
-             + (4 * beta_e * K_f / v_t) * sp.sqrt(2 * (supply_p - p_l) / rho) * u_v)
+             + (4 * beta_e * K_f / v_t) * sp.sqrt(2 * (p_s - p_l) / rho) * u_v)
     return ControlAffineModel.from_equations(
         [theta, omega, p_l], inputs, [omega, omega_dot, p_dot], [omega, p_l], values,
         output_names=("shaft_speed", "load_pressure"), input_names=tuple(names),
@@ -119,3 +112,39 @@ def linearised_model(params: HydraulicParameters = CATALOGUE, u0: float = 0.0, p
         [theta, omega, p_l], inputs, [omega, omega_dot, p_dot], [omega, p_l], {},
         output_names=("shaft_speed", "load_pressure"), input_names=tuple(names),
         output_units=("rad/s", "Pa"), input_units=tuple(units), name=f"hydraulic-linear@({u0:.3g},{p0:.3g})")
+
+
+def printed_tests(design) -> dict:
+    """The chapter's R2 (16) and R5 (19) exactly as printed, in the design's measured symbols: R2 without the valve
+    term, R5 with sqrt(2(p_s − y2)/ρ) where sqrt(2/(ρ(p_s − y2))) belongs (digest §4.3 [ERRATUM]). Load terms of
+    ``load_model="measured_pump_pressure"`` are added as in the digest's R2', R5'."""
+    S = {str(s): s for s in design.model.params}
+    B, J, d, C, b, v, K, rho, ps = (S[k] for k in ("B_m", "J_t", "d_m", "C_tm", "beta_e", "v_t", "K_f", "rho", "p_s"))
+    y1, y1dd, y2, y2dd, u, ud = sp.symbols("shaft_speed shaft_speed_d2 load_pressure load_pressure_d2 servovalve "
+                                          "servovalve_d1")
+    phi = sp.sqrt(2 * (ps - y2) / rho)
+    R2 = -y1dd + (B**2 / J**2 - 4 * b * d**2 / (J * v)) * y1 + (-B * d / J**2 - 4 * b * d * C / (J * v)) * y2
+    R5 = (-y2dd + (4 * B * b * d / (J * v) + 16 * b**2 * d * C / v**2 + 8 * b**2 * d * K / v**2 * phi * u) * y1
+          + (-4 * b * d**2 / (J * v) + 16 * b**2 * C**2 / v**2 + 8 * b**2 * K * C / v**2 * phi * u) * y2
+          - 16 * b**2 * K * C / v**2 * phi * u - 16 * b**2 * K**2 * u**2 / (rho * v**2) + 4 * b * K / v * phi * ud)
+    if "pump_pressure" in design.model.input_names:
+        pL, pLd = sp.symbols("pump_pressure pump_pressure_d1")
+        R2 += B * d / J**2 * pL - d / J * pLd
+        R5 += 4 * b * d**2 / (v * J) * pL
+    return {"R2": R2, "R5": R5}
+
+
+def with_variants(design, r2_variant: str = "corrected", r5_variant: str = "corrected"):
+    """The design with R2 / R5 replaced by the printed forms where asked ("corrected" = the engine's, the default)."""
+    import dataclasses
+
+    for name, value in (("r2_variant", r2_variant), ("r5_variant", r5_variant)):
+        if value not in VARIANTS:
+            raise RobofdiError(f"with_variants: field {name!r} must be one of {VARIANTS}, got {value!r}")
+    printed = printed_tests(design)
+    tests = dict(design.tests)
+    if r2_variant == "as_printed":
+        tests["R2"] = printed["R2"]
+    if r5_variant == "as_printed":
+        tests["R5"] = printed["R5"]
+    return dataclasses.replace(design, tests=tests)

@@ -28,7 +28,7 @@ from robofdi.decision import Signature, ThresholdDecision, calibrate_thresholds
 from robofdi.errors import RobofdiError
 from robofdi.faults import Fault, FaultInjector
 from robofdi.loop import ClosedLoop, Diagnosis, Rates, diagnose_record
-from robofdi.models.hydraulic import CATALOGUE, HydraulicParameters, hydraulic_domain, hydraulic_model
+from robofdi.models.hydraulic import CATALOGUE, HydraulicParameters, hydraulic_domain, hydraulic_model, with_variants
 from robofdi.record import Record
 from robofdi.redundancy.baselines import NNARResidual, linear_ar_residual, plar_residual, train_nnar
 from robofdi.redundancy.derivatives import SavitzkyGolay, estimate_derivatives
@@ -62,7 +62,8 @@ SIGNATURES = {
 @dataclass(frozen=True)
 class HydraulicScenario:
     """One rig run: the operating profile (target speed [rpm], ramp time [s], load throttle area [m²]), faults,
-    duration [s], seed (sensor noise), the derivative filter (window, order), diagnosers, threshold margin."""
+    duration [s], seed (sensor noise), the derivative filter (window, order), diagnosers, threshold margin, and
+    the nlar tests R2 / R5 "corrected" (default) or "as_printed" (digest §4.3)."""
 
     name: str = "baseline"
     faults: tuple = ()
@@ -75,6 +76,8 @@ class HydraulicScenario:
     order: int = 3
     diagnosers: tuple = DIAGNOSERS
     margin: float = 1.3
+    r2_variant: str = "corrected"
+    r5_variant: str = "corrected"
     rig: RigParameters = field(default_factory=RigParameters)
     sensors: RigSensors = field(default_factory=RigSensors)
 
@@ -90,6 +93,10 @@ class HydraulicScenario:
         if not (np.isfinite(self.throttle_area) and self.throttle_area > 0):
             raise RobofdiError(f"HydraulicScenario: field 'throttle_area' must be > 0 m², got {self.throttle_area!r}")
         SpeedRamp(self.target_rpm, self.ramp_time)        # validates both
+        for k in ("r2_variant", "r5_variant"):
+            if getattr(self, k) not in ("corrected", "as_printed"):
+                raise RobofdiError(f"HydraulicScenario: field {k!r} must be 'corrected' or 'as_printed', "
+                                   f"got {getattr(self, k)!r}")
         for f in self.faults:
             if f.onset >= self.duration:
                 raise RobofdiError(f"Fault {f.name!r}: onset {f.onset} s is not inside the run ({self.duration} s)")
@@ -154,7 +161,8 @@ def _diagnosers(sc: HydraulicScenario, cal: HydraulicCalibration | None, names: 
     out = {}
     for name in names:
         if name == "nlar":
-            out[name] = nlar_residual(_design(), meas, acts, flt, SIGNATURES["nlar"])
+            design = with_variants(_design(), sc.r2_variant, sc.r5_variant)
+            out[name] = nlar_residual(design, meas, acts, flt, SIGNATURES["nlar"])
         elif name == "nlar_better":
             params = dict(cal.better_params) if cal is not None else {}
             out[name] = nlar_residual(_design(), meas, acts, flt, SIGNATURES["nlar"], params=params,
