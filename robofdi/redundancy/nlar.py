@@ -53,13 +53,18 @@ def _sample_points(model: ControlAffineModel, domain: Mapping, count: int, seed:
 
 def generic_rank(rows: sp.Matrix, wrt: tuple, model: ControlAffineModel, points: list[dict]) -> int:
     """Generic rank of the Jacobian ∂rows/∂wrt: the largest numeric rank at the sample points (rows normalised)."""
-    if rows.shape[0] == 0:
+    return _jacobian_rank(rows, wrt, (*model.states, *model.inputs), model.params, points)
+
+
+def _jacobian_rank(exprs: sp.Matrix, wrt, variables, params, points: list[dict]) -> int:
+    """max over ``points`` (variable → value) of the numeric rank of ∂exprs/∂wrt, rows normalised; points where it
+    is not finite or not real are skipped."""
+    if exprs.shape[0] == 0:
         return 0
-    J = rows.jacobian(sp.Matrix(wrt)).subs(model.params)
-    fn = sp.lambdify([*model.states, *model.inputs], J, modules="numpy")
+    fn = sp.lambdify(list(variables), exprs.jacobian(sp.Matrix(list(wrt))).subs(params), modules="numpy")
     best = 0
     for pt in points:
-        M = np.array(fn(*[pt[s] for s in (*model.states, *model.inputs)]), dtype=complex)
+        M = np.array(fn(*[pt[s] for s in variables]), dtype=complex)
         if not np.all(np.isfinite(M)) or np.abs(M.imag).max(initial=0.0) > 1e-9 * max(1.0, np.abs(M).max()):
             continue
         M = M.real
@@ -318,18 +323,4 @@ def _vanishes(R, signals, model, points) -> bool:
 
 def _signal_rank(tests, signals, model, points) -> int:
     """Generic rank of the tests' Jacobian with respect to the measured signals."""
-    J = sp.Matrix(tests).jacobian(sp.Matrix(signals)).subs(model.params)
-    fn = sp.lambdify(signals, J, modules="numpy")
-    best = 0
-    for pt in points:
-        M = np.array(fn(*[pt[s] for s in signals]), dtype=complex)
-        if not np.all(np.isfinite(M)):
-            continue
-        if np.abs(M.imag).max(initial=0.0) > 1e-9 * max(1.0, np.abs(M).max()):
-            continue
-        M = M.real
-        norms = np.linalg.norm(M, axis=1)
-        M = M[norms > 0] / norms[norms > 0, None]
-        if M.size:
-            best = max(best, int(np.linalg.matrix_rank(M, tol=RANK_TOL)))
-    return best
+    return _jacobian_rank(sp.Matrix(tests), signals, signals, model.params, points)
