@@ -18,7 +18,7 @@ import numpy as np
 
 from robofdi.evaluate.reproduction import reproduction_check as check
 from robofdi.evaluate.run_folder import prepare_run_dir, write_run_folder
-from robofdi.models.examples import CHIP_REFINER, chip_refiner
+from robofdi.models.linear_examples import CHIP_REFINER, chip_refiner
 from robofdi.observers.gain import GainFaultObserver
 from robofdi.scenarios.refiner import F_H, PAPER_FAULTS, run_refiner, true_gain
 

@@ -16,7 +16,7 @@ import numpy as np
 from robofdi.evaluate import summarize
 from robofdi.evaluate.reproduction import reproduction_check as check
 from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, write_run_folder
-from robofdi.models.examples import aircraft_lateral
+from robofdi.models.linear_examples import aircraft_lateral
 from robofdi.models.linear import discretize
 from robofdi.observers.uio import uio_design
 from robofdi.scenarios.aircraft import (

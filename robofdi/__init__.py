@@ -44,6 +44,8 @@ _API = {
     "LockInPlaceBank": "robofdi.observers.uio", "AdaptiveFaultEstimator": "robofdi.observers.adaptive",
     "GainFaultObserver": "robofdi.observers.gain", "SwitchingIndexDecision": "robofdi.decision",
     "WindowedTTest": "robofdi.decision",
+    "ControlAffineModel": "robofdi.redundancy", "derive_nlar": "robofdi.redundancy",
+    "HydraulicScenario": "robofdi.scenarios.hydraulic",
 }
 __all__ = ["ASSETS", "RobofdiError", "__version__", "assets_dir", *_API]
 

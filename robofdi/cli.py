@@ -17,8 +17,8 @@ from robofdi import RobofdiError, __version__
 # experiment name → module of robofdi.experiments (the repository's experiments/); each module has
 # EXPERIMENTS {name: description} and run().
 MODULES = ("robofdi.experiments.ch3_industrial_robot", "robofdi.experiments.arm", "robofdi.experiments.ch4_auv",
-           "robofdi.experiments.jiang2005", "robofdi.experiments.guo2008", "robofdi.experiments.ch2_wang",
-           "robofdi.experiments.adaptive_fe")
+           "robofdi.experiments.ch6_hydraulic", "robofdi.experiments.jiang2005", "robofdi.experiments.guo2008",
+           "robofdi.experiments.ch2_wang", "robofdi.experiments.adaptive_fe")
 # options of `robofdi run` that only some experiments take (module attribute OPTIONS lists them)
 EXPERIMENT_OPTIONS = {"robot": "--robot", "faults": "--fault", "joints": "--joints", "torque_motors": "--torque-motors"}
 

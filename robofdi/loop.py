@@ -151,7 +151,7 @@ class DiagnosisRunner:
             threshold=np.asarray(threshold, dtype=float),
             alarm=np.asarray(rows["alarm"], dtype=bool).reshape(-1, m),
             isolated=np.asarray(rows["isolated"], dtype=object),
-            estimate=np.asarray(rows["estimate"], dtype=float).reshape(-1, e),
+            estimate=np.asarray(rows["estimate"], dtype=float).reshape(len(rows["time"]), e),
             components=list(d.diagnoser.components),
             estimate_components=list(d.diagnoser.estimate_components),
             units={k: list(v) for k, v in getattr(d.diagnoser, "units", {}).items()},

@@ -6,7 +6,7 @@ import pytest
 
 from robofdi import RobofdiError
 from robofdi.experiments.adaptive_fe import PRINTED_RATE, analyse
-from robofdi.models.examples import f16_vertical
+from robofdi.models.linear_examples import f16_vertical
 from robofdi.models.linear import discretize
 from robofdi.observers.adaptive import (
     AdaptiveFaultEstimator, adaptive_fe_gains, augmented_error_matrix, is_spd, lyapunov_certificate,

@@ -10,7 +10,7 @@ from robofdi import RobofdiError
 from robofdi.decision import WindowedTTest
 from robofdi.experiments.ch2_wang import ftc_check, noise_free_checks, stochastic_checks
 from robofdi.ftc import GainCompensation
-from robofdi.models.examples import CHIP_REFINER, chip_refiner
+from robofdi.models.linear_examples import CHIP_REFINER, chip_refiner
 from robofdi.models.linear import LinearModel
 from robofdi.observers.gain import GainFaultObserver
 from robofdi.observers.pdf import EntropyDiagnosis, ScanningRLS, laplace_transform, rbf_basis

@@ -371,7 +371,9 @@ def test_every_kind_is_covered():
                "actuator_lock_in_place",
                "actuator_float", "actuator_hard_over", "sensor_bias", "sensor_drift",
                "sensor_freeze", "sensor_dropout", "sensor_scale", "sensor_noise", "sensor_delay", "sensor_outliers",
-               "component_friction", "component_mass", "component_thruster_blocking", "component_thruster_flooding"}
+               "component_friction", "component_mass", "component_thruster_blocking", "component_thruster_flooding",
+               # hydraulic rig (Table 1 of book ch. 6), covered in tests/test_hydraulic.py
+               "component_open_winding", "component_valve_sticking", "component_leak"}
     assert set(FAULT_KINDS) == covered
 
 

@@ -9,7 +9,7 @@ import pytest
 
 from robofdi import RobofdiError
 from robofdi.decision import SwitchingIndexDecision
-from robofdi.models.examples import aircraft_lateral
+from robofdi.models.linear_examples import aircraft_lateral
 from robofdi.models.linear import LinearModel, discretize
 from robofdi.observers.uio import LockInPlaceBank, UnknownInputObserver, uio_design
 from robofdi.scenarios.aircraft import (

@@ -10,7 +10,7 @@ import pytest
 from robofdi import RobofdiError
 from robofdi.control.linear import StateFeedback, lqr_gain
 from robofdi.faults import Fault, Oscillation
-from robofdi.models.examples import HELICOPTER_NOISE, helicopter
+from robofdi.models.linear_examples import HELICOPTER_NOISE, helicopter
 from robofdi.models.linear import LinearModel
 from robofdi.observers.kalman import (
     KalmanFaultEstimator, reduced_order_covariances, reduced_order_design, steady_state_gain,

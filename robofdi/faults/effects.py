@@ -184,6 +184,9 @@ _EFFECTS = {
     "component_mass": Level,
     "component_thruster_blocking": Level,
     "component_thruster_flooding": Level,
+    "component_open_winding": Level,
+    "component_valve_sticking": Level,
+    "component_leak": Level,
 }
 
 

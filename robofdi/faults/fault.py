@@ -69,6 +69,10 @@ FAULT_KINDS: dict[str, FaultKind] = {
                                              description="rotor stalled while m·p > 0 (solid body in the blades)"),
     "component_thruster_flooding": FaultKind(unit="1", description="flooded thruster: motor drive × (1 + m·p), "
                                                                    "leakage current"),
+    "component_open_winding": FaultKind(profiles="unit", unit="1",
+                                        description="servovalve coil current × (1 − m·p); m = 1 an open circuit"),
+    "component_valve_sticking": FaultKind(unit="1", description="spool stick–slip with a stiction band of m·p (stroke)"),
+    "component_leak": FaultKind(unit="mm^2", description="orifice of m·p mm² from a motor line to tank (ruptured line)"),
 }
 
 

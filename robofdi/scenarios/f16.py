@@ -1,7 +1,7 @@
 """The adaptive fault-estimation example (seed 004) as a scenario, on the documented AIRC vertical-plane model.
 
 [HARNESS] (the seed's model, sampling time, noise table and fault profiles are lost): continuous AIRC model
-(robofdi.models.examples.f16_vertical) sampled at T = 0.1 s; LQR (Q = I₅, R = I₃) with a Kalman predictor holds
+(robofdi.models.linear_examples.f16_vertical) sampled at T = 0.1 s; LQR (Q = I₅, R = I₃) with a Kalman predictor holds
 the trim (set points 0); faults on the actuators as additive signals: a constant elevator bias (0.5 deg from 5 s)
 and a thrust ramp (0.02 m/s² per s from 15 s); the estimator's gains place the 8 augmented error poles on
 0.5 … 0.85 (spectral radius 0.85).
@@ -19,7 +19,7 @@ from robofdi.errors import RobofdiError
 from robofdi.evaluate import summarize
 from robofdi.faults import Fault
 from robofdi.loop import ClosedLoop, Diagnosis
-from robofdi.models.examples import f16_vertical
+from robofdi.models.linear_examples import f16_vertical
 from robofdi.models.linear import LinearMismatch, discretize, perturbed
 from robofdi.observers.adaptive import AdaptiveFaultEstimator, adaptive_fe_gains
 from robofdi.observers.linear import observer_gain_kalman

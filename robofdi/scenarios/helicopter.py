@@ -26,7 +26,7 @@ from robofdi.evaluate import summarize
 from robofdi.faults import Fault, Oscillation
 from robofdi.ftc import EffectivenessCompensation
 from robofdi.loop import ClosedLoop, Diagnosis
-from robofdi.models.examples import HELICOPTER_NOISE, helicopter
+from robofdi.models.linear_examples import HELICOPTER_NOISE, helicopter
 from robofdi.models.linear import LinearMismatch, perturbed
 from robofdi.observers.kalman import COVARIANCE_MODES, KalmanFaultEstimator
 from robofdi.record import Record

@@ -23,7 +23,7 @@ from robofdi.errors import RobofdiError
 from robofdi.evaluate import summarize
 from robofdi.faults import Fault, FaultInjector, Ramp
 from robofdi.ftc import GainCompensation
-from robofdi.models.examples import CHIP_REFINER, chip_refiner
+from robofdi.models.linear_examples import CHIP_REFINER, chip_refiner
 from robofdi.observers.gain import GainFaultObserver
 from robofdi.protocols import HEALTHY, Health
 from robofdi.record import DiagnoserTrace, FaultLabels, Record
