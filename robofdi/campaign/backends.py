@@ -127,7 +127,7 @@ class DaskCluster:
                 shared[i] = self.client.scatter([a], broadcast=True)[0]   # a list: a dict would be split
         self._futures = [self.client.submit(fn, *[shared.get(i, a) for i, a in enumerate(args)], pure=False)
                          for args in args_list]
-        for future in as_completed(self._futures):
+        for future in as_completed(self._futures, loop=self.client.loop):
             yield future.result()
 
 

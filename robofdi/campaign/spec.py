@@ -29,10 +29,14 @@ import fnmatch
 import hashlib
 import json
 import math
-import tomllib
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
+
+try:
+    import tomllib
+except ModuleNotFoundError:          # Python 3.10
+    import tomli as tomllib
 
 from robofdi.campaign.systems import CampaignSystem, fault_limit, get_system
 from robofdi.errors import RobofdiError
@@ -131,7 +135,8 @@ class FaultDistribution:
                                        f"target {t!r}: [{low * lim.limit:g}, {lim.limit:g}] {lim.unit}")
         profiles = table.get("profiles", [{"type": "step"}])
         if not isinstance(profiles, list) or not profiles:
-            raise RobofdiError(f"{where}.profiles: expected a non-empty list of profiles like {{type = \"step\"}}, got {profiles!r}")
+            raise RobofdiError(f"{where}.profiles: expected a non-empty list of profiles like {{type = \"step\"}}, "
+                               f"got {profiles!r}")
         onset = _range(f"{where}.onset_fraction", table.get("onset_fraction", [0.2, 0.6]), 0.0, 1.0)
         if onset[1] >= 1.0:
             raise RobofdiError(f"{where}.onset_fraction: the onset must come before the run's end, expected high < 1")
@@ -248,14 +253,8 @@ def parse_spec(data: dict, source: str = "spec") -> CampaignSpec:
     if counts["faulty_runs"] and not tables:
         raise RobofdiError(f"{source}: field 'faults': faulty_runs = {counts['faulty_runs']} needs at least one [[faults]] entry")
     faults = tuple(FaultDistribution.resolve(f"{source}: faults[{i}]", t, system, options) for i, t in enumerate(tables))
-    return CampaignSpec(system.name if name in _registered() else name, seed, counts["fault_free_runs"],
+    return CampaignSpec(name, seed, counts["fault_free_runs"],
                         counts["faulty_runs"], tuple(diagnosers), records, float(level), options, faults, source)
-
-
-def _registered():
-    from robofdi.campaign.systems import SYSTEMS
-
-    return SYSTEMS
 
 
 def _options(where: str, system: CampaignSystem, table: dict):

@@ -258,7 +258,7 @@ class LinearOptions:
         _check_fields("system", self, [("robot_seeds", self.robot_seeds and all(_is_int(s) for s in self.robot_seeds),
                                         "a non-empty list of integers >= 0")])
         try:
-            self.settings
+            _ = self.settings
         except RobofdiError as exc:
             raise RobofdiError(f"system: {exc}") from None
 
