@@ -122,7 +122,7 @@ def test_sigterm_mid_way_then_resume_gives_the_uninterrupted_table(tmp_path):
     assert 3 <= done < 32
     assert not (out / "results.parquet").exists()
     # --resume runs only what is missing (here in the CLI's own process: the worker count changes nothing)
-    resumed = subprocess.run(cmd[:-3] + ["1", "--quiet", "--resume"], capture_output=True, text=True, timeout=180)
+    resumed = subprocess.run(cmd[:-2] + ["1", "--quiet", "--resume"], capture_output=True, text=True, timeout=180)
     assert resumed.returncode == 0, resumed.stderr
     summary = json.loads((out / "campaign.json").read_text())
     assert summary["execution"]["runs_this_session"] == 32 - done
@@ -175,8 +175,10 @@ def test_a_run_that_raises_is_an_error_row_and_the_campaign_goes_on(tmp_path):
     (('kind = "sensor_bias"', 'kind = "sensor_melt"'), "faults[1].kind: unknown fault kind 'sensor_melt'"),
     (('targets = ["enc*"]', 'targets = ["wheel3"]'), "faults[1].targets: unknown target 'wheel3'"),
     (("magnitude_fraction = [0.05, 0.4]", "magnitude_fraction = [0.4, 0.05]"), "faults[0].magnitude_fraction: empty range"),
-    (("magnitude_fraction = [0.05, 0.4]", "magnitude_fraction = [0.05, 1.5]"), "faults[0].magnitude_fraction: [0.05, 1.5] is outside [0, 1]"),
-    (("magnitude_fraction = [0.05, 0.4]", "magnitude = [0.1, 2.5]"), "faults[0].magnitude: [0.1, 2.5] is outside the limits of target 'tau_L'"),
+    (("magnitude_fraction = [0.05, 0.4]", "magnitude_fraction = [0.05, 1.5]"),
+     "faults[0].magnitude_fraction: [0.05, 1.5] is outside [0, 1]"),
+    (("magnitude_fraction = [0.05, 0.4]", "magnitude = [0.1, 2.5]"),
+     "faults[0].magnitude: [0.1, 2.5] is outside the limits of target 'tau_L'"),
     (("onset_fraction = [0.4, 0.8]", "onset_fraction = [0.4, 1.0]"), "faults[0].onset_fraction"),
 ])
 def test_bad_spec_is_one_line_naming_the_field(edit, message):

@@ -124,7 +124,7 @@ class DaskCluster:
         shared = {}
         for i, a in enumerate(args_list[0]):
             if all(len(b) > i and b[i] is a for b in args_list) and not isinstance(a, (int, str, type(None))):
-                shared[i] = self.client.scatter([a], broadcast=True)[0]   # a list: a dict would be split
+                shared[i] = self.client.scatter([a], broadcast=True, hash=False)[0]   # a list: a dict would be split
         self._futures = [self.client.submit(fn, *[shared.get(i, a) for i, a in enumerate(args)], pure=False)
                          for args in args_list]
         for future in as_completed(self._futures, loop=self.client.loop):
