@@ -147,20 +147,21 @@ def report_markdown(summary: dict) -> str:
         ci = "–" if fa["ci95"] is None else f"[{100 * fa['ci95'][0]:.1f}, {100 * fa['ci95'][1]:.1f}] %"
         lines.append(f"| {name} | {_pct(fa)} {ci} | {_pct(f['detection'])} | {_pct(f['correctly_isolated'])} | "
                      f"{_pct(f['isolation_accuracy'])} | {_ms(f['delay_median'])} / {_ms(f['delay_p90'])} |")
-    kinds = sorted({k for m in summary["diagnosers"].values() for k in m["by_kind"]})
+    kinds = sorted({k for m in summary["diagnosers"].values() for k in m["by_kind_profile"]})
     if kinds:
         names = list(summary["diagnosers"])
-        lines += ["", "## Detected / correctly isolated, by fault kind", "",
-                  "| kind | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
+        lines += ["", "## Detected / correctly isolated, by fault kind and profile", "",
+                  "| kind~profile | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
         for k in kinds:
             cells = []
             for n in names:
-                b = summary["diagnosers"][n]["by_kind"].get(k)
+                b = summary["diagnosers"][n]["by_kind_profile"].get(k)
                 cells.append("–" if b is None else f"{b['detection']['count']}/{b['faults']} · "
                              f"{b['correctly_isolated']['count']}/{b['faults']} · {_ms(b['delay_median'])} ms")
             lines.append(f"| {k} | " + " | ".join(cells) + " |")
         lines += ["", "Cells: detected / faults · correctly isolated / faults · median delay.", "",
                   f"## Minimum detectable fault (detection probability ≥ {spec['detection_level']:g}, isotonic fit)", "",
+                  "≤: the smallest size drawn was already detected; n: faults of that kind on that target.", "",
                   "| kind | target | " + " | ".join(names) + " |", "|---|---|" + "---|" * len(names)]
         pairs = sorted({(k, t) for m in summary["diagnosers"].values() for k, ts in m["detectability"].items() for t in ts})
         for k, t in pairs:
@@ -172,7 +173,8 @@ def report_markdown(summary: dict) -> str:
                 elif d["min_detectable_magnitude"] is None:
                     cells.append(f"not reached ≤ {d['size_range'][1] * d['limit']:.3g} {d['unit']} (n={d['faults']})")
                 else:
-                    cells.append(f"{d['min_detectable_magnitude']:.3g} {d['unit']} (n={d['faults']})")
+                    at_most = "≤ " if d.get("min_detectable_at_most") else ""
+                    cells.append(f"{at_most}{d['min_detectable_magnitude']:.3g} {d['unit']} (n={d['faults']})")
             lines.append(f"| {k} | {t} | " + " | ".join(cells) + " |")
     ex = summary.get("execution", {})
     cal = ex.get("calibration") or {}
