@@ -104,7 +104,7 @@ def _figures(result: CampaignResult, metrics: dict) -> list[str]:
                     ax.set_ylabel("fraction of faults detected")
                 else:
                     s, p = detection_curve(rows["size"].to_numpy(float), det)
-                    ax.plot(s, p, drawstyle="steps-post", label=name)
+                    ax.plot(s, p, drawstyle="steps-post", marker=".", ms=3, label=name)
                     ax.set_xlabel("fault size [fraction of the target's limit]")
                     ax.set_ylabel("detection probability")
             if what == "detection_vs_size":
@@ -168,13 +168,14 @@ def report_markdown(summary: dict) -> str:
             cells = []
             for n in names:
                 d = summary["diagnosers"][n]["detectability"].get(k, {}).get(t)
+                unit = "" if d is None or d["unit"] == "1" else f" {d['unit']}"
                 if d is None:
                     cells.append("–")
                 elif d["min_detectable_magnitude"] is None:
-                    cells.append(f"not reached ≤ {d['size_range'][1] * d['limit']:.3g} {d['unit']} (n={d['faults']})")
+                    cells.append(f"not reached ≤ {d['size_range'][1] * d['limit']:.3g}{unit} (n={d['faults']})")
                 else:
                     at_most = "≤ " if d.get("min_detectable_at_most") else ""
-                    cells.append(f"{at_most}{d['min_detectable_magnitude']:.3g} {d['unit']} (n={d['faults']})")
+                    cells.append(f"{at_most}{d['min_detectable_magnitude']:.3g}{unit} (n={d['faults']})")
             lines.append(f"| {k} | {t} | " + " | ".join(cells) + " |")
     ex = summary.get("execution", {})
     cal = ex.get("calibration") or {}
