@@ -133,7 +133,7 @@ def test_sigterm_mid_way_then_resume_gives_the_uninterrupted_table(tmp_path):
 
 
 def test_runs_prefix_is_a_prefix_of_the_full_campaign(tmp_path):
-    spec = load_spec(LINEAR.format(ff=4, faulty=4))
+    spec = load_spec(LINEAR.format(ff=4, faulty=4).replace("seed = 5", "seed = 5\nrecords = true"))
     part = run_campaign(spec, tmp_path / "a", workers=1, runs=3, progress=False)
     whole = run_campaign(spec, tmp_path / "a", workers=1, resume=True, progress=False)
     assert sorted(set(part.table["index"])) == [0, 1, 2]
@@ -141,6 +141,14 @@ def test_runs_prefix_is_a_prefix_of_the_full_campaign(tmp_path):
     assert len(whole.table) == 8
     free = whole.table[~whole.table["faulty"]]
     assert len(free) == 4 and free["fault"].isna().all() and (free["kind"] == "none").all()
+    # records = true: every run's record, whose fault label matches its row
+    from robofdi.record import load as load_record
+
+    assert len(list((tmp_path / "a" / "records").glob("run-*.h5"))) == 8
+    row = whole.table[whole.table["faulty"]].iloc[0]
+    rec = load_record(tmp_path / "a" / "records" / f"run-{row['index']:06d}.h5")
+    active = rec.time[rec.faults[row["fault"]].active.astype(bool)]
+    assert active[0] == pytest.approx(row["onset"], abs=0.01)
 
 
 class FlakyLinear(LinearCampaign):

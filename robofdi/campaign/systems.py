@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Hashable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from importlib import import_module
 from typing import Any, Protocol, runtime_checkable
 
@@ -240,33 +240,34 @@ class ArmCampaign:
 
 
 # -------------------------------------------------------------------------------------------------- linear
+def _linear_settings():
+    from robofdi.scenarios.linear import LinearSettings
+
+    return LinearSettings
+
+
 @dataclass(frozen=True)
-class LinearOptions:
+class LinearOptions(_linear_settings()):
     """The ``[system]`` table of a linear-plant campaign (the wheel-speed plant of :mod:`robofdi.scenarios.linear`):
     robot_seeds: one belief (seeded parameter errors) per seed, one calibration each; mismatch, margin,
-    calibration_runs, duration [s], blanking [s]: as :class:`robofdi.scenarios.linear.LinearSettings`."""
+    calibration_runs, duration [s], blanking [s]: those of :class:`robofdi.scenarios.linear.LinearSettings`."""
 
     robot_seeds: tuple = (0,)
-    mismatch: float = 0.05
-    margin: float = 1.2
-    calibration_runs: int = 5
-    duration: float = 10.0
-    blanking: float = 1.0
 
     def __post_init__(self):
         object.__setattr__(self, "robot_seeds", tuple(self.robot_seeds))
         _check_fields("system", self, [("robot_seeds", self.robot_seeds and all(_is_int(s) for s in self.robot_seeds),
                                         "a non-empty list of integers >= 0")])
         try:
-            _ = self.settings
+            super().__post_init__()
         except RobofdiError as exc:
             raise RobofdiError(f"system: {exc}") from None
 
     @property
     def settings(self):
-        from robofdi.scenarios.linear import LinearSettings
-
-        return LinearSettings(self.mismatch, self.margin, self.calibration_runs, self.duration, self.blanking)
+        """The scenario's settings alone (what a calibration depends on; the robot seed is its key)."""
+        base = _linear_settings()
+        return base(**{f.name: getattr(self, f.name) for f in fields(base)})
 
 
 class LinearCampaign:
