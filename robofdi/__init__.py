@@ -11,7 +11,8 @@ only nominal models, commands and measurements. The main objects, importable fro
 
 Rooms: ``faults`` (what fails), ``sims`` (plants), ``models`` (beliefs), ``control``, ``observers`` (residual
 generators), ``decision`` (thresholds, isolation), ``ftc`` (accommodation), ``loop`` (ClosedLoop), ``record``,
-``evaluate`` (metrics, summary.json, figures), ``scenarios`` (configuration → calibrated loop), ``viz``
+``evaluate`` (metrics, summary.json, figures), ``scenarios`` (configuration → calibrated loop), ``campaign``
+(many seeded runs, local pool or Dask, campaign metrics), ``viz``
 (Meshcat), ``experiments`` (one script per book chapter / paper).
 """
 from importlib import resources
@@ -46,6 +47,7 @@ _API = {
     "WindowedTTest": "robofdi.decision",
     "ControlAffineModel": "robofdi.redundancy", "derive_nlar": "robofdi.redundancy",
     "HydraulicScenario": "robofdi.scenarios.hydraulic",
+    "run_campaign": "robofdi.campaign", "load_spec": "robofdi.campaign",
 }
 __all__ = ["ASSETS", "RobofdiError", "__version__", "assets_dir", *_API]
 

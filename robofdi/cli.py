@@ -1,4 +1,4 @@
-"""`robofdi list | run NAME | demo | view RUN` — the command line.
+"""`robofdi list | run NAME | demo | view RUN | campaign SPEC` — the command line.
 
 Errors print one line ``robofdi: error: …`` and exit with code 2 (bad input, including a file or folder that
 cannot be read or written) or 1 (a run that failed; what it had recorded is saved as ``partial.h5`` in the run
@@ -85,6 +85,23 @@ def _cmd_view(args) -> int:
     return 0
 
 
+def _cmd_campaign(args) -> int:
+    from robofdi.campaign import CampaignInterrupted, load_spec, run_campaign
+
+    spec = load_spec(args.spec)
+    out = Path(args.out) if args.out else Path("runs") / f"campaign-{Path(spec.source).stem or spec.system}"
+    try:
+        result = run_campaign(spec, out, workers=args.workers, scheduler=args.scheduler, resume=args.resume,
+                              runs=args.runs, progress=not args.quiet)
+    except CampaignInterrupted as exc:
+        print(f"robofdi: {exc}", file=sys.stderr)
+        return 143
+    summary = result.summary
+    print((out / "report.md").read_text().split("\n## ", 1)[0].rstrip())
+    print(f"\ncampaign folder: {out}  (results.parquet, campaign.json, report.md, figures/)")
+    return 1 if summary["runs"]["errors"] else 0
+
+
 class _Parser(argparse.ArgumentParser):
     """argparse, with its usage errors on one line like every other error of the command line."""
 
@@ -123,6 +140,15 @@ def build_parser() -> argparse.ArgumentParser:
     view.add_argument("--diagnoser", default=None, help="whose detections light up the joints (default: adaptive)")
     view.add_argument("--no-browser", action="store_true")
     view.set_defaults(func=_cmd_view)
+    camp = sub.add_parser("campaign", help="many seeded fault scenarios, locally or on a Dask cluster")
+    camp.add_argument("spec", metavar="SPEC", help="a campaign TOML file, or a shipped one by name (arm, linear)")
+    camp.add_argument("--workers", type=int, default=None, help="local worker processes (default: the core count)")
+    camp.add_argument("--scheduler", metavar="ADDRESS", help="run on the Dask scheduler at ADDRESS (tcp://HOST:8786)")
+    camp.add_argument("--out", metavar="DIR", help="campaign folder (default: runs/campaign-<spec name>)")
+    camp.add_argument("--resume", action="store_true", help="continue the campaign in DIR, skipping finished runs")
+    camp.add_argument("--runs", type=int, metavar="N", help="only the first N runs by index (a prefix of the campaign)")
+    camp.add_argument("--quiet", action="store_true", help="no progress bar")
+    camp.set_defaults(func=_cmd_campaign)
     return p
 
 

@@ -1,0 +1,140 @@
+"""Where runs execute: in this process, on a local process pool, or on a Dask distributed cluster.
+
+Every backend has the same shape — a context manager with ``map_unordered(fn, args_list)`` yielding results as
+they complete — and none changes a result: each task is a pure function of its arguments.
+"""
+from __future__ import annotations
+
+import multiprocessing
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
+import os
+import signal
+from collections.abc import Callable, Iterable, Iterator
+
+from robofdi.errors import RobofdiError
+
+__all__ = ["LocalPool", "DaskCluster", "backend", "default_workers"]
+
+INSTALL_CLUSTER = "pip install 'robofdi[cluster]' (or: pip install 'dask[distributed]')"
+
+
+def default_workers() -> int:
+    """The cores this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:      # not on Linux
+        return os.cpu_count() or 1
+
+
+def _worker_init() -> None:
+    # Ctrl-C and SIGTERM are the driver's to handle: it terminates the pool; workers must not print tracebacks.
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+class LocalPool:
+    """``workers`` processes ("spawn": a fresh interpreter each, nothing inherited from the driver; a script that
+    calls the API must guard its entry point with ``if __name__ == "__main__":``, as for any spawn pool);
+    1 = this process, no pool. A worker that dies (crash, out of memory) stops the campaign with an error instead
+    of hanging it; the finished runs stay journaled."""
+
+    def __init__(self, workers: int | None = None):
+        workers = default_workers() if workers is None else workers
+        if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+            raise RobofdiError(f"--workers: expected an integer >= 1, got {workers!r}")
+        self.workers = workers
+        self.description = "this process" if workers == 1 else f"local process pool, {workers} workers"
+        self._pool = None
+
+    def __enter__(self):
+        if self.workers > 1:
+            self._pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"),
+                                             initializer=_worker_init)
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        pool, self._pool = self._pool, None
+        if pool is not None:
+            if exc_type is not None:
+                # runs in flight are lost (finished ones are journaled): stop the workers now, not after their run
+                for process in list(getattr(pool, "_processes", {}).values()):
+                    process.terminate()
+            pool.shutdown(wait=True, cancel_futures=True)
+        return False
+
+    def map_unordered(self, fn: Callable, args_list: Iterable[tuple]) -> Iterator:
+        if self._pool is None:
+            for args in args_list:
+                yield fn(*args)
+            return
+        futures = [self._pool.submit(fn, *args) for args in args_list]
+        try:
+            for future in as_completed(futures):
+                try:
+                    yield future.result()
+                except BrokenProcessPool:
+                    raise RobofdiError("a worker process of the local pool died (crash or out of memory); the finished "
+                                       "runs are kept, --resume continues") from None
+        finally:
+            for f in futures:
+                f.cancel()
+
+
+class DaskCluster:
+    """A running Dask distributed scheduler at ``address`` (tcp://host:port), connected now: an unreachable
+    scheduler is an error before any run starts. Needs the optional extra ``cluster``."""
+
+    def __init__(self, address: str, timeout: float = 10.0):
+        try:
+            from dask.distributed import Client
+        except ImportError:
+            raise RobofdiError(f"--scheduler needs dask.distributed, which is not installed: {INSTALL_CLUSTER}") from None
+        if not isinstance(address, str) or not address.strip():
+            raise RobofdiError(f"--scheduler: expected an address like tcp://HOST:8786, got {address!r}")
+        try:
+            self.client = Client(address, timeout=timeout, set_as_default=False)
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise RobofdiError(f"--scheduler: cannot reach the Dask scheduler at {address!r} within {timeout:g} s "
+                               f"({' '.join(str(exc).split())})") from None
+        self.workers = len(self.client.scheduler_info().get("workers", {}))
+        if self.workers == 0:
+            self.client.close()
+            raise RobofdiError(f"--scheduler: the Dask scheduler at {address!r} has no workers; start some with "
+                               f"`dask worker {address}`")
+        self.description = f"Dask cluster at {address}, {self.workers} workers"
+        self._futures = []
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        if self._futures and exc_type is not None:
+            self.client.cancel(self._futures)
+        self._futures = []
+        self.client.close()
+        return False
+
+    def map_unordered(self, fn: Callable, args_list: Iterable[tuple]) -> Iterator:
+        from dask.distributed import as_completed
+
+        args_list = list(args_list)
+        if not args_list:
+            return
+        # the arguments every task shares (spec, calibrations) travel once, not once per task
+        shared = {}
+        for i, a in enumerate(args_list[0]):
+            if all(len(b) > i and b[i] is a for b in args_list) and not isinstance(a, (int, str, type(None))):
+                shared[i] = self.client.scatter([a], broadcast=True, hash=False)[0]   # a list: a dict would be split
+        self._futures = [self.client.submit(fn, *[shared.get(i, a) for i, a in enumerate(args)], pure=False)
+                         for args in args_list]
+        for future in as_completed(self._futures, loop=self.client.loop):
+            yield future.result()
+
+
+def backend(workers: int | None = None, scheduler: str | None = None):
+    """The backend asked for: a Dask cluster when ``scheduler`` is given, else a local pool."""
+    if scheduler is not None:
+        if workers is not None:
+            raise RobofdiError("--workers and --scheduler exclude each other (the cluster's workers run the campaign)")
+        return DaskCluster(scheduler)
+    return LocalPool(workers)

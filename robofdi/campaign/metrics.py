@@ -1,0 +1,109 @@
+"""Campaign metrics from the results table: what judges a diagnoser over many runs.
+
+Per diagnoser: false-alarm rate over fault-free runs (runs with at least one alarm episode) with its exact 95 %
+Clopper–Pearson interval; detection rate, isolation accuracy, confusion matrix, delay median and 90th percentile,
+all also per fault kind (and per kind and profile);
+detection probability against fault size per (kind, target) and the minimum detectable
+fault read from that curve. Error rows (runs that raised) are counted and left out of every rate.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+from scipy.optimize import isotonic_regression
+from scipy.stats import binomtest
+
+__all__ = ["clopper_pearson", "detection_curve", "analyse", "MISSED", "UNISOLATED"]
+
+#: Confusion-matrix columns of a missed fault and of a detection with nothing isolated.
+MISSED, UNISOLATED = "missed", "unknown"
+
+
+def clopper_pearson(k: int, n: int, confidence: float = 0.95) -> list[float] | None:
+    """Exact binomial interval for k successes in n trials — Clopper & Pearson, Biometrika 26(4), 1934."""
+    if n == 0:
+        return None
+    ci = binomtest(int(k), int(n)).proportion_ci(confidence, method="exact")
+    return [float(ci.low), float(ci.high)]
+
+
+def _rate(k: int, n: int) -> dict:
+    return {"count": int(k), "of": int(n), "rate": (k / n) if n else None, "ci95": clopper_pearson(k, n)}
+
+
+def detection_curve(size: np.ndarray, detected: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Monotone detection probability against size: the isotonic (non-decreasing) least-squares fit of the 0/1
+    outcomes sorted by size — pool-adjacent-violators, Ayer et al., Ann. Math. Statist. 26(4), 1955.
+    Returns (sorted sizes, fitted probability at each)."""
+    order = np.argsort(size, kind="stable")
+    s, d = np.asarray(size, float)[order], np.asarray(detected, float)[order]
+    if s.size == 0:
+        return s, d
+    return s, isotonic_regression(d, increasing=True).x
+
+
+def _minimum_detectable(size, detected, level: float):
+    s, p = detection_curve(size, detected)
+    hit = np.flatnonzero(p >= level)
+    return (float(s[hit[0]]) if hit.size else None), s, p
+
+
+def _fault_metrics(rows: pd.DataFrame) -> dict:
+    n = len(rows)
+    detected = rows["detected"].fillna(False).astype(bool)
+    correct = rows["correct"].fillna(False).astype(bool) & detected
+    delays = rows.loc[detected, "delay"].astype(float).to_numpy()
+    return {
+        "faults": n,
+        "detection": _rate(int(detected.sum()), n),
+        "isolation_accuracy": _rate(int(correct.sum()), int(detected.sum())),       # correct among detected
+        "correctly_isolated": _rate(int(correct.sum()), n),                          # correct among all faults
+        "delay_median": float(np.median(delays)) if delays.size else None,
+        "delay_p90": float(np.percentile(delays, 90)) if delays.size else None,
+        "runs_with_false_alarm_before_onset": int((rows["false_alarms"].fillna(0) > 0).sum()),
+    }
+
+
+def _confusion(rows: pd.DataFrame) -> dict:
+    truth = rows["target"].astype(str)
+    detected = rows["detected"].fillna(False).astype(bool)
+    isolated = rows["isolated"].astype(object).where(rows["isolated"].notna(), UNISOLATED)
+    said = np.where(detected, isolated.astype(str), MISSED)
+    matrix = pd.crosstab(truth, pd.Series(said, index=rows.index, name="isolated"))
+    return {t: {c: int(v) for c, v in matrix.loc[t].items() if v} for t in matrix.index}
+
+
+def analyse(table: pd.DataFrame, detection_level: float = 0.9, diagnosers=None) -> dict:
+    """campaign.json's "diagnosers" block (see the module docstring); ``detection_level``: the detection
+    probability at which a fault counts as detectable."""
+    ok = table[table["error"].isna()]
+    names = list(diagnosers) if diagnosers is not None else list(dict.fromkeys(table["diagnoser"]))
+    out = {}
+    for name in names:
+        mine = ok[ok["diagnoser"] == name]
+        free = mine[~mine["faulty"]]
+        faulty = mine[mine["faulty"]]
+        false_runs = int((free["false_alarms"].fillna(0) > 0).sum())
+        entry = {
+            "false_alarm_rate": _rate(false_runs, len(free)),
+            "faulty": _fault_metrics(faulty),
+            "by_kind": {k: _fault_metrics(g) for k, g in faulty.groupby("kind", sort=True)},
+            # abrupt and incipient faults of one kind apart: "actuator_additive~exponential_rise"
+            "by_kind_profile": {f"{k}~{p}": _fault_metrics(g) for (k, p), g in faulty.groupby(["kind", "profile"], sort=True)},
+            "confusion": {k: _confusion(g) for k, g in faulty.groupby("kind", sort=True)},
+            "detectability": {},
+        }
+        for (kind, target), g in faulty.groupby(["kind", "target"], sort=True):
+            size, det = g["size"].to_numpy(float), g["detected"].fillna(False).astype(bool).to_numpy()
+            smallest, _, _ = _minimum_detectable(size, det, detection_level)
+            limit = float(g["limit"].iloc[0])
+            entry["detectability"].setdefault(kind, {})[target] = {
+                "faults": len(g), "detected": int(det.sum()), "size_range": [float(size.min()), float(size.max())],
+                "min_detectable_size": smallest,
+                "min_detectable_magnitude": None if smallest is None else smallest * limit,
+                # the smallest size drawn was already detected at the level: the true minimum may be smaller
+                "min_detectable_at_most": smallest is not None and smallest <= float(size.min()),
+                "unit": str(g["unit"].iloc[0]), "limit": limit,
+            }
+        out[name] = entry
+    return out

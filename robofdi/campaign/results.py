@@ -1,0 +1,215 @@
+"""A campaign's outputs: results.parquet, campaign.json, figures/ and report.md — and reading them back."""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from robofdi.campaign.metrics import analyse, detection_curve
+from robofdi.campaign.runs import UNITS
+from robofdi.errors import RobofdiError
+from robofdi.evaluate.summary import _jsonable
+
+__all__ = ["CampaignResult", "load", "write_outputs", "report_markdown"]
+
+FIGURES = "figures"
+
+
+@dataclass
+class CampaignResult:
+    """A campaign folder: the results ``table`` (pandas), the ``spec`` (a CampaignSpec, or its dict when loaded)."""
+
+    out: Path
+    spec: object
+    table: pd.DataFrame
+
+    @property
+    def spec_dict(self) -> dict:
+        return self.spec if isinstance(self.spec, dict) else self.spec.to_dict()
+
+    def metrics(self, detection_level: float | None = None) -> dict:
+        """Per-diagnoser campaign metrics (:func:`robofdi.campaign.metrics.analyse`)."""
+        spec = self.spec_dict
+        return analyse(self.table, detection_level or spec["detection_level"], spec["diagnosers"])
+
+    @property
+    def summary(self) -> dict:
+        """campaign.json as written."""
+        return json.loads((Path(self.out) / "campaign.json").read_text())
+
+
+def load(out: str | Path) -> CampaignResult:
+    """A campaign folder written by :func:`robofdi.campaign.run_campaign`."""
+    out = Path(out)
+    for name in ("results.parquet", "spec.json"):
+        if not (out / name).is_file():
+            raise RobofdiError(f"campaign folder {str(out)!r}: no {name}; expected the --out folder of a finished campaign")
+    return CampaignResult(out, json.loads((out / "spec.json").read_text())["spec"], pd.read_parquet(out / "results.parquet"))
+
+
+def _figures(result: CampaignResult, metrics: dict) -> list[str]:
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    folder = Path(result.out) / FIGURES
+    folder.mkdir(exist_ok=True)
+    table = result.table[result.table["error"].isna() & result.table["faulty"]]
+    written = []
+    if table.empty:
+        return written
+    kinds = sorted(set(table["kind"]))
+    diagnosers = list(metrics)
+    # confusion matrices: one panel per diagnoser, all kinds pooled (true target × isolated)
+    for name in diagnosers:
+        rows = table[table["diagnoser"] == name]
+        truth = sorted(set(rows["target"]))
+        said = np.where(rows["detected"].fillna(False).astype(bool),
+                        rows["isolated"].astype(object).where(rows["isolated"].notna(), "unknown").astype(str), "missed")
+        cols = sorted(set(said) - {"missed", "unknown"}) + [c for c in ("unknown", "missed") if c in set(said)]
+        counts = pd.crosstab(rows["target"].astype(str).to_numpy(), said).reindex(index=truth, columns=cols, fill_value=0)
+        fig, ax = plt.subplots(figsize=(1.2 + 0.45 * len(cols), 1.2 + 0.4 * len(truth)))
+        ax.imshow(counts.to_numpy(), cmap="Blues")
+        ax.set_xticks(range(len(cols)), cols, rotation=60, ha="right", fontsize=7)
+        ax.set_yticks(range(len(truth)), truth, fontsize=7)
+        for (i, j), v in np.ndenumerate(counts.to_numpy()):
+            if v:
+                ax.text(j, i, str(v), ha="center", va="center", fontsize=7)
+        ax.set_xlabel("isolated target [runs]")
+        ax.set_ylabel("true target")
+        ax.set_title(f"{name}: confusion over {len(rows)} faults", fontsize=9)
+        fig.tight_layout()
+        path = folder / f"confusion_{name}.png"
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        written.append(path.name)
+    # delay CDFs and detection probability against size, one panel per fault kind
+    for what in ("delay_cdf", "detection_vs_size"):
+        cols = min(3, len(kinds))
+        rows_n = int(np.ceil(len(kinds) / cols))
+        fig, axes = plt.subplots(rows_n, cols, figsize=(4.2 * cols, 3.2 * rows_n), squeeze=False)
+        for ax, kind in zip(axes.flat, kinds):
+            sub = table[table["kind"] == kind]
+            for name in diagnosers:
+                rows = sub[sub["diagnoser"] == name]
+                det = rows["detected"].fillna(False).astype(bool).to_numpy()
+                if what == "delay_cdf":
+                    d = np.sort(rows.loc[det, "delay"].to_numpy(float))
+                    ax.step(np.concatenate([[0], d]), np.arange(d.size + 1) / max(len(rows), 1), where="post", label=name)
+                    ax.set_xlabel("detection delay [s]")
+                    ax.set_ylabel("fraction of faults detected")
+                else:
+                    s, p = detection_curve(rows["size"].to_numpy(float), det)
+                    ax.plot(s, p, drawstyle="steps-post", marker=".", ms=3, label=name)
+                    ax.set_xlabel("fault size [fraction of the target's limit]")
+                    ax.set_ylabel("detection probability")
+            if what == "detection_vs_size":
+                level = result.spec_dict["detection_level"]
+                ax.axhline(level, color="k", lw=0.6, ls=":")
+            ax.set_title(f"{kind} ({len(sub) // max(len(diagnosers), 1)} faults)", fontsize=9)
+            ax.set_ylim(-0.02, 1.02)
+            ax.grid(alpha=0.3)
+        for ax in list(axes.flat)[len(kinds):]:
+            ax.axis("off")
+        axes.flat[0].legend(fontsize=7)
+        fig.tight_layout()
+        path = folder / f"{what}.png"
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        written.append(path.name)
+    return written
+
+
+def _pct(rate: dict) -> str:
+    return "–" if rate["rate"] is None else f"{100 * rate['rate']:.1f} % ({rate['count']}/{rate['of']})"
+
+
+def _ms(x) -> str:
+    return "–" if x is None else f"{1e3 * x:.0f}"
+
+
+def report_markdown(summary: dict) -> str:
+    """report.md from campaign.json."""
+    spec = summary["spec"]
+    lines = [f"# Campaign: {spec['system']} — {summary['runs']['finished']} runs "
+             f"({summary['runs']['fault_free']} fault-free, {summary['runs']['faulty']} faulty, "
+             f"{summary['runs']['errors']} errors)", "",
+             f"Seed {spec['seed']}; system options `{json.dumps(spec['system_options'])}`; results table "
+             "`results.parquet` (one row per run × diagnoser × fault).", "",
+             "| diagnoser | false-alarm runs (95 % CI) | detected | correctly isolated | isolation accuracy | "
+             "delay median / p90 [ms] |", "|---|---|---|---|---|---|"]
+    for name, m in summary["diagnosers"].items():
+        fa, f = m["false_alarm_rate"], m["faulty"]
+        ci = "–" if fa["ci95"] is None else f"[{100 * fa['ci95'][0]:.1f}, {100 * fa['ci95'][1]:.1f}] %"
+        lines.append(f"| {name} | {_pct(fa)} {ci} | {_pct(f['detection'])} | {_pct(f['correctly_isolated'])} | "
+                     f"{_pct(f['isolation_accuracy'])} | {_ms(f['delay_median'])} / {_ms(f['delay_p90'])} |")
+    kinds = sorted({k for m in summary["diagnosers"].values() for k in m["by_kind_profile"]})
+    if kinds:
+        names = list(summary["diagnosers"])
+        lines += ["", "## Detected / correctly isolated, by fault kind and profile", "",
+                  "| kind~profile | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
+        for k in kinds:
+            cells = []
+            for n in names:
+                b = summary["diagnosers"][n]["by_kind_profile"].get(k)
+                cells.append("–" if b is None else f"{b['detection']['count']}/{b['faults']} · "
+                             f"{b['correctly_isolated']['count']}/{b['faults']} · {_ms(b['delay_median'])} ms")
+            lines.append(f"| {k} | " + " | ".join(cells) + " |")
+        lines += ["", "Cells: detected / faults · correctly isolated / faults · median delay.", "",
+                  f"## Minimum detectable fault (detection probability ≥ {spec['detection_level']:g}, isotonic fit)", "",
+                  "≤: the smallest size drawn was already detected; n: faults of that kind on that target.", "",
+                  "| kind | target | " + " | ".join(names) + " |", "|---|---|" + "---|" * len(names)]
+        pairs = sorted({(k, t) for m in summary["diagnosers"].values() for k, ts in m["detectability"].items() for t in ts})
+        for k, t in pairs:
+            cells = []
+            for n in names:
+                d = summary["diagnosers"][n]["detectability"].get(k, {}).get(t)
+                unit = "" if d is None or d["unit"] == "1" else f" {d['unit']}"
+                if d is None:
+                    cells.append("–")
+                elif d["min_detectable_magnitude"] is None:
+                    cells.append(f"not reached ≤ {d['size_range'][1] * d['limit']:.3g}{unit} (n={d['faults']})")
+                else:
+                    at_most = "≤ " if d.get("min_detectable_at_most") else ""
+                    cells.append(f"{at_most}{d['min_detectable_magnitude']:.3g}{unit} (n={d['faults']})")
+            lines.append(f"| {k} | {t} | " + " | ".join(cells) + " |")
+    ex = summary.get("execution", {})
+    cal = ex.get("calibration") or {}
+    lines += ["", "## Execution", "", f"Backend: {ex.get('backend')}; runs this session: {ex.get('runs_this_session')}; "
+              f"throughput: {ex.get('runs_per_minute') and round(ex['runs_per_minute'], 1)} runs/min; calibration "
+              f"{cal.get('wall_time') and round(cal['wall_time'], 2)} s for {len(cal.get('keys', []))} key(s) "
+              f"(cached: {[v['cached'] for v in cal.get('per_key', {}).values()]})."]
+    if summary.get("errors"):
+        lines += ["", "## Runs that raised", ""] + [f"- run {e['index']}: {e['error']}" for e in summary["errors"][:20]]
+    if summary.get("figures"):
+        lines += ["", "## Figures", ""] + [f"![{f}](figures/{f})" for f in summary["figures"]]
+    return "\n".join(lines) + "\n"
+
+
+def write_outputs(result: CampaignResult, execution: dict | None = None) -> dict:
+    """results.parquet, campaign.json, figures/ and report.md in the campaign folder; returns campaign.json's dict."""
+    out = Path(result.out)
+    table = result.table
+    table.to_parquet(out / "results.parquet", index=False)
+    metrics = result.metrics()
+    firsts = table.drop_duplicates("index")
+    errors = firsts[firsts["error"].notna()]
+    summary = {
+        "spec": result.spec_dict,
+        "runs": {"finished": int(len(firsts)), "fault_free": int((~firsts["faulty"]).sum()),
+                 "faulty": int(firsts["faulty"].sum()), "errors": int(len(errors))},
+        "diagnosers": metrics,
+        "errors": [{"index": int(r["index"]), "error": str(r["error"])} for _, r in errors.iterrows()],
+        "execution": execution or {},
+        "units": {**UNITS, "rate": "fraction of runs", "ci95": "Clopper–Pearson exact 95 % interval of the rate",
+                  "delay_median": "s", "delay_p90": "s", "min_detectable_size": "fraction of the target's limit",
+                  "min_detectable_magnitude": "'unit' of the entry"},
+    }
+    summary["figures"] = _figures(result, metrics)
+    (out / "campaign.json").write_text(json.dumps(_jsonable(summary), indent=2, allow_nan=False) + "\n")
+    (out / "report.md").write_text(report_markdown(_jsonable(summary)))
+    return summary

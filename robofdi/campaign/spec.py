@@ -1,0 +1,304 @@
+"""The campaign spec: a TOML file read into a validated dataclass tree, every error naming its field.
+
+    seed = 0                       # campaign seed: run i's seed is robofdi.seeding.stream(seed, "campaign", "run", i)
+    fault_free_runs = 100
+    faulty_runs = 100              # one fault each, drawn from [[faults]] (weighted)
+    diagnosers = ["simple", "momentum"]      # default: every diagnoser of the system
+    records = false                # also save every run's record (records/run-<index>.h5)
+    detection_level = 0.9          # detection probability that defines the minimum detectable fault
+    # (a system without options can be given at the top instead: system = "linear")
+
+    [system]                       # the system and its options (see its options dataclass)
+    name = "arm"                   # a registered system, or "package.module:attribute"
+    robot = "arm6.xml"
+
+    [[faults]]
+    kind = "actuator_additive"
+    targets = ["joint*"]           # names or shell patterns; default every target of the kind
+    magnitude_fraction = [0.02, 0.4]     # of the target's limit (or: magnitude = [lo, hi] in the kind's unit)
+    random_sign = true             # default true for additive, bias and drift kinds
+    profiles = [{type = "step"}, {type = "ramp", duration = 0.5}]   # one drawn per fault; default step
+    onset_fraction = [0.2, 0.6]    # onset drawn in this part of the run
+    duration = [0.5, 1.5]          # optional: the fault ends after this long [s]; default: stays
+    params = {}                    # kind parameters (hard_over: limit; sensor_delay: delay; …)
+    weight = 1.0                   # relative probability of this entry
+"""
+from __future__ import annotations
+
+import fnmatch
+import hashlib
+import json
+import math
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+try:
+    import tomllib
+except ModuleNotFoundError:          # Python 3.10
+    import tomli as tomllib
+
+from robofdi.campaign.systems import CampaignSystem, fault_limit, get_system
+from robofdi.errors import RobofdiError
+from robofdi.faults import FAULT_KINDS, Fault
+from robofdi.faults.profiles import profile_from_dict
+
+__all__ = ["CampaignSpec", "FaultDistribution", "load_spec", "parse_spec", "SIGNED_KINDS", "shipped_specs"]
+
+#: Kinds whose magnitude has a sign that matters and a symmetric range (random_sign defaults to true).
+SIGNED_KINDS = ("actuator_additive", "actuator_drift", "sensor_bias", "sensor_drift", "sensor_outliers")
+
+
+def _number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _range(where: str, value, low=None, high=None) -> tuple[float, float]:
+    if not (isinstance(value, (list, tuple)) and len(value) == 2 and all(_number(v) for v in value)):
+        raise RobofdiError(f"{where}: expected [low, high] (two finite numbers), got {value!r}")
+    lo, hi = float(value[0]), float(value[1])
+    if lo > hi:
+        raise RobofdiError(f"{where}: empty range [{lo:g}, {hi:g}] (low > high)")
+    if (low is not None and lo < low) or (high is not None and hi > high):
+        raise RobofdiError(f"{where}: [{lo:g}, {hi:g}] is outside [{low:g}, {high:g}]")
+    return lo, hi
+
+
+def _known_keys(where: str, table: dict, cls) -> None:
+    if not isinstance(table, dict):
+        raise RobofdiError(f"{where}: expected a table, got {table!r}")
+    names = [f.name for f in fields(cls) if not f.name.startswith("_")]
+    unknown = sorted(set(table) - set(names))
+    if unknown:
+        raise RobofdiError(f"{where}: unknown field {unknown[0]!r}; expected one of {', '.join(names)}")
+
+
+@dataclass(frozen=True)
+class FaultDistribution:
+    """One ``[[faults]]`` entry (see the module docstring); ``targets`` resolved to names, ``limits`` per target."""
+
+    kind: str
+    targets: tuple = ("*",)
+    magnitude: tuple | None = None
+    magnitude_fraction: tuple | None = None
+    random_sign: bool | None = None
+    profiles: tuple = ({"type": "step"},)
+    onset_fraction: tuple = (0.2, 0.6)
+    duration: tuple | None = None
+    params: dict = field(default_factory=dict)
+    weight: float = 1.0
+    limits: dict = field(default_factory=dict, compare=False)       # target -> (limit, unit), filled by resolve()
+
+    @classmethod
+    def resolve(cls, where: str, table: dict, system: CampaignSystem, options) -> FaultDistribution:
+        _known_keys(where, table, cls)
+        if "limits" in table:
+            raise RobofdiError(f"{where}: unknown field 'limits'; the limits come from the system")
+        kind = table.get("kind")
+        if kind not in FAULT_KINDS:
+            raise RobofdiError(f"{where}.kind: unknown fault kind {kind!r}; expected one of {', '.join(FAULT_KINDS)}")
+        all_targets = system.targets(options)
+        family = kind.split("_", 1)[0]
+        pool = list(all_targets.get(family if family in ("actuator", "sensor") else kind, {}))
+        if not pool:
+            raise RobofdiError(f"{where}.kind: system {system.name!r} has no targets for {kind}")
+        patterns = table.get("targets", ["*"])
+        if isinstance(patterns, str):
+            patterns = [patterns]
+        if not isinstance(patterns, list) or not patterns or not all(isinstance(p, str) for p in patterns):
+            raise RobofdiError(f"{where}.targets: expected a non-empty list of target names or patterns, got {patterns!r}")
+        targets = []
+        for p in patterns:
+            hit = fnmatch.filter(pool, p)
+            if not hit:
+                raise RobofdiError(f"{where}.targets: unknown target {p!r} for {kind}; expected one of {', '.join(pool)}")
+            targets += [t for t in hit if t not in targets]
+        limits = {t: fault_limit(all_targets, kind, t) for t in targets}
+        signed = table.get("random_sign", kind in SIGNED_KINDS)
+        if not isinstance(signed, bool):
+            raise RobofdiError(f"{where}.random_sign: expected true or false, got {signed!r}")
+        if signed and kind not in SIGNED_KINDS:
+            raise RobofdiError(f"{where}.random_sign: {kind} has no sign to draw; expected false "
+                               f"(true only for {', '.join(SIGNED_KINDS)})")
+        given = [k for k in ("magnitude", "magnitude_fraction") if k in table]
+        if len(given) != 1:
+            raise RobofdiError(f"{where}: give exactly one of 'magnitude' (in the kind's unit) or 'magnitude_fraction' "
+                               f"(of the target's limit), got {given or 'neither'}")
+        low = 0.0 if signed or kind not in SIGNED_KINDS else -1.0
+        if "magnitude_fraction" in table:
+            magnitude, fraction = None, _range(f"{where}.magnitude_fraction", table["magnitude_fraction"], low, 1.0)
+        else:
+            fraction, magnitude = None, _range(f"{where}.magnitude", table["magnitude"])
+            for t, lim in limits.items():
+                if max(abs(magnitude[0]), abs(magnitude[1])) > lim.limit or (magnitude[0] < 0 and low == 0.0):
+                    raise RobofdiError(f"{where}.magnitude: [{magnitude[0]:g}, {magnitude[1]:g}] is outside the limits of "
+                                       f"target {t!r}: [{low * lim.limit:g}, {lim.limit:g}] {lim.unit}")
+        profiles = table.get("profiles", [{"type": "step"}])
+        if not isinstance(profiles, list) or not profiles:
+            raise RobofdiError(f"{where}.profiles: expected a non-empty list of profiles like {{type = \"step\"}}, "
+                               f"got {profiles!r}")
+        onset = _range(f"{where}.onset_fraction", table.get("onset_fraction", [0.2, 0.6]), 0.0, 1.0)
+        if onset[1] >= 1.0:
+            raise RobofdiError(f"{where}.onset_fraction: the onset must come before the run's end, expected high < 1")
+        duration = None if "duration" not in table else _range(f"{where}.duration", table["duration"], 0.0)
+        if duration is not None and duration[0] <= 0:
+            raise RobofdiError(f"{where}.duration: expected durations > 0 s, got {list(duration)}")
+        weight = table.get("weight", 1.0)
+        if not (_number(weight) and weight > 0):
+            raise RobofdiError(f"{where}.weight: expected a number > 0, got {weight!r}")
+        params = table.get("params", {})
+        parsed = []
+        for i, p in enumerate(profiles):
+            try:
+                profile = profile_from_dict(p if isinstance(p, dict) else {"type": p})
+                probe = max(limits.values(), key=lambda lim: lim.limit)
+                size = (fraction[1] * probe.limit) if fraction else magnitude[1]
+                Fault("probe", kind, targets[0], onset=0.0, magnitude=size, profile=profile, params=params)
+            except RobofdiError as exc:
+                raise RobofdiError(f"{where}.profiles[{i}]: {exc}") from None
+            parsed.append(profile.to_dict())
+        return cls(kind, tuple(targets), magnitude, fraction, signed, tuple(parsed), onset, duration, dict(params),
+                   float(weight), {t: (lim.limit, lim.unit) for t, lim in limits.items()})
+
+
+@dataclass(frozen=True)
+class CampaignSpec:
+    """A validated campaign (see the module docstring). ``options``: the system's options dataclass."""
+
+    system: str
+    seed: int = 0
+    fault_free_runs: int = 0
+    faulty_runs: int = 0
+    diagnosers: tuple = ()
+    records: bool = False
+    detection_level: float = 0.9
+    options: Any = None
+    faults: tuple = ()
+    source: str = field(default="", compare=False)
+
+    @property
+    def runs(self) -> int:
+        return self.fault_free_runs + self.faulty_runs
+
+    @property
+    def campaign_system(self) -> CampaignSystem:
+        return get_system(self.system)
+
+    def to_dict(self) -> dict:
+        """The spec as plain data (what campaign.json records and --resume compares)."""
+        from dataclasses import asdict
+
+        opts = asdict(self.options) if self.options is not None else {}
+        return {"system": self.system, "seed": self.seed, "fault_free_runs": self.fault_free_runs,
+                "faulty_runs": self.faulty_runs, "diagnosers": list(self.diagnosers), "records": self.records,
+                "detection_level": self.detection_level, "system_options": json.loads(json.dumps(opts, default=list)),
+                "faults": [{k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(f).items()}
+                           for f in self.faults]}
+
+    def fingerprint(self) -> str:
+        """A hash of everything that decides the runs' results."""
+        return hashlib.sha256(json.dumps(self.to_dict(), sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
+_TOP = ("system", "seed", "fault_free_runs", "faulty_runs", "diagnosers", "records", "detection_level", "faults")
+
+
+def parse_spec(data: dict, source: str = "spec") -> CampaignSpec:
+    """Validate a spec given as a dict (what tomllib returns); errors name the field."""
+    if not isinstance(data, dict):
+        raise RobofdiError(f"{source}: expected a table, got {type(data).__name__}")
+    unknown = sorted(set(data) - set(_TOP) - {"system"})
+    if unknown:
+        raise RobofdiError(f"{source}: unknown field {unknown[0]!r}; expected one of {', '.join(_TOP)} and a [system] table")
+    name = data.get("system")
+    options_table = {}
+    if isinstance(name, dict):       # [system] table with name = "arm"
+        options_table = dict(name)
+        name = options_table.pop("name", None)
+    if name is None:
+        raise RobofdiError(f"{source}: field 'system' is required (e.g. system = \"arm\", or [system] with name = \"arm\")")
+    try:
+        system = get_system(name)
+    except RobofdiError as exc:
+        raise RobofdiError(f"{source}: {exc}") from None
+    options = _options(f"{source}: system", system, options_table)
+    seed = data.get("seed", 0)
+    if not (isinstance(seed, int) and not isinstance(seed, bool) and seed >= 0):
+        raise RobofdiError(f"{source}: field 'seed' must be an integer >= 0, got {seed!r}")
+    counts = {}
+    for key in ("fault_free_runs", "faulty_runs"):
+        v = data.get(key, 0)
+        if not (isinstance(v, int) and not isinstance(v, bool) and v >= 0):
+            raise RobofdiError(f"{source}: field {key!r} must be an integer >= 0, got {v!r}")
+        counts[key] = v
+    if counts["fault_free_runs"] + counts["faulty_runs"] == 0:
+        raise RobofdiError(f"{source}: fields 'fault_free_runs' + 'faulty_runs' must be > 0, got no runs")
+    available = tuple(system.diagnosers(options))
+    diagnosers = data.get("diagnosers", list(available))
+    if not isinstance(diagnosers, list) or not diagnosers:
+        raise RobofdiError(f"{source}: field 'diagnosers' must be a non-empty list, got {diagnosers!r}")
+    for d in diagnosers:
+        if d not in available:
+            raise RobofdiError(f"{source}: field 'diagnosers': unknown diagnoser {d!r} for system {system.name!r}; "
+                               f"expected some of {', '.join(available)}")
+    records = data.get("records", False)
+    if not isinstance(records, bool):
+        raise RobofdiError(f"{source}: field 'records' must be true or false, got {records!r}")
+    level = data.get("detection_level", 0.9)
+    if not (_number(level) and 0 < level < 1):
+        raise RobofdiError(f"{source}: field 'detection_level' must be a probability in (0, 1), got {level!r}")
+    tables = data.get("faults", [])
+    if not isinstance(tables, list):
+        raise RobofdiError(f"{source}: field 'faults' must be [[faults]] tables, got {tables!r}")
+    if counts["faulty_runs"] and not tables:
+        raise RobofdiError(f"{source}: field 'faults': faulty_runs = {counts['faulty_runs']} needs at least one [[faults]] entry")
+    faults = tuple(FaultDistribution.resolve(f"{source}: faults[{i}]", t, system, options) for i, t in enumerate(tables))
+    return CampaignSpec(name, seed, counts["fault_free_runs"],
+                        counts["faulty_runs"], tuple(diagnosers), records, float(level), options, faults, source)
+
+
+def _options(where: str, system: CampaignSystem, table: dict):
+    cls = system.options_type
+    _known_keys(where, table, cls)
+    kwargs = {k: (tuple(v) if isinstance(v, list) else v) for k, v in table.items()}
+    try:
+        return cls(**kwargs)
+    except RobofdiError as exc:
+        raise RobofdiError(f"{where}: {exc}".replace("system: system", "system")) from None
+    except TypeError as exc:
+        raise RobofdiError(f"{where}: {exc}") from None
+
+
+def shipped_specs() -> dict[str, Path]:
+    """The example specs installed with robofdi (experiments/campaigns/*.toml) by name."""
+    from importlib import resources
+
+    folder = resources.files("robofdi.experiments") / "campaigns"
+    return {Path(str(p)).stem: Path(str(p)) for p in folder.iterdir() if str(p).endswith(".toml")}
+
+
+def load_spec(spec) -> CampaignSpec:
+    """A spec from a TOML file path, the name of a shipped spec ("arm", "linear"), TOML text, a dict, or a
+    CampaignSpec (returned as is)."""
+    if isinstance(spec, CampaignSpec):
+        return spec
+    if isinstance(spec, dict):
+        return parse_spec(spec)
+    if isinstance(spec, str) and "\n" in spec:
+        try:
+            return parse_spec(tomllib.loads(spec), "spec")
+        except tomllib.TOMLDecodeError as exc:
+            raise RobofdiError(f"spec: not valid TOML: {exc}") from None
+    path = Path(spec)
+    if not path.is_file():
+        shipped = shipped_specs()
+        if str(spec) in shipped:
+            path = shipped[str(spec)]
+        else:
+            raise RobofdiError(f"SPEC: no file {str(spec)!r}; expected a TOML file or a shipped spec "
+                               f"({', '.join(sorted(shipped))})")
+    try:
+        data = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise RobofdiError(f"{path.name}: not valid TOML: {exc}") from None
+    return parse_spec(data, path.name)

@@ -1,0 +1,311 @@
+"""What a system gives a campaign: the :class:`CampaignSystem` protocol, the registry, and the shipped systems.
+
+A system plugs in with a few lines: an options dataclass (the spec's ``[system]`` table, validated by its
+constructor), its fault targets with their limits, its diagnosers, its calibration keys (one calibration per
+(robot, seed)), and three functions — calibrate, draw a mission, run one mission with faults to a
+:class:`~robofdi.record.Record`. Then ``register_system(MySystem())``, or name it in the spec as
+``system = "package.module:attribute"`` (importable on every worker). Every function must be deterministic in
+its arguments: a run's result may depend only on (options, calibration, robot seed, run seed, faults).
+"""
+from __future__ import annotations
+
+import functools
+from collections.abc import Hashable
+from dataclasses import dataclass, field, fields
+from importlib import import_module
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+from robofdi.errors import RobofdiError
+from robofdi.faults import FAULT_KINDS
+from robofdi.record import Record
+from robofdi.seeding import rng
+
+__all__ = ["TargetLimit", "Mission", "CampaignSystem", "SYSTEMS", "register_system", "get_system", "fault_limit",
+           "ArmCampaign", "LinearCampaign", "ArmOptions", "LinearOptions"]
+
+
+@dataclass(frozen=True)
+class TargetLimit:
+    """A fault target's limit in its own unit: the motor torque limit of an actuator, the range of a sensor
+    channel, the mass of a link. Magnitudes "as a fraction of the limit" multiply it."""
+
+    limit: float
+    unit: str
+
+
+@dataclass(frozen=True)
+class Mission:
+    """One drawn mission: its run duration [s] and the system's own description of it (a trajectory, setpoints)."""
+
+    duration: float
+    plan: Any
+    description: dict = field(default_factory=dict)
+
+
+@runtime_checkable
+class CampaignSystem(Protocol):
+    """The protocol a system implements to run campaigns (see the module docstring)."""
+
+    name: str
+    options_type: type
+
+    def diagnosers(self, options) -> tuple[str, ...]: ...
+
+    def targets(self, options) -> dict[str, dict[str, TargetLimit]]:
+        """{"actuator": {name: limit}, "sensor": {...}, "component_<kind>": {...}}."""
+
+    def calibration_keys(self, options) -> list[Hashable]: ...
+
+    def calibrate(self, options, key, diagnosers) -> tuple[Any, bool]:
+        """(calibration, True if it came from the cache)."""
+
+    def mission(self, options, key, generator: np.random.Generator) -> Mission: ...
+
+    def run(self, options, calibration, key, mission: Mission, faults, seed: int, diagnosers) -> Record: ...
+
+
+SYSTEMS: dict[str, CampaignSystem] = {}
+
+
+def register_system(system: CampaignSystem) -> CampaignSystem:
+    """Make ``system`` available to specs as ``system = "<system.name>"``."""
+    if not isinstance(system, CampaignSystem):
+        raise RobofdiError(f"register_system: {system!r} does not implement the CampaignSystem protocol")
+    SYSTEMS[system.name] = system
+    return system
+
+
+def get_system(name: str) -> CampaignSystem:
+    """A registered system by name, or ``"package.module:attribute"`` (a CampaignSystem instance)."""
+    if not isinstance(name, str) or not name:
+        raise RobofdiError(f"system: expected a non-empty name, got {name!r}")
+    if name in SYSTEMS:
+        return SYSTEMS[name]
+    if ":" in name:
+        module, _, attr = name.partition(":")
+        try:
+            system = getattr(import_module(module), attr)
+        except (ImportError, AttributeError) as exc:
+            raise RobofdiError(f"system: cannot import {name!r} ({exc})") from None
+        if isinstance(system, type):
+            system = system()
+        if not isinstance(system, CampaignSystem):
+            raise RobofdiError(f"system: {name!r} does not implement the CampaignSystem protocol")
+        return system
+    raise RobofdiError(f"system: unknown system {name!r}; expected one of {', '.join(sorted(SYSTEMS))} "
+                       "or 'package.module:attribute'")
+
+
+def fault_limit(targets: dict[str, dict[str, TargetLimit]], kind: str, target: str) -> TargetLimit:
+    """The limit of a fault of ``kind`` on ``target``: the target's limit in the kind's unit (per second for
+    drifts; 1 for the dimensionless kinds — loss of effectiveness, scale, friction factor)."""
+    family = kind.split("_", 1)[0]
+    table = targets.get(family if family in ("actuator", "sensor") else kind, {})
+    if target not in table:
+        raise RobofdiError(f"target {target!r} is not a target of {kind}; expected one of {', '.join(table) or 'none'}")
+    base = table[target]
+    unit = FAULT_KINDS[kind].unit
+    if unit == "1":
+        return TargetLimit(1.0, "1")
+    if unit == "target/s":
+        return TargetLimit(base.limit, f"{base.unit}/s")
+    return base
+
+
+def _check_fields(where: str, obj, checks) -> None:
+    for name, ok, expected in checks:
+        if not ok:
+            raise RobofdiError(f"{where}: field {name!r} must be {expected}, got {getattr(obj, name)!r}")
+
+
+def _is_int(v, least=0) -> bool:
+    return isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= least
+
+
+# ----------------------------------------------------------------------------------------------------- arm
+@dataclass(frozen=True)
+class ArmOptions:
+    """The ``[system]`` table of an arm campaign.
+
+    robot: MJCF file (default the shipped arm6.xml); joints / torque_motors: as :class:`ArmScenario`;
+    robot_seeds: one robot instance per seed (ripple phases, nominal-model errors), one calibration each, runs
+    cycle through them; speed: "fast" | "normal" | "slow" or a factor >= 1 (:data:`robofdi.control.SPEEDS`);
+    segments: point-to-point segments per motion; tail: time after the motion's end [s]; injection: "online" |
+    "offline"."""
+
+    robot: str = "arm6.xml"
+    joints: tuple | None = None
+    torque_motors: bool = False
+    robot_seeds: tuple = (0,)
+    speed: Any = "normal"
+    segments: int = 1
+    tail: float = 1.0
+    injection: str = "online"
+
+    def __post_init__(self):
+        from robofdi.control import SPEEDS
+
+        object.__setattr__(self, "robot_seeds", tuple(self.robot_seeds))
+        if self.joints is not None:
+            object.__setattr__(self, "joints", tuple(self.joints))
+        _check_fields("system", self, [
+            ("robot", isinstance(self.robot, str) and self.robot, "an MJCF file name or path"),
+            ("robot_seeds", self.robot_seeds and all(_is_int(s) for s in self.robot_seeds), "a non-empty list of integers >= 0"),
+            ("speed", self.speed in SPEEDS or (isinstance(self.speed, (int, float)) and not isinstance(self.speed, bool)
+                                                and self.speed >= 1), f"one of {sorted(SPEEDS)} or a number >= 1"),
+            ("segments", _is_int(self.segments, 1), "an integer >= 1"),
+            ("tail", isinstance(self.tail, (int, float)) and 0 <= self.tail < 60, "a time in [0, 60) s"),
+            ("injection", self.injection in ("online", "offline"), "'online' or 'offline'"),
+            ("torque_motors", isinstance(self.torque_motors, bool), "true or false"),
+        ])
+
+
+@functools.lru_cache(maxsize=8)
+def _arm(robot: str, joints, torque_motors: bool):
+    """(simulator, catalogue model, motion limits) of a robot, once per process (the catalogue model plans motions)."""
+    from robofdi.control import MotionLimits
+    from robofdi.sims import ArmSimulator
+
+    sim = ArmSimulator(robot, joints=joints, torque_motors=torque_motors)
+    model = sim.nominal_model()
+    return sim, model, MotionLimits.from_ranges(sim.joint_range[:, 0], sim.joint_range[:, 1], model.torque_limit)
+
+
+class ArmCampaign:
+    """Any MJCF arm: seeded point-to-point motions from random start poses, faults injected online, the book's
+    schemes and the momentum observer in the loop (:mod:`robofdi.scenarios.arm`)."""
+
+    name = "arm"
+    options_type = ArmOptions
+
+    def _base(self, options: ArmOptions):
+        try:
+            return _arm(options.robot, options.joints, options.torque_motors)
+        except RobofdiError as exc:
+            raise RobofdiError(f"system.robot: {exc}") from None
+
+    def diagnosers(self, options):
+        from robofdi.observers.arm_schemes import SCHEMES
+
+        return SCHEMES
+
+    def targets(self, options):
+        sim, model, _ = self._base(options)
+        n = sim.n
+        width = sim.joint_range[:, 1] - sim.joint_range[:, 0]
+        sensors = {ch: TargetLimit(float(width[i % n]), "rad" if i < n else "rad/s")
+                   for i, ch in enumerate(sim.sensor_channels)}          # velocity channels: one range per second
+        masses = {b: TargetLimit(float(sim.model.body_mass[i]), "kg") for b, (i, _) in sim._mass_points.items()}
+        masses["payload"] = TargetLimit(max(v.limit for k, v in masses.items() if k != "payload"), "kg")
+        return {"actuator": {a: TargetLimit(float(model.torque_limit[i]), "N·m") for i, a in enumerate(sim.actuators)},
+                "sensor": sensors,
+                "component_friction": {j: TargetLimit(1.0, "1") for j in sim.component_kinds["component_friction"]},
+                "component_mass": {b: masses[b] for b in sim.component_kinds["component_mass"]}}
+
+    def calibration_keys(self, options):
+        return list(options.robot_seeds)
+
+    def _scenario(self, options, key, diagnosers, motion=None, duration=None, faults=()):
+        from robofdi.scenarios.arm import ArmScenario
+
+        sim, model, limits = self._base(options)
+        if motion is None:
+            motion = self.mission(options, key, rng(key, "campaign", "calibration-placeholder")).plan
+        return ArmScenario("campaign-arm", motion=motion, duration=duration, faults=tuple(faults),
+                           injection=options.injection, mjcf=options.robot, joints=tuple(sim.joint_names),
+                           torque_motors=options.torque_motors, seed=int(key), schemes=tuple(diagnosers))
+
+    def calibrate(self, options, key, diagnosers):
+        from robofdi.scenarios.arm import calibration
+
+        return calibration(self._scenario(options, key, diagnosers))
+
+    def mission(self, options, key, generator):
+        from robofdi.control import random_point_to_point
+
+        _, model, limits = self._base(options)
+        motion = random_point_to_point(model, limits, generator, options.segments, speed=options.speed)
+        start = np.asarray(motion(0.0)[0], dtype=float)
+        return Mission(float(motion.end) + float(options.tail), motion,
+                       {"start_pose": [round(float(v), 6) for v in start], "motion_end": float(motion.end)})
+
+    def run(self, options, calibration, key, mission, faults, seed, diagnosers):
+        from robofdi.scenarios.arm import build_loop
+
+        sc = self._scenario(options, key, diagnosers, mission.plan, mission.duration, faults)
+        return build_loop(sc, calibration).run(sc.run_duration, sc.start_pose, seed=seed, run_key="campaign",
+                                               scenario=sc.name, meta={"robot_seed": int(key)})
+
+
+# -------------------------------------------------------------------------------------------------- linear
+def _linear_settings():
+    from robofdi.scenarios.linear import LinearSettings
+
+    return LinearSettings
+
+
+@dataclass(frozen=True)
+class LinearOptions(_linear_settings()):
+    """The ``[system]`` table of a linear-plant campaign (the wheel-speed plant of :mod:`robofdi.scenarios.linear`):
+    robot_seeds: one belief (seeded parameter errors) per seed, one calibration each; mismatch, margin,
+    calibration_runs, duration [s], blanking [s]: those of :class:`robofdi.scenarios.linear.LinearSettings`."""
+
+    robot_seeds: tuple = (0,)
+
+    def __post_init__(self):
+        object.__setattr__(self, "robot_seeds", tuple(self.robot_seeds))
+        _check_fields("system", self, [("robot_seeds", self.robot_seeds and all(_is_int(s) for s in self.robot_seeds),
+                                        "a non-empty list of integers >= 0")])
+        try:
+            super().__post_init__()
+        except RobofdiError as exc:
+            raise RobofdiError(f"system: {exc}") from None
+
+    @property
+    def settings(self):
+        """The scenario's settings alone (what a calibration depends on; the robot seed is its key)."""
+        base = _linear_settings()
+        return base(**{f.name: getattr(self, f.name) for f in fields(base)})
+
+
+class LinearCampaign:
+    """The differential-drive wheel-speed plant with its observer residual (:mod:`robofdi.scenarios.linear`)."""
+
+    name = "linear"
+    options_type = LinearOptions
+
+    def diagnosers(self, options):
+        from robofdi.scenarios.linear import DIAGNOSER
+
+        return (DIAGNOSER,)
+
+    def targets(self, options):
+        from robofdi.scenarios.linear import SENSOR_RANGE, TORQUE_LIMIT
+
+        return {"actuator": {a: TargetLimit(TORQUE_LIMIT, "N*m") for a in ("tau_L", "tau_R")},
+                "sensor": {s: TargetLimit(v, "rad/s") for s, v in SENSOR_RANGE.items()}}
+
+    def calibration_keys(self, options):
+        return list(options.robot_seeds)
+
+    def calibrate(self, options, key, diagnosers):
+        from robofdi.scenarios.linear import linear_calibration
+
+        return linear_calibration(int(key), options.settings)
+
+    def mission(self, options, key, generator):
+        from robofdi.scenarios.linear import draw_mission
+
+        mission = draw_mission(generator)
+        return Mission(float(options.duration), mission, {k: list(v) for k, v in mission.__dict__.items()})
+
+    def run(self, options, calibration, key, mission, faults, seed, diagnosers):
+        from robofdi.scenarios.linear import run_linear
+
+        return run_linear(mission.plan, faults, calibration, int(key), seed, options.settings, run_key="campaign")
+
+
+register_system(ArmCampaign())
+register_system(LinearCampaign())
