@@ -10,6 +10,7 @@ import numpy as np
 from robofdi import RobofdiError
 from robofdi.models.manipulator import ManipulatorModel
 from robofdi.observers.consistency import ConsistencyDesign, ConsistencyResidual
+from robofdi.observers.kinematic import WINDOWS
 from robofdi.observers.diagnostic import Adaptive, DiagnosticObserver, Recursive, RippleModel, TimeDelayed
 from robofdi.observers.momentum import MomentumObserver
 
@@ -27,7 +28,7 @@ class ArmSchemeSettings:
     momentum-observer bandwidth K_O [1/s]; residual space of the observers ("torque" or "state"); bandwidth K_O
     [1/s] of the consistency scheme's momentum rows, its target false-alarm rate [1/h] (thresholds by
     extreme-value theory, :func:`robofdi.decision.extreme_value_thresholds`) and its isolation confirmation
-    window [samples] (:class:`robofdi.decision.ThresholdDecision` ``confirm``)."""
+    window [samples] (:class:`robofdi.decision.ThresholdDecision` ``confirm``), and its kinematic windows [s]."""
 
     T: float = 0.002
     K1: float = 0.1
@@ -38,6 +39,7 @@ class ArmSchemeSettings:
     consistency_gain: float = 100.0
     consistency_false_alarm_rate: float = 0.1
     consistency_confirm: int = 3
+    consistency_windows: tuple = WINDOWS
 
     def gamma_eta(self, n: int) -> np.ndarray:
         return 0.1 * np.concatenate([np.full(n, 0.1), np.full(n - 1, 2.0), [3.0]])

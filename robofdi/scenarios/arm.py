@@ -224,7 +224,7 @@ def calibrate(scenario: ArmScenario, records: dict[str, Record],
     if "consistency" in scenario.schemes:
         designing, held = consistency_split(records)
         design = design_consistency(model, [diagnoser_inputs(records[k], rates) for k in designing], T,
-                                    settings.consistency_gain, skip)
+                                    settings.consistency_gain, skip, settings.consistency_windows)
 
     def thresholds(scheme_settings, names):
         out = {}

@@ -1,0 +1,121 @@
+"""Arm diagnosis quality, measured by campaigns (issue 10): benchmarks/arm_quality.toml on arm6 and arm7.
+
+    python benchmarks/arm_quality.py [--robots arm6.xml arm7.xml] [--workers 2] [--out runs/arm-quality]
+                                     [--runs N]
+
+Each robot's campaign is resumable (re-running the command continues it). Per diagnoser it prints:
+- fault-free runs with a false alarm, with the 95 % Clopper–Pearson upper bound of the rate;
+- detection and correct isolation of the faults at or above twice the minimum detectable size of their
+  (kind, target) — the size at which that diagnoser's isotonic detection curve reaches 90 %;
+- the median detection delay of abrupt actuator faults, in diagnosis samples (2 ms);
+- the detection rate of incipient actuator faults (against the momentum baseline's);
+- for encoder drifts: the accumulated offset at detection divided by the smallest detectable encoder bias of
+  the same joint (median over the drifts).
+Also the robot's calibration cost (one calibration per robot, computed before the campaign and timed).
+"""
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+try:
+    import tomllib
+except ModuleNotFoundError:        # Python 3.10
+    import tomli as tomllib
+
+from robofdi.campaign import clopper_pearson, detection_curve, run_campaign
+from robofdi.campaign.results import load
+
+HERE = Path(__file__).resolve().parent
+SAMPLE = 0.002          # diagnosis period of the shipped arms [s]
+
+
+def _class(row) -> str:
+    kind, target, profile = row["kind"], str(row["target"]), str(row["profile"])
+    if kind == "actuator_additive":
+        return "actuator_incipient" if "exponential" in profile else "actuator_abrupt"
+    if kind.startswith("sensor"):
+        return f"{kind}_{'vel' if target.endswith('_vel') else 'pos'}"
+    return kind
+
+
+def minimum_detectable(rows: pd.DataFrame, level: float = 0.9) -> dict:
+    """(class, target) → smallest size at which the detection curve reaches ``level`` (None: never)."""
+    out = {}
+    for key, g in rows.groupby(["class", "target"]):
+        s, p = detection_curve(g["size"].to_numpy(float), g["detected"].fillna(False).to_numpy(bool))
+        hit = np.flatnonzero(p >= level)
+        out[key] = float(s[hit[0]]) if hit.size else None
+    return out
+
+
+def quality(table: pd.DataFrame) -> pd.DataFrame:
+    table = table[table["error"].isna()] if "error" in table else table
+    faulty = table[table["faulty"]].copy()
+    faulty["class"] = faulty.apply(_class, axis=1)
+    rows = []
+    for name, d in table.groupby("diagnoser", sort=False):
+        free = d[~d["faulty"]]
+        fa = int((free["false_alarms"].fillna(0) > 0).sum())
+        f = faulty[faulty["diagnoser"] == name]
+        mdf = minimum_detectable(f)
+        limit = pd.Series([mdf.get(k) for k in zip(f["class"], f["target"])], index=f.index, dtype=float)
+        big = f[limit.notna() & (f["size"] >= 2 * limit.fillna(np.inf))]
+        det = big["detected"].fillna(False).astype(bool)
+        correct = big["correct"].fillna(False).astype(bool) & det
+        abrupt = f[(f["class"] == "actuator_abrupt") & f["detected"].fillna(False).astype(bool)]
+        incipient = f[f["class"] == "actuator_incipient"]
+        drift = f[(f["class"] == "sensor_drift_pos") & f["detected"].fillna(False).astype(bool)]
+        factors = []
+        for _, r in drift.iterrows():
+            bias = mdf.get(("sensor_bias_pos", r["target"]))
+            if bias:
+                factors.append(abs(r["magnitude"]) * r["delay"] / (bias * r["limit"]))
+        rows.append({
+            "diagnoser": name,
+            "false-alarm runs": f"{fa}/{len(free)}",
+            "FA rate 95% upper": f"{100 * clopper_pearson(fa, len(free))[1]:.1f} %",
+            "≥2×MDF detected": f"{int(det.sum())}/{len(big)}",
+            "≥2×MDF correct": f"{int(correct.sum())}/{len(big)}",
+            "abrupt delay [samples]": f"{np.median(abrupt['delay']) / SAMPLE:.1f}" if len(abrupt) else "-",
+            "incipient detected": f"{int(incipient['detected'].fillna(False).sum())}/{len(incipient)}",
+            "drift offset / MDF bias": f"{np.median(factors):.1f}" if factors else "-",
+        })
+    return pd.DataFrame(rows).set_index("diagnoser")
+
+
+def per_class(table: pd.DataFrame, diagnoser: str) -> pd.DataFrame:
+    f = table[table["faulty"] & (table["diagnoser"] == diagnoser)].copy()
+    f["class"] = f.apply(_class, axis=1)
+    g = f.groupby("class")
+    return pd.DataFrame({"faults": g.size(), "detected": g["detected"].sum(),
+                         "correct": g["correct"].sum(), "median size": g["size"].median()})
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--robots", nargs="+", default=["arm6.xml", "arm7.xml"])
+    ap.add_argument("--workers", type=int, default=None)
+    ap.add_argument("--out", default="runs/arm-quality")
+    ap.add_argument("--runs", type=int, default=None, help="only the first N runs (a prefix of the campaign)")
+    args = ap.parse_args()
+    spec = tomllib.loads((HERE / "arm_quality.toml").read_text())
+    for robot in args.robots:
+        spec["system"]["robot"] = robot
+        out = Path(args.out) / Path(robot).stem
+        t0 = time.perf_counter()
+        resume = (out / "runs.jsonl").is_file()
+        run_campaign(spec, out, workers=args.workers, resume=resume, runs=args.runs, progress=True)
+        table = load(out).table
+        print(f"\n## {robot}: {table['index'].nunique()} runs, {time.perf_counter() - t0:.0f} s wall this session")
+        print(quality(table).to_string())
+        print("\nconsistency by fault class:")
+        print(per_class(table, "consistency").to_string())
+
+
+if __name__ == "__main__":
+    main()
