@@ -30,7 +30,7 @@ from robofdi.loop import ORACLE, ClosedLoop, Diagnosis, diagnose_record, diagnos
 from robofdi.models.auv import AuvModel, AuvModelMismatch
 from robofdi.observers.auv import (
     CurrentMap, DepthSwitchingControl, DepthVote, ForceObserver, VoltageResidual, identify_current_characteristic,
-    identify_depth_arx, vertical_force,
+    identify_depth_arx, identify_supply_resistance, vertical_force,
 )
 from robofdi.observers.ekf_bank import EkfBank, calibrate_process_noise
 from robofdi.record import Record
@@ -205,7 +205,8 @@ class AuvScenario:
 
 @dataclass(frozen=True)
 class AuvCalibration:
-    """What calibration learned (picklable): the current characteristic θ (3,) and each diagnoser's thresholds."""
+    """What calibration learned (picklable): the current characteristic θ (3,), each diagnoser's thresholds, the
+    depth ARX, the EKF bank's force-mismatch level q [N²] and the supply resistance R̂_s [Ω]."""
 
     characteristic: np.ndarray
     thresholds: Mapping[str, np.ndarray]
@@ -213,6 +214,7 @@ class AuvCalibration:
     sample_time: float
     arx: np.ndarray | None = None
     ekf_process_noise: float | None = None
+    supply_resistance: float = 0.0
 
 
 def _depth_vote(scenario: AuvScenario, model: AuvModel, channels, arx) -> DepthVote:
@@ -224,12 +226,14 @@ def _ekf_bank(scenario: AuvScenario, model: AuvModel, channels, process_noise: f
                    thrust_limit=scenario.thrust_limit)
 
 
-def _diagnosers(scenario: AuvScenario, model: AuvModel, channels, characteristic, arx=None, ekf_q=None) -> dict:
+def _diagnosers(scenario: AuvScenario, model: AuvModel, channels, characteristic, arx=None, ekf_q=None,
+                supply_resistance: float = 0.0) -> dict:
     T = scenario.control_dt
     make = {
         "ekf_bank": lambda: _ekf_bank(scenario, model, channels, ekf_q or 1.0),
         "depth_vote": lambda: _depth_vote(scenario, model, channels, arx),
-        "voltage_residual": lambda: VoltageResidual(model, channels, T, thrust_limit=scenario.thrust_limit),
+        "voltage_residual": lambda: VoltageResidual(model, channels, T, thrust_limit=scenario.thrust_limit,
+                                                    supply_resistance=supply_resistance),
         "current_map": lambda: CurrentMap(model, channels, T, characteristic, tau=scenario.current_map_filter,
                                           thrust_limit=scenario.thrust_limit),
         "force_observer": lambda: ForceObserver(model, channels, T, thrust_limit=scenario.thrust_limit),
@@ -288,18 +292,20 @@ def calibrate(scenario: AuvScenario, progress: Callable[[int], None] | None = No
     arx = identify_depth_arx(*_arx_series(records, model, 5))
     skip = startup_samples(scenario.control_dt, scenario.blanking)
     ekf_q = None
+    runs = [diagnoser_inputs(r) for r in records]
+    supply = identify_supply_resistance(VoltageResidual(model, channels, scenario.control_dt,
+                                                        thrust_limit=scenario.thrust_limit), runs)
     if "ekf_bank" in scenario.diagnosers:
-        runs = [diagnoser_inputs(r) for r in records]
         ekf_q = calibrate_process_noise(runs, lambda q: _ekf_bank(scenario, model, channels, q), skip,
                                         scenario.ekf_margin)
     thresholds = {}
-    for name, diagnoser in _diagnosers(scenario, model, channels, theta, arx, ekf_q).items():
+    for name, diagnoser in _diagnosers(scenario, model, channels, theta, arx, ekf_q, supply).items():
         if name == "ekf_bank":                     # the χ² 99 % bound of the windowed NIS, not a fitted peak
             thresholds[name] = np.full(len(diagnoser.components), diagnoser.bound)
             continue
         residuals = [diagnose_record(r, Diagnosis(diagnoser)).residual for r in records]
         thresholds[name] = calibrate_thresholds(residuals, scenario.threshold_margin, skip)
-    return AuvCalibration(theta, thresholds, skip, scenario.control_dt, arx, ekf_q)
+    return AuvCalibration(theta, thresholds, skip, scenario.control_dt, arx, ekf_q, supply)
 
 
 def _arx_series(records: list[Record], model: AuvModel, decimation: int) -> tuple[np.ndarray, np.ndarray]:
@@ -326,7 +332,7 @@ def build_loop(scenario: AuvScenario, cal: AuvCalibration) -> ClosedLoop:
     model = scenario.nominal_model(sim)
     diagnoses = {}
     for name, d in _diagnosers(scenario, model, sim.sensor_channels, cal.characteristic, cal.arx,
-                               cal.ekf_process_noise).items():
+                               cal.ekf_process_noise, cal.supply_resistance).items():
         if name == "ekf_bank":
             decision = NisBankDecision(d.components, cal.thresholds[name], d.hypotheses, blanking=cal.blanking)
         else:
