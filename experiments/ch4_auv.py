@@ -323,7 +323,8 @@ def _plot_nis(record: Record, sc: AuvScenario, path: Path) -> Path:
     ax.axhline(tr.threshold[0], color="k", ls="--", lw=0.8, label="χ² 99 % bound")
     for f in sc.faults:
         ax.axvline(f.onset, color="0.4", ls=":", label=f"{f.name} onset")
-    ax.set_ylabel("windowed NIS (W = 2 s) [1]")
+    ax.set_ylim(bottom=0.5)                       # the first samples, before the window fills, are tiny
+    ax.set_ylabel(f"windowed NIS (W = {sc.ekf_window:g} s) [1]")
     ax.legend(fontsize=7, ncol=3)
     return _save(fig, ax, path)
 

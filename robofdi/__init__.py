@@ -43,7 +43,7 @@ _API = {
     "KalmanFaultEstimator": "robofdi.observers.kalman", "UnknownInputObserver": "robofdi.observers.uio",
     "LockInPlaceBank": "robofdi.observers.uio", "AdaptiveFaultEstimator": "robofdi.observers.adaptive",
     "GainFaultObserver": "robofdi.observers.gain", "SwitchingIndexDecision": "robofdi.decision",
-    "WindowedTTest": "robofdi.decision",
+    "WindowedTTest": "robofdi.decision", "EkfBank": "robofdi.observers.ekf_bank", "NisBankDecision": "robofdi.decision",
 }
 __all__ = ["ASSETS", "RobofdiError", "__version__", "assets_dir", *_API]
 
