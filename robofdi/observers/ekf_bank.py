@@ -34,8 +34,8 @@ from robofdi.errors import RobofdiError
 from robofdi.models.auv import AuvModel
 from robofdi.observers.residual import Residual, check_measurement
 
-__all__ = ["EkfBank", "horizontal_thrusters", "nis_bound", "calibrate_process_noise", "PLANAR_MEASUREMENTS",
-           "HorizontalSensors"]
+__all__ = ["EkfBank", "horizontal_thrusters", "nis_bound", "calibrate_process_noise", "nominal_nis",
+           "PLANAR_MEASUREMENTS", "HorizontalSensors"]
 
 #: Measurement channels the bank reads (AuvSimulator names), in the order of its measurement vector.
 PLANAR_MEASUREMENTS = ("u", "v", "r", "yaw")
@@ -70,8 +70,9 @@ def _wrap(a):
 
 
 class EkfBank:
-    """Bank of planar EKFs (module docstring): components ``nis_nominal`` and ``nis_<thruster>`` per horizontal
-    thruster; estimate per thruster: the thrust [N] hypothesis H_j says is missing, −T̂_j (level).
+    """Bank of planar EKFs (module docstring; each filter the standard EKF predict/update, Bar-Shalom, Li &
+    Kirubarajan 2001, ch. 10, and its NIS test, §5.4): components ``nis_nominal`` and ``nis_<thruster>`` per
+    horizontal thruster; estimate per thruster: the thrust [N] hypothesis H_j says is missing, −T̂_j (level).
 
     model: the nominal :class:`AuvModel`; measurements: the simulator's channel names; sample_time [s];
     process_noise q [N²] (force mismatch per sample, see :func:`calibrate_process_noise`); window W [s];
@@ -108,8 +109,8 @@ class EkfBank:
         T = self.T
         q_unit = np.array([(T / self._m[0]) ** 2, (T / self._m[1]) ** 2, (T / self._m[2]) ** 2,
                            (T * T / self._m[2]) ** 2, 0.0, 0.0])
-        self.Q = self.process_noise * q_unit + np.diag([0, 0, 0, 0, 1, 1]).diagonal() * current_walk**2 * T
-        self.Q = np.diag(self.Q)
+        walk = np.array([0.0, 0.0, 0.0, 0.0, 1.0, 1.0]) * current_walk**2 * T
+        self.Q = np.diag(self.process_noise * q_unit + walk)
         self.R = np.diag((sensors or HorizontalSensors()).sigma ** 2)
         self.H = np.hstack([np.eye(4), np.zeros((4, 2))])
         self.bound = nis_bound(4, self.samples)
@@ -194,8 +195,9 @@ class EkfBank:
 
 
 def nominal_nis(bank: EkfBank, y: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """The nominal filter's windowed NIS over one run's (y, u) pairs (rows as :func:`robofdi.loop.diagnoser_inputs`)."""
-    bank._mask = bank._mask[:1]                        # only the nominal filter
+    """The nominal filter's windowed NIS over one run's (y, u) pairs (rows as :func:`robofdi.loop.diagnoser_inputs`).
+    ``bank`` is used up: only its nominal filter is kept (the fault filters play no part in calibration)."""
+    bank._mask = bank._mask[:1]
     bank.reset()
     return np.array([bank.update(yk, uk).r[0] for yk, uk in zip(y, u)])
 
