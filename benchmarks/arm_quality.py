@@ -9,8 +9,8 @@ Each robot's campaign is resumable (re-running the command continues it). Per di
   (kind, target) — the size at which that diagnoser's isotonic detection curve reaches 90 %;
 - the median detection delay of abrupt actuator faults, in diagnosis samples (2 ms);
 - the detection rate of incipient actuator faults (against the momentum baseline's);
-- for encoder drifts: the accumulated offset at detection divided by the smallest detectable encoder bias of
-  the same joint (median over the drifts).
+- for encoder drifts: the accumulated offset at detection and the smallest detectable encoder bias of the same
+  joint (medians over the drifts; the bias MDF is an upper bound when the smallest bias drawn was detected).
 Also the robot's calibration cost (one calibration per robot, computed before the campaign and timed).
 """
 from __future__ import annotations
@@ -70,11 +70,12 @@ def quality(table: pd.DataFrame) -> pd.DataFrame:
         abrupt = f[(f["class"] == "actuator_abrupt") & f["detected"].fillna(False).astype(bool)]
         incipient = f[f["class"] == "actuator_incipient"]
         drift = f[(f["class"] == "sensor_drift_pos") & f["detected"].fillna(False).astype(bool)]
-        factors = []
+        offsets, biases = [], []      # [rad]: a drift's accumulated offset at detection; the joint's MDF bias
         for _, r in drift.iterrows():
             bias = mdf.get(("sensor_bias_pos", r["target"]))
             if bias:
-                factors.append(abs(r["magnitude"]) * r["delay"] / (bias * r["limit"]))
+                offsets.append(abs(r["magnitude"]) * r["delay"])
+                biases.append(bias * r["limit"])
         rows.append({
             "diagnoser": name,
             "false-alarm runs": f"{fa}/{len(free)}",
@@ -83,7 +84,8 @@ def quality(table: pd.DataFrame) -> pd.DataFrame:
             "≥2×MDF correct": f"{int(correct.sum())}/{len(big)}",
             "abrupt delay [samples]": f"{np.median(abrupt['delay']) / SAMPLE:.1f}" if len(abrupt) else "-",
             "incipient detected": f"{int(incipient['detected'].fillna(False).sum())}/{len(incipient)}",
-            "drift offset / MDF bias": f"{np.median(factors):.1f}" if factors else "-",
+            "drift offset at detection / MDF bias [mrad]":
+                f"{1e3 * np.median(offsets):.2f} / {1e3 * np.median(biases):.2f}" if offsets else "-",
         })
     return pd.DataFrame(rows).set_index("diagnoser")
 

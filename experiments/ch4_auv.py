@@ -4,6 +4,7 @@ experiments on an ODIN-like 8-thruster AUV in MuJoCo.
     robofdi run ch4-auv          [--seed N] [--out DIR]
     robofdi run ch4-flooded      [--seed N] [--out DIR]
     robofdi run ch4-depth-sensor [--seed N] [--out DIR]
+    robofdi run ch4-roby2        [--seed N] [--out DIR]
 
 ch4-auv (Sec. 6, Figs. 10–11): a 6-DOF square/depth/yaw task in an ocean current; thruster 2 (horizontal) and
 thruster 6 (vertical) are switched off by zeroing their drive voltage, as ODIN's were at 260 s and 300 s. The
@@ -14,6 +15,11 @@ holds the position RMS after the second failure of each.
 
 ch4-flooded (Romeo, Sec. 6 and Fig. 8): a flooded thruster and, later, a rotor failure on another; the current
 map detects both and its region map tells them apart (summary.json["regions"]).
+
+ch4-roby2 (Roby 2 [2, 3], Sec. 4): a two-horizontal-thruster vehicle (assets/roby2.xml); the left thruster's drive
+is zeroed mid-mission and the bank of EKFs (nominal, left off, right off) isolates it by the windowed NIS
+(summary.json["ekf_bank"], figures/nis_bank.png), then a 600 s fault-free run checks the nominal filter for false
+alarms at the χ² 99 % level.
 
 ch4-depth-sensor (ODIN [48], Fig. 7): the pressure depth reading is zeroed; pressure, sonar (over a sea floor of
 known depth) and an ARX virtual sensor vote, and the faulty sensor is switched out after 1 s while depth control
@@ -44,6 +50,7 @@ EXPERIMENTS = {
     "ch4-auv": "ODIN-like AUV, thrusters 2 and 6 off (Figs. 10-11): no FTC vs oracle vs diagnosed-health allocation",
     "ch4-flooded": "Romeo-like flooded thruster then a rotor failure: current map detects both, regions tell them apart",
     "ch4-depth-sensor": "ODIN depth-sensor zeroing: pressure/sonar/ARX vote, faulty sensor switched out after 1 s",
+    "ch4-roby2": "Roby-2-like vehicle, one of two horizontal thrusters off: the EKF bank's NIS isolates it",
 }
 
 #: ODIN's switch-off times [s] and the factor of our shortened timeline.
@@ -73,7 +80,17 @@ def ch4_depth_sensor_scenario(seed: int = 0) -> AuvScenario:
                        faults=(Fault("depth_zero", "sensor_dropout", "depth", onset=30.0),))
 
 
-SCENARIOS = {"ch4-auv": ch4_auv_scenario, "ch4-flooded": ch4_flooded_scenario, "ch4-depth-sensor": ch4_depth_sensor_scenario}
+def ch4_roby2_scenario(seed: int = 0, duration: float = 120.0, onset: float = 60.0) -> AuvScenario:
+    """Roby-2-like vehicle (assets/roby2.xml): surge legs and turns on the spot in a 0.1 m/s head current; the left
+    horizontal thruster's drive is zeroed at ``onset`` (mid-mission). No accommodation: with two horizontal
+    thrusters, losing one leaves surge and yaw coupled (the chapter's Roby 2 experiments only diagnose)."""
+    return AuvScenario(name="ch4-roby2", mjcf="roby2.xml", mission="roby2", duration=duration, seed=seed,
+                       current=(0.10, 0.0, 0.0), variant="no_ftc", diagnosers=("ekf_bank", "voltage_residual"),
+                       faults=(Fault("thruster_left_off", "actuator_float", "thruster_left", onset=onset),))
+
+
+SCENARIOS = {"ch4-auv": ch4_auv_scenario, "ch4-flooded": ch4_flooded_scenario, "ch4-depth-sensor": ch4_depth_sensor_scenario,
+             "ch4-roby2": ch4_roby2_scenario}
 
 
 def _cache_path(scenario: AuvScenario) -> Path:
@@ -110,7 +127,7 @@ def calibration(scenario: AuvScenario, progress=None, cache: bool = True) -> tup
 def _steps(scenario: AuvScenario, runs: int, cached: bool) -> int:
     per_run = int(round(scenario.duration / scenario.control_dt)) + 1
     cal = 0 if cached else scenario.calibration_runs * (int(round(scenario.calibration_duration / scenario.control_dt)) + 1)
-    return runs * per_run + cal
+    return int(round(runs * per_run)) + cal
 
 
 def voltage_detectability(record: Record, threshold: np.ndarray, window: float = 0.5) -> dict:
@@ -273,6 +290,70 @@ def _run_ch4_depth_sensor(name, run_dir, seed, bar, replay):
     return summary
 
 
+def ekf_bank_isolation(record: Record, faults, window: float) -> dict:
+    """Per fault: when the EKF bank declared a hypothesis after onset, which, and whether within W + 1 s [s]; and the
+    peak nominal NIS before the first onset against the χ² bound (false alarms)."""
+    tr = record.diagnosers["ekf_bank"]
+    first = min((f.onset for f in faults), default=float(record.time[-1]) + 1)
+    before = (tr.time < first)
+    out = {"bound": float(tr.threshold[0]), "window": window,
+           "peak_nominal_nis_before_onset": float(tr.residual[before, 0].max()) if before.any() else None,
+           "false_alarm_before_onset": bool(np.any(tr.alarm[before, 0])),
+           "faults": {}, "units": {"bound": "1", "window": "s", "peak_nominal_nis_before_onset": "1",
+                                   "time": "s", "delay": "s"}}
+    for f in faults:
+        hit = np.flatnonzero((tr.time >= f.onset) & np.array([bool(str(s)) for s in tr.isolated]))
+        t = float(tr.time[hit[0]]) if hit.size else None
+        declared = str(tr.isolated[hit[0]]) if hit.size else None
+        delay = None if t is None else t - f.onset
+        out["faults"][f.name] = {"target": f.target, "declared": declared, "time": t, "delay": delay,
+                                 "correct_within_W_plus_1s": declared == f.target and delay is not None
+                                 and delay <= window + 1.0}
+    return out
+
+
+def _plot_nis(record: Record, sc: AuvScenario, path: Path) -> Path:
+    """NIS of every filter of the EKF bank over time (the survey's Roby 2 figure), χ² bound dashed."""
+    import matplotlib.pyplot as plt
+
+    tr = record.diagnosers["ekf_bank"]
+    fig, ax = plt.subplots(figsize=(9, 3.4))
+    for j, c in enumerate(tr.components):
+        ax.semilogy(tr.time, tr.residual[:, j], lw=0.9, label=c.replace("nis_", "H: "))
+    ax.axhline(tr.threshold[0], color="k", ls="--", lw=0.8, label="χ² 99 % bound")
+    for f in sc.faults:
+        ax.axvline(f.onset, color="0.4", ls=":", label=f"{f.name} onset")
+    ax.set_ylim(bottom=0.5)                       # the first samples, before the window fills, are tiny
+    ax.set_ylabel(f"windowed NIS (W = {sc.ekf_window:g} s) [1]")
+    ax.legend(fontsize=7, ncol=3)
+    return _save(fig, ax, path)
+
+
+#: Length [s] of ch4-roby2's fault-free check of the EKF bank (digest acceptance 8).
+FAULT_FREE_CHECK = 600.0
+
+
+def _run_ch4_roby2(name, run_dir, seed, bar, replay):
+    sc = ch4_roby2_scenario(seed)
+    record, summary, cached = _single_run(name, sc, bar)
+    cal, _ = calibration(sc)
+    summary["ekf_bank"] = ekf_bank_isolation(record, sc.faults, sc.ekf_window)
+    summary["ekf_bank"]["process_noise"] = cal.ekf_process_noise
+    summary["ekf_bank"]["units"]["process_noise"] = "N²"
+    bar.set_description(f"{name}: fault-free {FAULT_FREE_CHECK:g} s")
+    free, _ = run_scenario(replace(sc, faults=(), duration=FAULT_FREE_CHECK), cal, progress=bar.update,
+                           run_key="fault_free")
+    tr = free.diagnosers["ekf_bank"]
+    summary["ekf_bank"]["fault_free"] = {
+        "duration": FAULT_FREE_CHECK, "peak_nominal_nis": float(tr.residual[cal.blanking:, 0].max()),
+        "nominal_alarm_samples": int(tr.alarm[:, 0].sum()), "declared": sorted({str(s) for s in tr.isolated} - {""}),
+        "units": {"duration": "s", "peak_nominal_nis": "1", "nominal_alarm_samples": "1"}}
+    summary["calibration_cached"] = cached
+    write_run_folder(run_dir, record, summary, replay=replay)
+    _plot_nis(record, sc, run_dir / "figures" / "nis_bank.png")
+    return summary
+
+
 def _plot_depth(record: Record, sc: AuvScenario, switch, path: Path) -> Path:
     """Depth (true, pressure reading, sonar) around the sensor fault, with onset and switch times."""
     import matplotlib.pyplot as plt
@@ -321,9 +402,10 @@ def run(name: str = "ch4-auv", out: str | Path = "runs", seed: int = 0, progress
         raise RobofdiError(f"unknown experiment {name!r}; expected one of {', '.join(EXPERIMENTS)}")
     sc = SCENARIOS[name](seed)
     cached = _cache_path(sc).is_file()
-    runs = 4 if name == "ch4-auv" else 1
+    runs = {"ch4-auv": 4, "ch4-roby2": 1 + FAULT_FREE_CHECK / sc.duration}.get(name, 1)
     run_dir = prepare_run_dir(out, name, seed)
-    runner = {"ch4-auv": _run_ch4_auv, "ch4-flooded": _run_ch4_flooded, "ch4-depth-sensor": _run_ch4_depth_sensor}[name]
+    runner = {"ch4-auv": _run_ch4_auv, "ch4-flooded": _run_ch4_flooded, "ch4-depth-sensor": _run_ch4_depth_sensor,
+              "ch4-roby2": _run_ch4_roby2}[name]
     bar = tqdm(total=_steps(sc, runs, cached), desc=f"{name}: calibrate", unit="step", disable=not progress, leave=False)
     with bar, keep_partial(run_dir):
         summary = runner(name, run_dir, seed, bar, replay)

@@ -44,7 +44,7 @@ _API = {
     "KalmanFaultEstimator": "robofdi.observers.kalman", "UnknownInputObserver": "robofdi.observers.uio",
     "LockInPlaceBank": "robofdi.observers.uio", "AdaptiveFaultEstimator": "robofdi.observers.adaptive",
     "GainFaultObserver": "robofdi.observers.gain", "SwitchingIndexDecision": "robofdi.decision",
-    "WindowedTTest": "robofdi.decision",
+    "WindowedTTest": "robofdi.decision", "EkfBank": "robofdi.observers.ekf_bank", "NisBankDecision": "robofdi.decision",
     "ControlAffineModel": "robofdi.redundancy", "derive_nlar": "robofdi.redundancy",
     "HydraulicScenario": "robofdi.scenarios.hydraulic",
     "run_campaign": "robofdi.campaign", "load_spec": "robofdi.campaign",

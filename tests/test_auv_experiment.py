@@ -5,7 +5,7 @@ from robofdi.scenarios.auv import check_scenario
 
 
 def test_the_chapter_4_experiments_are_listed():
-    assert {"ch4-auv", "ch4-flooded", "ch4-depth-sensor"} <= set(_experiments())
+    assert {"ch4-auv", "ch4-flooded", "ch4-depth-sensor", "ch4-roby2"} <= set(_experiments())
 
 
 def test_ch4_auv_keeps_odins_order_and_onset_ratio():

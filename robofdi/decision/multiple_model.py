@@ -10,7 +10,7 @@ import numpy as np
 from robofdi.decision.isolation import Alarms
 from robofdi.errors import RobofdiError
 
-__all__ = ["SwitchingIndexDecision"]
+__all__ = ["SwitchingIndexDecision", "NisBankDecision"]
 
 
 @dataclass
@@ -77,3 +77,52 @@ class SwitchingIndexDecision:
         new = (best,) if best != self._active else ()
         self._active = best
         return Alarms(alarm=alarm, isolated=(best,), new=new)
+
+
+@dataclass
+class NisBankDecision:
+    """Decision for a bank of Kalman filters whose residual is the windowed NIS [NIS₀ (nominal), NIS₁, …, NIS_m]
+    — Bar-Shalom's NIS test applied to a hypothesis bank (Antonelli's survey, Roby 2 [2, 3]; digest §3.1):
+
+    Detection: NIS₀ > ``threshold[0]`` (the χ² bound); while NIS₀ alarms, H_j is declared when NIS_j is the
+    smallest of all (the nominal included) — latched, the first declaration stands, and its component alarms from
+    then on (the fault filters' own NIS exceed the bound in fault-free runs by design: no alarm on them). ``models``: the
+    hypothesis name of each fault filter."""
+
+    components: Sequence[str]
+    threshold: np.ndarray
+    models: Sequence[str]
+    blanking: int = 0
+
+    def __post_init__(self):
+        self.components = tuple(self.components)
+        m = len(self.components)
+        if m < 2 or len(self.models) != m - 1:
+            raise RobofdiError(f"NisBankDecision: field 'models' must name the {m - 1} fault filters after the "
+                               f"nominal one, got {list(self.models)}")
+        self.threshold = np.array(self.threshold, dtype=float)
+        if self.threshold.shape != (m,) or not np.all(self.threshold > 0):
+            raise RobofdiError(f"NisBankDecision: field 'threshold' must be {m} values > 0, got {self.threshold}")
+        self.reset()
+
+    def reset(self) -> None:
+        self._k = 0
+        self._declared: tuple[str, ...] = ()
+
+    def update(self, residual: np.ndarray) -> Alarms:
+        r = np.asarray(residual, dtype=float)
+        if r.shape != (len(self.components),) or not np.all(np.isfinite(r)):
+            raise RobofdiError(f"NisBankDecision: residual must be {len(self.components)} finite values")
+        self._k += 1
+        if self._k <= self.blanking:
+            return Alarms(alarm=np.zeros(len(r), dtype=bool))
+        alarm = np.zeros(len(r), dtype=bool)
+        alarm[0] = r[0] > self.threshold[0]
+        new = ()
+        if not self._declared and alarm[0]:
+            j = int(np.argmin(r))
+            if j > 0:
+                self._declared = new = (self.models[j - 1],)
+        if self._declared:                        # the declared hypothesis's component marks the isolation
+            alarm[1 + list(self.models).index(self._declared[0])] = True
+        return Alarms(alarm=alarm, isolated=self._declared, new=new)

@@ -25,7 +25,8 @@ from robofdi.models.auv import AXES, AuvModel, rotation_from_euler
 from robofdi.observers.residual import Residual, check_measurement
 
 __all__ = ["VoltageResidual", "CurrentMap", "ForceObserver", "DepthVote", "DepthSwitchingControl",
-           "identify_current_characteristic", "identify_depth_arx", "vertical_force", "CurrentFeatures",
+           "identify_current_characteristic", "identify_depth_arx", "identify_supply_resistance", "vertical_force",
+           "CurrentFeatures",
            "current_map_region", "effectiveness_identifiability", "REGIONS"]
 
 #: What :func:`current_map_region` can answer.
@@ -65,16 +66,23 @@ class _Telemetry:
 
 
 class VoltageResidual(_Telemetry):
-    """Hall-effect voltage residual, ODIN [48]: r_j = mean over ``window`` s of (V_hall,j − V_cmd,j) [V].
+    """Hall-effect voltage residual, ODIN [48]: r_j = mean over ``window`` s of (V_hall,j − V_exp,j) [V], with
+    V_exp,j = V_cmd,j − R̂_s i_j the drive voltage after the supply's drop at the measured motor current i_j
+    (``supply_resistance`` R̂_s [Ω], identified on fault-free telemetry by :func:`identify_supply_resistance`; 0:
+    the bare ODIN residual V_hall − V_cmd). Without the drop term, a hard manoeuvre that draws tens of amperes sags
+    every terminal voltage by R_s i and looks like a drive fault.
 
     A zeroed drive gives r_j → −V_cmd,j: the fault is invisible while |V_cmd,j| stays under the threshold
     (detectability depends on the command; :meth:`detectable`)."""
 
     def __init__(self, model: AuvModel, measurements: Sequence[str], sample_time: float, window: float = 0.2,
-                 thrust_limit: float = 40.0):
+                 thrust_limit: float = 40.0, supply_resistance: float = 0.0):
         super().__init__(model, measurements, sample_time, thrust_limit)
         if not (np.isfinite(window) and window >= sample_time):
             raise RobofdiError(f"VoltageResidual: field 'window' must be >= the sample time {sample_time} s, got {window!r}")
+        if not (np.isfinite(supply_resistance) and supply_resistance >= 0):
+            raise RobofdiError(f"VoltageResidual: field 'supply_resistance' must be >= 0 Ω, got {supply_resistance!r}")
+        self.supply_resistance = float(supply_resistance)
         self.samples = int(round(window / sample_time))
         self.components = list(self.thrusters)
         self.estimate_components = list(self.thrusters)
@@ -91,7 +99,8 @@ class VoltageResidual(_Telemetry):
         y, u = self._inputs(y, u)
         th = self.model.thruster
         v = y[self._voltage]
-        self._buffer[self._k % self.samples] = (v - self.commanded_voltage(u), th.thrust(th.steady_speed(v)) - u)
+        expected = self.commanded_voltage(u) - self.supply_resistance * y[self._current]
+        self._buffer[self._k % self.samples] = (v - expected, th.thrust(th.steady_speed(v)) - u)
         self._k += 1
         r, estimate = self._buffer[: min(self._k, self.samples)].mean(axis=0)
         return Residual(r, estimate)
@@ -102,6 +111,21 @@ class VoltageResidual(_Telemetry):
 
     def signatures(self):
         return [Signature(t, frozenset([t])) for t in self.thrusters]
+
+
+def identify_supply_resistance(residual: VoltageResidual, runs) -> float:
+    """R̂_s [Ω] of the supply (shared by every thruster) by least squares on fault-free telemetry:
+    V_hall − V_cmd = −R_s i over every thruster and sample of ``runs`` = [(y, u), ...] (the pairs a diagnoser
+    receives, :func:`robofdi.loop.diagnoser_inputs`); clipped at 0."""
+    num = den = 0.0
+    for y, u in runs:
+        y, u = np.asarray(y, dtype=float), np.clip(np.asarray(u, dtype=float), -residual.thrust_limit, residual.thrust_limit)
+        drop = y[:, residual._voltage] - residual.commanded_voltage(u)
+        i = y[:, residual._current]
+        num, den = num - float(np.sum(drop * i)), den + float(np.sum(i * i))
+    if den <= 0:
+        raise RobofdiError("identify_supply_resistance: the telemetry carries no motor current")
+    return max(0.0, num / den)
 
 
 class CurrentFeatures:

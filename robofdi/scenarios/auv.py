@@ -21,25 +21,27 @@ import numpy as np
 
 from robofdi.control.auv import POSE_NAMES, MissionLimits, TaskSpaceAuvControl, random_mission
 from robofdi.control.trajectory import Sequence as Mission
-from robofdi.decision import ThresholdDecision, calibrate_thresholds, startup_samples
+from robofdi.decision import NisBankDecision, ThresholdDecision, calibrate_thresholds, startup_samples
 from robofdi.errors import RobofdiError
 from robofdi.evaluate import summarize
 from robofdi.faults import Fault, FaultInjector
 from robofdi.ftc.allocation import ALLOCATORS, ThrustReallocation
-from robofdi.loop import ORACLE, ClosedLoop, Diagnosis, diagnose_record
+from robofdi.loop import ORACLE, ClosedLoop, Diagnosis, diagnose_record, diagnoser_inputs
 from robofdi.models.auv import AuvModel, AuvModelMismatch
 from robofdi.observers.auv import (
     CurrentMap, DepthSwitchingControl, DepthVote, ForceObserver, VoltageResidual, identify_current_characteristic,
-    identify_depth_arx, vertical_force,
+    identify_depth_arx, identify_supply_resistance, vertical_force,
 )
+from robofdi.observers.ekf_bank import EkfBank, calibrate_process_noise
 from robofdi.record import Record
+from robofdi.seeding import rng
 from robofdi.sims.auv import AuvSensors, AuvSimulator
 
 __all__ = ["AuvScenario", "AuvCalibration", "DIAGNOSERS", "VARIANTS", "FAULT_TARGETS", "fault_targets", "draw_mission",
-           "odin_mission", "calibrate", "build_loop", "run_scenario", "tracking_rms", "thruster_names",
+           "odin_mission", "roby2_mission", "calibrate", "build_loop", "run_scenario", "tracking_rms", "thruster_names",
            "current_map_regions", "check_scenario", "depth_switch_time", "ALL_DIAGNOSERS"]
 
-DIAGNOSERS = ("voltage_residual", "current_map", "force_observer")
+DIAGNOSERS = ("voltage_residual", "current_map", "force_observer", "ekf_bank")
 #: Every diagnoser a scenario may run (depth_vote: the ODIN depth-sensor scheme, with its ARX virtual sensor).
 ALL_DIAGNOSERS = DIAGNOSERS + ("depth_vote",)
 VARIANTS = ("no_ftc", "oracle", "diagnosed")
@@ -89,6 +91,29 @@ def odin_mission(duration: float, start_depth: float = 5.0, side: float = 2.0, s
     return Mission.through(wp, durations)
 
 
+def roby2_mission(seed: int, duration: float, limits: MissionLimits | None = None, start_depth: float = 5.0,
+                  name: str = "mission") -> Mission:
+    """A seeded mission for a vehicle without sway thrust (Roby 2): surge legs along world x (yaw 0) to a random
+    x in ±``half_width``, each followed by a turn on the spot to a random yaw in ±``yaw`` and back, with dwells
+    (stream ``("mission", name)``)."""
+    limits = limits or MissionLimits()
+    g = rng(seed, "mission", name)
+    wp = [np.array([0.0, 0.0, -start_depth, 0.0, 0.0, 0.0])]
+    durations, t = [], 0.0
+    while t < duration:
+        here = wp[-1].copy()
+        nxt = here.copy()
+        nxt[0] = g.uniform(-limits.half_width, limits.half_width)
+        turn = here.copy()
+        turn[0], turn[5] = nxt[0], g.uniform(-limits.yaw, limits.yaw)
+        d = max(4.0, 1.875 * abs(nxt[0] - here[0]) / limits.speed)
+        d_turn = max(4.0, 1.875 * abs(turn[5]) / 0.2)
+        wp += [nxt, nxt, turn, turn, nxt, nxt]
+        durations += [d, limits.dwell, d_turn, limits.dwell, d_turn, limits.dwell]
+        t += d + d_turn * 2 + 3 * limits.dwell
+    return Mission.through(wp, durations)
+
+
 def draw_mission(seed: int, duration: float, limits: MissionLimits | None = None, name: str = "mission") -> Mission:
     """A random mission of ``duration`` s from ``seed`` (stream ``("mission", name)``)."""
     return random_mission(seed, duration, limits or MissionLimits(), name=name)
@@ -103,7 +128,9 @@ class AuvScenario:
     :data:`~robofdi.ftc.allocation.ALLOCATORS`; variant: one of :data:`VARIANTS`; health_source: the diagnoser whose
     health the "diagnosed" variant uses; calibration_runs × calibration_duration [s] of fault-free missions;
     threshold_margin ≥ 1; blanking [s] of start-up samples; current_map_filter [s]: time constant of the current
-    map's filters (a flooded thruster's mismatch is persistent; 0.5 s as the digest's persistence).
+    map's filters (a flooded thruster's mismatch is persistent; 0.5 s as the digest's persistence); ekf_window [s]:
+    the EKF bank's NIS window W; ekf_margin ≥ 1: its process noise is calibrated so that the fault-free nominal NIS
+    peaks at bound/ekf_margin. mission "roby2": :func:`roby2_mission` (for a vehicle without sway thrust).
     """
 
     name: str = "ch4-auv"
@@ -129,12 +156,14 @@ class AuvScenario:
     current_map_filter: float = 0.5
     depth_redundancy: bool = False
     floor_depth: float = 20.0
+    ekf_window: float = 2.0
+    ekf_margin: float = 1.1
 
     def __post_init__(self):
         object.__setattr__(self, "faults", tuple(self.faults))
         object.__setattr__(self, "diagnosers", tuple(self.diagnosers))
-        if self.mission not in ("odin", "random"):
-            raise RobofdiError(f"AuvScenario: field 'mission' must be 'odin' or 'random', got {self.mission!r}")
+        if self.mission not in ("odin", "random", "roby2"):
+            raise RobofdiError(f"AuvScenario: field 'mission' must be 'odin', 'random' or 'roby2', got {self.mission!r}")
         if not (np.isfinite(self.duration) and self.duration > 0):
             raise RobofdiError(f"AuvScenario: field 'duration' must be > 0 s, got {self.duration!r}")
         unknown = [d for d in self.diagnosers if d not in ALL_DIAGNOSERS]
@@ -165,6 +194,8 @@ class AuvScenario:
     def reference(self) -> Mission:
         if self.mission == "odin":
             return odin_mission(self.duration, self.start_depth)
+        if self.mission == "roby2":
+            return roby2_mission(self.seed, self.duration, start_depth=self.start_depth)
         return draw_mission(self.seed, self.duration)
 
     @property
@@ -174,24 +205,35 @@ class AuvScenario:
 
 @dataclass(frozen=True)
 class AuvCalibration:
-    """What calibration learned (picklable): the current characteristic θ (3,) and each diagnoser's thresholds."""
+    """What calibration learned (picklable): the current characteristic θ (3,), each diagnoser's thresholds, the
+    depth ARX, the EKF bank's force-mismatch level q [N²] and the supply resistance R̂_s [Ω]."""
 
     characteristic: np.ndarray
     thresholds: Mapping[str, np.ndarray]
     blanking: int
     sample_time: float
     arx: np.ndarray | None = None
+    ekf_process_noise: float | None = None
+    supply_resistance: float = 0.0
 
 
 def _depth_vote(scenario: AuvScenario, model: AuvModel, channels, arx) -> DepthVote:
     return DepthVote(model, channels, scenario.control_dt, arx, scenario.floor_depth, thrust_limit=scenario.thrust_limit)
 
 
-def _diagnosers(scenario: AuvScenario, model: AuvModel, channels, characteristic, arx=None) -> dict:
+def _ekf_bank(scenario: AuvScenario, model: AuvModel, channels, process_noise: float) -> EkfBank:
+    return EkfBank(model, channels, scenario.control_dt, process_noise, window=scenario.ekf_window,
+                   thrust_limit=scenario.thrust_limit)
+
+
+def _diagnosers(scenario: AuvScenario, model: AuvModel, channels, characteristic, arx=None, ekf_q=None,
+                supply_resistance: float = 0.0) -> dict:
     T = scenario.control_dt
     make = {
+        "ekf_bank": lambda: _ekf_bank(scenario, model, channels, ekf_q or 1.0),
         "depth_vote": lambda: _depth_vote(scenario, model, channels, arx),
-        "voltage_residual": lambda: VoltageResidual(model, channels, T, thrust_limit=scenario.thrust_limit),
+        "voltage_residual": lambda: VoltageResidual(model, channels, T, thrust_limit=scenario.thrust_limit,
+                                                    supply_resistance=supply_resistance),
         "current_map": lambda: CurrentMap(model, channels, T, characteristic, tau=scenario.current_map_filter,
                                           thrust_limit=scenario.thrust_limit),
         "force_observer": lambda: ForceObserver(model, channels, T, thrust_limit=scenario.thrust_limit),
@@ -226,7 +268,8 @@ def calibration_records(scenario: AuvScenario, progress: Callable[[int], None] |
     cols, units = _reference_columns()
     records = []
     for k in range(scenario.calibration_runs):
-        ref = draw_mission(scenario.seed, scenario.calibration_duration, CALIBRATION_LIMITS, name=f"calibration{k}")
+        draw = roby2_mission if scenario.mission == "roby2" else draw_mission
+        ref = draw(scenario.seed, scenario.calibration_duration, CALIBRATION_LIMITS, name=f"calibration{k}")
         loop = ClosedLoop(sim, _controller(model), ref, accommodation=_allocation(scenario, model),
                           reference_columns=cols, reference_units=units)
         records.append(loop.run(scenario.calibration_duration, scenario.start_pose, seed=scenario.seed,
@@ -248,11 +291,21 @@ def calibrate(scenario: AuvScenario, progress: Callable[[int], None] | None = No
     theta = identify_current_characteristic(speed, current, scenario.control_dt, scenario.current_map_filter)
     arx = identify_depth_arx(*_arx_series(records, model, 5))
     skip = startup_samples(scenario.control_dt, scenario.blanking)
+    ekf_q = None
+    runs = [diagnoser_inputs(r) for r in records]
+    supply = identify_supply_resistance(VoltageResidual(model, channels, scenario.control_dt,
+                                                        thrust_limit=scenario.thrust_limit), runs)
+    if "ekf_bank" in scenario.diagnosers:
+        ekf_q = calibrate_process_noise(runs, lambda q: _ekf_bank(scenario, model, channels, q), skip,
+                                        scenario.ekf_margin)
     thresholds = {}
-    for name, diagnoser in _diagnosers(scenario, model, channels, theta, arx).items():
+    for name, diagnoser in _diagnosers(scenario, model, channels, theta, arx, ekf_q, supply).items():
+        if name == "ekf_bank":                     # the χ² 99 % bound of the windowed NIS, not a fitted peak
+            thresholds[name] = np.full(len(diagnoser.components), diagnoser.bound)
+            continue
         residuals = [diagnose_record(r, Diagnosis(diagnoser)).residual for r in records]
         thresholds[name] = calibrate_thresholds(residuals, scenario.threshold_margin, skip)
-    return AuvCalibration(theta, thresholds, skip, scenario.control_dt, arx)
+    return AuvCalibration(theta, thresholds, skip, scenario.control_dt, arx, ekf_q, supply)
 
 
 def _arx_series(records: list[Record], model: AuvModel, decimation: int) -> tuple[np.ndarray, np.ndarray]:
@@ -278,8 +331,12 @@ def build_loop(scenario: AuvScenario, cal: AuvCalibration) -> ClosedLoop:
     sim = scenario.simulator()
     model = scenario.nominal_model(sim)
     diagnoses = {}
-    for name, d in _diagnosers(scenario, model, sim.sensor_channels, cal.characteristic, cal.arx).items():
-        decision = ThresholdDecision(d.components, cal.thresholds[name], d.signatures(), blanking=cal.blanking)
+    for name, d in _diagnosers(scenario, model, sim.sensor_channels, cal.characteristic, cal.arx,
+                               cal.ekf_process_noise, cal.supply_resistance).items():
+        if name == "ekf_bank":
+            decision = NisBankDecision(d.components, cal.thresholds[name], d.hypotheses, blanking=cal.blanking)
+        else:
+            decision = ThresholdDecision(d.components, cal.thresholds[name], d.signatures(), blanking=cal.blanking)
         diagnoses[name] = Diagnosis(d, decision)
     health = {"no_ftc": None, "oracle": ORACLE, "diagnosed": scenario.health_source}[scenario.variant]
     cols, units = _reference_columns()

@@ -1,0 +1,62 @@
+"""The Roby 2 EKF bank (digest §3.1, acceptance 8) on the real MuJoCo closed loop: short missions, calibrated on
+their own fault-free missions."""
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from robofdi.decision import NisBankDecision
+from robofdi.errors import RobofdiError
+from robofdi.experiments.ch4_auv import ch4_roby2_scenario, ekf_bank_isolation
+from robofdi.faults import Fault
+from robofdi.models.auv import AuvModel
+from robofdi.observers.ekf_bank import EkfBank, horizontal_thrusters, nis_bound
+from robofdi.scenarios.auv import AuvScenario, calibrate, run_scenario
+
+pytestmark = pytest.mark.slow
+
+W = 2.0
+
+
+def test_the_bank_has_one_filter_per_horizontal_thruster():
+    assert horizontal_thrusters(AuvModel.from_mjcf("roby2.xml")) == ["thruster_left", "thruster_right"]
+    assert horizontal_thrusters(AuvModel.from_mjcf("auv.xml")) == [f"thruster{i}" for i in range(1, 5)]
+    # window mean of 100 samples of χ²(4): mean 4, 99 % bound a little above
+    assert 4.5 < nis_bound(4, 100) < 5.0
+    with pytest.raises(RobofdiError, match="process_noise"):
+        EkfBank(AuvModel.from_mjcf("roby2.xml"), ["u", "v", "r", "yaw"], 0.02, process_noise=0.0)
+
+
+def test_the_decision_declares_the_smallest_nis_only_after_the_nominal_alarms():
+    d = NisBankDecision(["nis_nominal", "nis_a", "nis_b"], [5.0, 5.0, 5.0], ["a", "b"])
+    assert d.update(np.array([4.0, 9.0, 2.0])).isolated == ()          # the nominal filter is consistent
+    out = d.update(np.array([6.0, 9.0, 3.0]))
+    assert out.isolated == ("b",) and out.new == ("b",) and list(out.alarm) == [True, False, True]
+    assert d.update(np.array([7.0, 1.0, 8.0])).isolated == ("b",)     # latched
+
+
+def _check(record, sc):
+    out = ekf_bank_isolation(record, sc.faults, W)
+    f = out["faults"][sc.faults[0].name]
+    assert not out["false_alarm_before_onset"], out
+    assert out["peak_nominal_nis_before_onset"] < out["bound"]
+    assert f["declared"] == sc.faults[0].target and f["delay"] <= W + 1.0, f
+    return f
+
+
+def test_roby2_bank_isolates_the_failed_horizontal_thruster():
+    sc = replace(ch4_roby2_scenario(duration=40.0, onset=28.0), calibration_runs=1, calibration_duration=90.0,
+                 diagnosers=("ekf_bank",))
+    cal = calibrate(sc)
+    assert 1e-3 < cal.ekf_process_noise < 1e4
+    _check(run_scenario(sc, cal)[0], sc)
+    right = replace(sc, faults=(Fault("thruster_right_off", "actuator_float", "thruster_right", onset=28.0),))
+    _check(run_scenario(right, cal)[0], right)
+
+
+def test_odin_bank_isolates_a_horizontal_thruster_without_accommodation():
+    sc = AuvScenario(name="test-ekf", duration=45.0, variant="no_ftc", diagnosers=("ekf_bank",), calibration_runs=1,
+                     calibration_duration=120.0,
+                     faults=(Fault("thruster2_off", "actuator_float", "thruster2", onset=34.0),))
+    cal = calibrate(sc)
+    _check(run_scenario(sc, cal)[0], sc)
