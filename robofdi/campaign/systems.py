@@ -433,14 +433,15 @@ class AuvCampaign:
         return ALL_DIAGNOSERS
 
     def targets(self, options):
-        from robofdi.scenarios.auv import thruster_names
-        from robofdi.sims.auv import _NAV_UNITS, NAVIGATION_CHANNELS
+        from robofdi.sims.auv import NAVIGATION_CHANNELS
 
         sc = options.scenario(0)
+        sim = sc.simulator()
         ranges = {"m": 2 * sc.floor_depth, "rad": np.pi, "m/s": 2.0, "rad/s": 1.0}   # sensor ranges of the vehicle
-        thrusters = thruster_names()
+        thrusters = sim.actuators
+        navigation = [(c, u) for c, u in zip(sim.sensor_channels, sim.units["y"]) if c in NAVIGATION_CHANNELS]
         return {"actuator": {t: TargetLimit(sc.thrust_limit, "N") for t in thrusters},
-                "sensor": {c: TargetLimit(ranges[u], u) for c, u in zip(NAVIGATION_CHANNELS, _NAV_UNITS)},
+                "sensor": {c: TargetLimit(ranges[u], u) for c, u in navigation},
                 "component_thruster_blocking": {t: TargetLimit(1.0, "1") for t in thrusters},
                 "component_thruster_flooding": {t: TargetLimit(1.0, "1") for t in thrusters}}
 
