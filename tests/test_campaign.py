@@ -314,6 +314,8 @@ def _one_and_two_workers(spec_text: str, tmp_path: Path, runs: int | None = None
     two = run_campaign(spec, tmp_path / "w2", workers=2, runs=runs, progress=False, report=False)
     _same(one.table[one.table["index"] < len(two.table["index"].unique())].reset_index(drop=True), two.table)
     assert one.table["error"].isna().all(), one.table["error"].dropna().tolist()
+    system = spec.campaign_system           # one calibration per robot seed, computed once, then from the cache
+    assert all(system.calibrate(spec.options, key, spec.diagnosers)[1] for key in system.calibration_keys(spec.options))
     return one.table
 
 
