@@ -217,7 +217,16 @@ def test_unreachable_scheduler_is_an_error_before_any_run(tmp_path):
 
 def test_shipped_specs_are_valid_and_installed():
     specs = shipped_specs()
-    assert {"arm", "linear"} <= set(specs)
+    assert {"arm", "linear", "auv", "hydraulic", "helicopter"} <= set(specs)
+    # every spec in experiments/campaigns/ is installed and valid
+    assert {p.stem for p in (Path(__file__).resolve().parents[1] / "experiments" / "campaigns").glob("*.toml")} <= set(specs)
+    auv, hyd = load_spec("auv"), load_spec("hydraulic")
+    assert {f.kind for f in auv.faults} >= {"actuator_float", "component_thruster_blocking", "component_thruster_flooding",
+                                            "actuator_loss_of_effectiveness", "sensor_dropout", "sensor_bias"}
+    assert auv.faults[0].limits["thruster8"] == (40.0, "N") and auv.options.duration == 60.0
+    assert {f.kind for f in hyd.faults} >= {"component_open_winding", "component_valve_sticking", "component_leak"}
+    assert hyd.faults[2].limits["motor"] == (0.05, "mm^2")
+    assert load_spec("helicopter").faults[0].targets == ("collective", "cyclic")
     arm = load_spec("arm")
     assert arm.system == "arm" and arm.runs >= 200 and arm.options.robot == "arm6.xml"
     # a magnitude as a fraction of the target's limit: the arm's motor torque limits from its MJCF
@@ -243,3 +252,98 @@ def test_run_seed_derives_from_the_campaign_seed_and_index():
     assert run_seed(7, 12) == int(stream(7, "campaign", "run", "12").generate_state(1)[0])
     assert len({run_seed(7, i) for i in range(1000)}) == 1000
 
+
+
+# ------------------------------------------------------------------------- the AUV, the hydraulic rig, the helicopter
+AUV = """
+seed = 2
+fault_free_runs = 1
+faulty_runs = 2
+diagnosers = ["voltage_residual", "current_map"]
+
+[system]
+name = "auv"
+duration = 14.0
+calibration_runs = 1
+calibration_duration = 40.0
+
+[[faults]]
+kind = "component_thruster_blocking"
+magnitude = [1.0, 1.0]
+onset_fraction = [0.4, 0.6]
+"""
+
+HYDRAULIC = """
+seed = 1
+fault_free_runs = 1
+faulty_runs = 1
+diagnosers = ["nlar", "nlar_better"]
+
+[system]
+name = "hydraulic"
+duration = 3.0
+calibration_runs = 2
+
+[[faults]]
+kind = "component_open_winding"
+magnitude = [0.9, 1.0]
+onset_fraction = [0.75, 0.85]
+"""
+
+HELICOPTER = """
+seed = 4
+fault_free_runs = 2
+faulty_runs = 4
+
+[system]
+name = "helicopter"
+robot_seeds = [0, 1]
+duration = 8.0
+
+[[faults]]
+kind = "actuator_loss_of_effectiveness"
+targets = ["collective"]
+magnitude = [0.5, 0.6]
+onset_fraction = [0.2, 0.3]
+"""
+
+
+def _one_and_two_workers(spec_text: str, tmp_path: Path, runs: int | None = None):
+    spec = load_spec(spec_text)
+    one = run_campaign(spec, tmp_path / "w1", workers=1, progress=False, report=False)
+    two = run_campaign(spec, tmp_path / "w2", workers=2, runs=runs, progress=False, report=False)
+    _same(one.table[one.table["index"] < len(two.table["index"].unique())].reset_index(drop=True), two.table)
+    assert one.table["error"].isna().all(), one.table["error"].dropna().tolist()
+    system = spec.campaign_system           # one calibration per robot seed, computed once, then from the cache
+    assert all(system.calibrate(spec.options, key, spec.diagnosers)[1] for key in system.calibration_keys(spec.options))
+    return one.table
+
+
+def test_auv_campaign_detects_and_isolates_blocked_thrusters_same_table_on_two_workers(tmp_path):
+    t = _one_and_two_workers(AUV, tmp_path, runs=2)
+    assert len(t) == 3 * 2 and t.drop_duplicates("index")["mission"].nunique() == 3      # seeded random missions
+    faulty = t[t["faulty"]]
+    assert faulty["target"].str.fullmatch(r"thruster[1-8]").all() and (faulty["unit"] == "1").all()
+    # a stalled rotor shows in the motor current within a second, isolated on its own thruster
+    current = faulty[faulty["diagnoser"] == "current_map"]
+    assert current["detected"].all() and current["correct"].all() and (current["delay"] < 1.0).all()
+    assert (t[~t["faulty"]]["false_alarms"] == 0).all()
+
+
+def test_hydraulic_campaign_detects_an_open_winding_same_table_on_two_workers(tmp_path):
+    t = _one_and_two_workers(HYDRAULIC, tmp_path)
+    mission = json.loads(t["mission"].iloc[0])
+    assert 4.0 <= mission["target_rpm"] <= 6.0 and 0.9e-6 <= mission["throttle_area"] <= 2.5e-6   # a random profile
+    faulty = t[t["faulty"]]
+    assert (faulty["kind"] == "component_open_winding").all() and (faulty["target"] == "servovalve").all()
+    assert faulty["detected"].all() and (faulty["delay"] < 0.3).all()
+    assert (t[~t["faulty"]]["false_alarms"] == 0).all()
+
+
+def test_helicopter_campaign_detects_loss_of_effectiveness_with_two_beliefs(tmp_path):
+    t = _one_and_two_workers(HELICOPTER, tmp_path, runs=2)
+    assert set(t["robot_seed"]) == {0, 1}
+    faulty = t[t["faulty"]]
+    assert (faulty["target"] == "collective").all() and faulty["size"].between(0.5, 0.6).all()
+    assert faulty["detected"].all() and faulty["correct"].all()
+    assert (t[~t["faulty"]]["false_alarms"] == 0).all()

@@ -51,3 +51,16 @@ def test_pyproject_lists_every_package():
             if "__pycache__" not in rel:
                 found.add(".".join((name, *rel)))
     assert found == listed
+
+
+def test_every_example_campaign_spec_is_package_data():
+    """Each experiments/campaigns/*.toml (robofdi campaign <name>) matches the package-data patterns of
+    robofdi.experiments, so the wheel ships it (.ci/run checks the built wheel for the same list)."""
+    import fnmatch
+
+    tomllib = pytest.importorskip("tomllib")
+    patterns = tomllib.loads((REPO / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["setuptools"][
+        "package-data"]["robofdi.experiments"]
+    specs = sorted(p.relative_to(REPO / "experiments").as_posix() for p in (REPO / "experiments" / "campaigns").glob("*.toml"))
+    assert {"campaigns/auv.toml", "campaigns/hydraulic.toml", "campaigns/helicopter.toml"} <= set(specs)
+    assert [s for s in specs if not any(fnmatch.fnmatch(s, p) for p in patterns)] == []

@@ -278,7 +278,7 @@ def shipped_specs() -> dict[str, Path]:
 
 
 def load_spec(spec) -> CampaignSpec:
-    """A spec from a TOML file path, the name of a shipped spec ("arm", "linear"), TOML text, a dict, or a
+    """A spec from a TOML file path, the name of a shipped spec ("arm", "auv", …), TOML text, a dict, or a
     CampaignSpec (returned as is)."""
     if isinstance(spec, CampaignSpec):
         return spec

@@ -23,7 +23,8 @@ from robofdi.record import Record
 from robofdi.seeding import rng
 
 __all__ = ["TargetLimit", "Mission", "CampaignSystem", "SYSTEMS", "register_system", "get_system", "fault_limit",
-           "ArmCampaign", "LinearCampaign", "ArmOptions", "LinearOptions"]
+           "ArmCampaign", "LinearCampaign", "ArmOptions", "LinearOptions", "AuvCampaign", "AuvOptions",
+           "HydraulicCampaign", "HydraulicOptions", "HelicopterCampaign", "HelicopterOptions"]
 
 
 @dataclass(frozen=True)
@@ -309,3 +310,312 @@ class LinearCampaign:
 
 register_system(ArmCampaign())
 register_system(LinearCampaign())
+
+
+# ------------------------------------------------------------------------------------ calibration cache (pickled)
+def _cached_calibration(system: str, description: dict, compute) -> tuple[Any, bool]:
+    """``compute()`` once per ``description`` (system options, robot seed, robofdi version), pickled in
+    :func:`robofdi.scenarios.arm.cache_dir`; returns (calibration, True if it came from the cache)."""
+    import hashlib
+    import json
+    import pickle
+
+    from robofdi import __version__
+    from robofdi.scenarios.arm import cache_dir
+
+    key = hashlib.sha256(json.dumps({**description, "system": system, "version": __version__}, sort_keys=True,
+                                    default=repr).encode()).hexdigest()[:20]
+    path = cache_dir() / f"{system}-calibration-{key}.pkl"
+    if path.is_file():
+        try:
+            with path.open("rb") as fh:
+                return pickle.load(fh), True
+        except (OSError, pickle.UnpicklingError, EOFError, AttributeError):
+            pass                                    # a torn or stale file is recomputed
+    cal = compute()
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_name(f"{path.name}.{np.random.default_rng().integers(1 << 62)}.tmp")
+        with tmp.open("wb") as fh:
+            pickle.dump(cal, fh)
+        tmp.replace(path)
+    except OSError:
+        pass  # a read-only cache only costs the next campaign its calibration
+    return cal, False
+
+
+def _robot_seeds(options) -> None:
+    object.__setattr__(options, "robot_seeds", tuple(options.robot_seeds))
+    _check_fields("system", options, [("robot_seeds", options.robot_seeds and all(_is_int(s) for s in options.robot_seeds),
+                                       "a non-empty list of integers >= 0")])
+
+
+def _positive(v, high=float("inf")) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and 0 < v <= high
+
+
+# ----------------------------------------------------------------------------------------------------- AUV
+@dataclass(frozen=True)
+class AuvOptions:
+    """The ``[system]`` table of an AUV campaign (:mod:`robofdi.scenarios.auv`, the 8-thruster ODIN-like vehicle).
+
+    robot_seeds: one calibration each (its fault-free calibration missions and noise; the vehicle and its
+    nominal-model errors are those of :class:`~robofdi.models.auv.AuvModelMismatch`); duration [s]: each random
+    mission; calibration_runs × calibration_duration [s]: the fault-free calibration missions; variant /
+    allocation / health_source / current [m/s] / threshold_margin: those of :class:`~robofdi.scenarios.auv.AuvScenario`."""
+
+    robot_seeds: tuple = (0,)
+    duration: float = 60.0
+    calibration_runs: int = 3
+    calibration_duration: float = 240.0
+    variant: str = "diagnosed"
+    allocation: str = "constrained"
+    health_source: str = "voltage_residual"
+    current: tuple = (0.10, 0.05, 0.0)
+    threshold_margin: float = 2.0
+
+    def __post_init__(self):
+        _robot_seeds(self)
+        object.__setattr__(self, "current", tuple(self.current))
+        _check_fields("system", self, [
+            ("duration", _positive(self.duration, 3600), "a time in (0, 3600] s"),
+            ("calibration_runs", _is_int(self.calibration_runs, 1), "an integer >= 1"),
+            ("calibration_duration", _positive(self.calibration_duration, 3600), "a time in (0, 3600] s"),
+        ])
+        try:
+            self.scenario(0)                        # the scenario validates the rest (variant, allocation, …)
+        except RobofdiError as exc:
+            raise RobofdiError(f"system: {exc}") from None
+
+    def scenario(self, seed: int, diagnosers=None, plan=None, faults=()):
+        """The :class:`~robofdi.scenarios.auv.AuvScenario` of these options (every diagnoser unless named)."""
+        from robofdi.scenarios.auv import ALL_DIAGNOSERS
+
+        names = tuple(ALL_DIAGNOSERS if diagnosers is None else diagnosers)
+        if self.variant == "diagnosed" and self.health_source not in names:
+            names += (self.health_source,)          # the health the accommodation uses must be diagnosed
+        return _PlannedAuvScenario(name="campaign-auv", mission="random", duration=float(self.duration), seed=int(seed),
+                                   faults=tuple(faults), current=self.current, diagnosers=names,
+                                   allocation=self.allocation, variant=self.variant, health_source=self.health_source,
+                                   calibration_runs=self.calibration_runs,
+                                   calibration_duration=float(self.calibration_duration),
+                                   threshold_margin=float(self.threshold_margin), plan=plan)
+
+
+def _planned_auv_scenario():
+    from robofdi.scenarios.auv import AuvScenario
+
+    @dataclass(frozen=True)
+    class PlannedAuvScenario(AuvScenario):
+        """An AuvScenario flying a given mission (``plan``) instead of the one its seed would draw."""
+
+        plan: Any = None
+
+        def reference(self):
+            return super().reference() if self.plan is None else self.plan
+
+    return PlannedAuvScenario
+
+
+_PlannedAuvScenario = _planned_auv_scenario()
+
+
+class AuvCampaign:
+    """The AUV: seeded random waypoint missions, thruster and navigation-sensor faults, the thruster diagnosers and
+    the depth vote online, accommodation per ``variant`` (:mod:`robofdi.scenarios.auv`)."""
+
+    name = "auv"
+    options_type = AuvOptions
+
+    def diagnosers(self, options):
+        from robofdi.scenarios.auv import ALL_DIAGNOSERS
+
+        return ALL_DIAGNOSERS
+
+    def targets(self, options):
+        from robofdi.sims.auv import NAVIGATION_CHANNELS
+
+        sc = options.scenario(0)
+        sim = sc.simulator()
+        ranges = {"m": 2 * sc.floor_depth, "rad": np.pi, "m/s": 2.0, "rad/s": 1.0}   # sensor ranges of the vehicle
+        thrusters = sim.actuators
+        navigation = [(c, u) for c, u in zip(sim.sensor_channels, sim.units["y"]) if c in NAVIGATION_CHANNELS]
+        return {"actuator": {t: TargetLimit(sc.thrust_limit, "N") for t in thrusters},
+                "sensor": {c: TargetLimit(ranges[u], u) for c, u in navigation},
+                "component_thruster_blocking": {t: TargetLimit(1.0, "1") for t in thrusters},
+                "component_thruster_flooding": {t: TargetLimit(1.0, "1") for t in thrusters}}
+
+    def calibration_keys(self, options):
+        return list(options.robot_seeds)
+
+    def calibrate(self, options, key, diagnosers):
+        from robofdi.scenarios.auv import calibrate
+
+        sc = options.scenario(int(key))
+        description = {k: getattr(sc, k) for k in ("mjcf", "seed", "current", "control_dt", "sensors", "mismatch",
+                                                   "thrust_limit", "calibration_runs", "calibration_duration",
+                                                   "threshold_margin", "blanking", "start_depth", "current_map_filter",
+                                                   "floor_depth", "allocation", "diagnosers")}
+        return _cached_calibration("auv", description, lambda: calibrate(sc))
+
+    def mission(self, options, key, generator):
+        from robofdi.scenarios.auv import draw_mission
+
+        seed = int(generator.integers(2**31))
+        return Mission(float(options.duration), draw_mission(seed, float(options.duration)), {"mission_seed": seed})
+
+    def run(self, options, calibration, key, mission, faults, seed, diagnosers):
+        from robofdi.scenarios.auv import run_scenario
+
+        sc = options.scenario(seed, diagnosers, mission.plan, faults)
+        return run_scenario(sc, calibration, run_key="campaign")[0]
+
+
+# ------------------------------------------------------------------------------------------------ hydraulic
+@dataclass(frozen=True)
+class HydraulicOptions:
+    """The ``[system]`` table of a hydraulic-rig campaign (:mod:`robofdi.scenarios.hydraulic`).
+
+    robot_seeds: one calibration each (fault-free runs on the random operating profiles of seeds
+    1000·(1 + robot seed) + i); duration [s] of every run; calibration_runs (>= 2: half train the NNAR and fit the
+    better model, all set thresholds); margin: threshold margin >= 1."""
+
+    robot_seeds: tuple = (0,)
+    duration: float = 8.0
+    calibration_runs: int = 8
+    margin: float = 1.3
+
+    def __post_init__(self):
+        _robot_seeds(self)
+        _check_fields("system", self, [
+            ("duration", _positive(self.duration, 600) and self.duration >= 3, "a time in [3, 600] s"),
+            ("calibration_runs", _is_int(self.calibration_runs, 2), "an integer >= 2"),
+            ("margin", _positive(self.margin) and self.margin >= 1, "a number >= 1"),
+        ])
+
+    def scenario(self, **kw):
+        from robofdi.scenarios.hydraulic import HydraulicScenario
+
+        return HydraulicScenario(name="campaign-hydraulic", duration=float(self.duration), margin=float(self.margin), **kw)
+
+
+class HydraulicCampaign:
+    """The hydraulic wheel-actuator rig: random operating profiles (target speed, ramp, load throttle), valve,
+    leak and tachometer faults, the nlar residuals and their baselines online (:mod:`robofdi.scenarios.hydraulic`)."""
+
+    name = "hydraulic"
+    options_type = HydraulicOptions
+
+    def diagnosers(self, options):
+        from robofdi.scenarios.hydraulic import DIAGNOSERS
+
+        return DIAGNOSERS
+
+    def targets(self, options):
+        from robofdi.scenarios.hydraulic import FAULT_TARGETS
+
+        limits = {"shaft_speed": (2.0, "rad/s"), "load_pressure": (2e7, "Pa"), "pump_pressure": (2e7, "Pa"),
+                  "supply_pressure": (2e7, "Pa")}                     # sensor ranges (tachometer, 200 bar gauges)
+        comps = {kind: {t: TargetLimit(hi, "mm^2" if kind == "component_leak" else "1") for t, (_, hi) in tg.items()}
+                 for kind, tg in FAULT_TARGETS["component"].items()}
+        return {"actuator": {"servovalve": TargetLimit(1.0, "1 (valve stroke)")},
+                "sensor": {c: TargetLimit(*v) for c, v in limits.items()}, **comps}
+
+    def calibration_keys(self, options):
+        return list(options.robot_seeds)
+
+    def calibrate(self, options, key, diagnosers):
+        from robofdi.scenarios.hydraulic import calibrate
+
+        base = options.scenario()
+        seed = 1000 * (1 + int(key))
+        return _cached_calibration("hydraulic", {"base": repr(base), "runs": options.calibration_runs, "seed": seed},
+                                   lambda: calibrate(base, options.calibration_runs, seed))
+
+    def mission(self, options, key, generator):
+        from robofdi.scenarios.hydraulic import operating_profile
+
+        profile = operating_profile(int(generator.integers(2**31)))
+        return Mission(float(options.duration), profile, dict(profile))
+
+    def run(self, options, calibration, key, mission, faults, seed, diagnosers):
+        from robofdi.scenarios.hydraulic import run_scenario
+
+        sc = options.scenario(faults=tuple(faults), seed=int(seed), diagnosers=tuple(diagnosers), **mission.plan)
+        return run_scenario(sc, calibration, run_key="campaign")
+
+
+# ---------------------------------------------------------------------------------------------- helicopter
+@dataclass(frozen=True)
+class HelicopterOptions:
+    """The ``[system]`` table of a helicopter campaign (Jiang & Chowdhury 2005 Sec. V, :mod:`robofdi.scenarios.helicopter`):
+    robot_seeds: one belief (seeded relative parameter errors of size ``mismatch``) and calibration each;
+    duration [s]; noise: the paper's process and sensor noise; accommodation: u = (I − R̂)⁻¹u fed by the diagnosis;
+    calibration_runs: fault-free runs setting the thresholds."""
+
+    robot_seeds: tuple = (0,)
+    duration: float = 10.0
+    mismatch: float = 0.05
+    noise: bool = True
+    accommodation: bool = True
+    calibration_runs: int = 3
+
+    def __post_init__(self):
+        _robot_seeds(self)
+        _check_fields("system", self, [
+            ("duration", _positive(self.duration, 600), "a time in (0, 600] s"),
+            ("mismatch", isinstance(self.mismatch, (int, float)) and 0 <= self.mismatch < 0.5, "a fraction in [0, 0.5)"),
+            ("noise", isinstance(self.noise, bool), "true or false"),
+            ("accommodation", isinstance(self.accommodation, bool), "true or false"),
+            ("calibration_runs", _is_int(self.calibration_runs, 1), "an integer >= 1"),
+        ])
+
+    def scenario(self, key: int, faults=()):
+        """The scenario of belief ``key`` (its seed seeds the belief's errors; run noise comes from the run seed)."""
+        from robofdi.scenarios.helicopter import HelicopterScenario
+
+        return HelicopterScenario(faults=tuple(faults), seed=int(key), duration=float(self.duration), noise=self.noise,
+                                  accommodation=self.accommodation, mismatch=float(self.mismatch),
+                                  calibration_runs=self.calibration_runs)
+
+
+class HelicopterCampaign:
+    """The linearised helicopter of Jiang & Chowdhury (2005): the paper's LQR + excitation harness, actuator
+    effectiveness faults estimated by the Kalman fault estimator and accommodated (the mission is the paper's fixed
+    excitation; runs differ by their fault and noise)."""
+
+    name = "helicopter"
+    options_type = HelicopterOptions
+
+    def diagnosers(self, options):
+        return ("kalman_fe",)
+
+    def targets(self, options):
+        from robofdi.models.linear_examples import helicopter
+
+        # limit of an input: the excitation's amplitude (1 input unit)
+        return {"actuator": {a: TargetLimit(1.0, "input") for a in helicopter().input_names}}
+
+    def calibration_keys(self, options):
+        return list(options.robot_seeds)
+
+    def calibrate(self, options, key, diagnosers):
+        from robofdi.scenarios.helicopter import calibrate
+
+        sc = options.scenario(key)
+        return _cached_calibration("helicopter", {"scenario": repr(sc)}, lambda: calibrate(sc))
+
+    def mission(self, options, key, generator):
+        return Mission(float(options.duration), None, {"excitation": "sin(pi t), cos(0.6 pi t)"})
+
+    def run(self, options, calibration, key, mission, faults, seed, diagnosers):
+        from robofdi.scenarios.helicopter import build_loop
+
+        sc = options.scenario(key, faults)
+        return build_loop(sc, calibration).run(sc.duration, seed=seed, run_key="campaign", scenario="campaign-helicopter",
+                                               meta={"noise": sc.noise, "robot_seed": int(key)})
+
+
+register_system(AuvCampaign())
+register_system(HydraulicCampaign())
+register_system(HelicopterCampaign())
