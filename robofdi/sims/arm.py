@@ -45,6 +45,7 @@ from robofdi.models.manipulator import (
     CompiledArm, ManipulatorModel, ModelMismatch, compile_arm, sensor_channel_names,
 )
 from robofdi.seeding import stream
+from robofdi.sims.noise import ChannelNoise
 
 __all__ = ["TorqueRipple", "StribeckFriction", "SensorModel", "ArmSettings", "ArmSimulator", "add_point_mass",
            "arm_settings", "full_mass_matrix"]
@@ -280,23 +281,6 @@ def full_mass_matrix(m: mujoco.MjModel, d: mujoco.MjData) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------------------------
 # The simulator
 # ---------------------------------------------------------------------------------------------------------------
-class _ChannelNoise:
-    """Standard normal draws, one independent stream per channel, buffered (one column per measurement)."""
-
-    def __init__(self, run: np.random.SeedSequence, channels: Sequence[str], block: int = 512):
-        self._gens = [np.random.default_rng(stream(run, "sensor", c)) for c in channels]
-        self._block, self._k = block, block
-        self._buffer = np.empty((len(channels), block))
-
-    def draw(self) -> np.ndarray:
-        if self._k == self._block:
-            for i, g in enumerate(self._gens):
-                self._buffer[i] = g.standard_normal(self._block)
-            self._k = 0
-        self._k += 1
-        return self._buffer[:, self._k - 1]
-
-
 def _as_slice(index: np.ndarray):
     """``index`` as a slice when it is a contiguous ascending run (a view, no copy), else the index array."""
     if index.size and np.array_equal(index, np.arange(index[0], index[0] + index.size)):
@@ -511,8 +495,8 @@ class ArmSimulator:
         self._other_ctrl = d.ctrl[self._other_act].copy()
         mujoco.mj_forward(m, d)
         self.u_applied = np.zeros(n)
-        self._pos_draws = _ChannelNoise(run, self.sensor_channels[:n]) if np.any(self._pos_noise) else None
-        self._vel_draws = _ChannelNoise(run, self.sensor_channels[n:]) if np.any(self._vel_noise) else None
+        self._pos_draws = ChannelNoise(run, self.sensor_channels[:n]) if np.any(self._pos_noise) else None
+        self._vel_draws = ChannelNoise(run, self.sensor_channels[n:]) if np.any(self._vel_noise) else None
         return self.measure()
 
     def saturate(self, u: np.ndarray) -> np.ndarray:

@@ -41,7 +41,7 @@ from robofdi.models.auv import (
 )
 from robofdi.models.manipulator import resolve_asset
 from robofdi.seeding import stream
-from robofdi.sims.arm import _ChannelNoise
+from robofdi.sims.noise import ChannelNoise
 
 __all__ = ["AuvSensors", "AuvSimulator", "NAVIGATION_CHANNELS", "telemetry_channels"]
 
@@ -206,7 +206,7 @@ class AuvSimulator:
         self.u_applied = np.zeros(n)
         self._blocked = np.zeros(n, dtype=bool)
         self._flood = np.zeros(n)
-        self._noise = _ChannelNoise(stream(seed), self.sensor_channels) if self._noisy else None
+        self._noise = ChannelNoise(stream(seed), self.sensor_channels) if self._noisy else None
         return self.measure()
 
     def saturate(self, u: np.ndarray) -> np.ndarray:
