@@ -1,0 +1,82 @@
+"""Nominal model of a (possibly underactuated) MuJoCo multibody: every hinge/slide joint, with the actuators mapped
+onto the joints by an actuation matrix.
+
+The arm model (:class:`~robofdi.models.manipulator.ManipulatorModel`) keeps only actuated joints and locks the
+rest; a cart-pole, a finger with its free spinner or any underactuated system needs every degree of freedom in the
+dynamics. :class:`MultibodyModel` is the same Pinocchio rigid-body model (:func:`pinocchio_model`, same mismatch)
+over all hinge/slide joints, plus the actuation matrix B (nv × nu) of the equation of motion
+M(q) q̈ + n(q, q̇) = B u (e.g. Spong, *Underactuated mechanical systems*, 1998, eq. (1)); unactuated joints have a
+zero row of B.
+"""
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from robofdi.errors import RobofdiError
+from robofdi.models.manipulator import (
+    _JOINT_KINDS, _JOINT_TRANSMISSIONS, ManipulatorModel, ModelMismatch, _actuator_kind, _is_motor, _name, pinocchio_model,
+)
+
+__all__ = ["MultibodyModel", "actuation_matrix"]
+
+
+def actuation_matrix(m: mujoco.MjModel, joint_ids: list[int]) -> np.ndarray:
+    """B (len(joint_ids) × nu): joint torque [N·m] or force [N] per unit of each actuator's ctrl (gear · gain).
+    Every actuator must be a motor on one of the joints (a joint transmission, fixed gain, no bias, no dynamics)."""
+    dof = {j: k for k, j in enumerate(joint_ids)}
+    B = np.zeros((len(joint_ids), m.nu))
+    for a in range(m.nu):
+        label = _name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a) or f"#{a}"
+        if int(m.actuator_trntype[a]) not in _JOINT_TRANSMISSIONS or int(m.actuator_trnid[a, 0]) not in dof:
+            raise RobofdiError(f"model: actuator {label!r} does not drive a hinge/slide joint; expected joint "
+                               "transmissions only (tendon and site actuators are not supported)")
+        if not _is_motor(m, a):
+            raise RobofdiError(f"model: actuator {label!r} is {_actuator_kind(m, a)}; expected a torque motor")
+        B[dof[int(m.actuator_trnid[a, 0])], a] = m.actuator_gear[a, 0] * m.actuator_gainprm[a, 0]
+    return B
+
+
+class MultibodyModel(ManipulatorModel):
+    """M̂(q), n̂(q, q̇) over every hinge/slide joint of ``m`` and the actuation matrix :attr:`B` (nv × nu).
+
+    ``m``: a MuJoCo model compiled from the MJCF file (not the running simulator's: the belief is read from the
+    file). Free and ball joints are refused. The dynamics methods are :class:`ManipulatorModel`'s; the joint torque
+    of an action u is ``B @ u`` (:meth:`joint_torque`).
+    """
+
+    def __init__(self, m: mujoco.MjModel, system: str, mismatch: ModelMismatch | None = None):
+        mismatch = mismatch or ModelMismatch()
+        if not isinstance(mismatch, ModelMismatch):
+            raise RobofdiError(f"mismatch: expected a ModelMismatch, got {type(mismatch).__name__}")
+        kinds = [_JOINT_KINDS.get(int(m.jnt_type[j]), "unknown") for j in range(m.njnt)]
+        bad = [f"{_name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or j} ({k})" for j, k in enumerate(kinds) if k not in ("hinge", "slide")]
+        if bad:
+            raise RobofdiError(f"model: {system} has joints {', '.join(bad)}; expected hinge and slide joints only")
+        ids = list(range(m.njnt))
+        names = [_name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or f"joint{j}" for j in ids]
+        self.path, self.system, self.mismatch = None, system, mismatch
+        model = pinocchio_model(m, ids)
+        model.name = system
+        self._perturb(model, mismatch)
+        self.model, self.data = model, model.createData()
+        self.joint_names, self.n = names, model.nv
+        self.damping = np.array(model.damping, dtype=float)
+        self.B = actuation_matrix(m, ids)
+        self.actuator_names = [_name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a) or f"actuator{a}" for a in range(m.nu)]
+        lim = np.where(m.actuator_ctrllimited[:, None].astype(bool), m.actuator_ctrlrange, [-np.inf, np.inf])
+        self.torque_range = np.sort(np.abs(self.B).sum(axis=0)[:, None] * lim, axis=1) if m.nu else np.zeros((0, 2))
+        self.torque_limit = np.abs(self.torque_range).max(axis=1) if m.nu else np.zeros(0)
+        self.joint_range = np.where(m.jnt_limited[ids, None].astype(bool), m.jnt_range[ids], [-np.inf, np.inf])
+        self._ref = np.array([m.qpos0[m.jnt_qposadr[j]] for j in ids])
+        self._has_ref = bool(np.any(self._ref != 0))
+        self._lower = np.tril_indices(self.n, -1)
+
+    @property
+    def actuated(self) -> list[str]:
+        """Joints with a non-zero row of B."""
+        return [j for j, row in zip(self.joint_names, self.B) if np.any(row)]
+
+    def joint_torque(self, u: np.ndarray) -> np.ndarray:
+        """τ = B u [N·m or N per joint] of the action u."""
+        return self.B @ np.asarray(u, dtype=float)

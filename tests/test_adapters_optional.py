@@ -1,0 +1,23 @@
+"""The adapters' dependencies are optional: the core imports without them, an adapter says how to install them."""
+from __future__ import annotations
+
+import subprocess
+import sys
+
+BLOCK = "import sys; sys.modules['dm_control'] = None; sys.modules['dm_env'] = None; "
+
+
+def _run(code: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-c", BLOCK + code], capture_output=True, text=True, timeout=120)
+
+
+def test_core_imports_without_dm_control():
+    out = _run("import robofdi, robofdi.faults, robofdi.cli, robofdi.adapters, robofdi.models.multibody; print('ok')")
+    assert out.returncode == 0 and out.stdout.strip() == "ok", out.stderr
+
+
+def test_dm_control_adapter_without_dm_control_says_what_to_install():
+    for module in ("robofdi.adapters.dm_control", "robofdi.adapters.dm_control_diagnosis"):
+        out = _run(f"import {module}")
+        last = out.stderr.strip().splitlines()[-1]
+        assert out.returncode != 0 and last.startswith("ImportError:") and "pip install 'robofdi[dm_control]'" in last, out.stderr
