@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from robofdi.evaluate.figures import save_figure
 from robofdi.evaluate.reproduction import reproduction_check as check
 from robofdi.evaluate.run_folder import prepare_run_dir, write_run_folder
 from robofdi.observers.adaptive import is_spd
@@ -61,9 +62,7 @@ def _figure(run_dir: Path, record, f):
         ax.legend(fontsize=7)
     axes[-1].set_xlabel("time [s]")
     fig.suptitle("Figs. 1–3 (like, reconstructed): constant and ramp fault estimates, noise-free", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(run_dir / "figures" / "fig_fault_estimates.png", dpi=110)
-    plt.close(fig)
+    save_figure(fig, run_dir / "figures" / "fig_fault_estimates.png")
 
 
 def run(name: str = "adaptive-fe", out: str | Path = "runs", seed: int = 0, progress: bool = True, replay: bool = False):

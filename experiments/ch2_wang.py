@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from robofdi.evaluate.figures import save_figure
 from robofdi.evaluate.reproduction import reproduction_check as check
 from robofdi.evaluate.run_folder import prepare_run_dir, write_run_folder
 from robofdi.models.linear_examples import CHIP_REFINER, chip_refiner
@@ -166,9 +167,7 @@ def _figures(run_dir: Path, rec, ftc):
     axes[2].set_xlabel("sample k")
     axes[2].legend(fontsize=7)
     fig.suptitle("Figs. 3–5 (like): detection, diagnosis, outputs (σ = 0.1, seed 0)", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(run_dir / "figures" / "fig3_5_refiner.png", dpi=110)
-    plt.close(fig)
+    save_figure(fig, run_dir / "figures" / "fig3_5_refiner.png")
 
 
 def run(name: str = "ch2-wang", out: str | Path = "runs", seed: int = 0, progress: bool = True, replay: bool = False):

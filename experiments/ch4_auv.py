@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from robofdi.errors import RobofdiError
+from robofdi.evaluate.figures import save_figure
 from robofdi.evaluate import summarize
 from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, write_run_folder
 from robofdi.faults import Fault
@@ -149,15 +150,10 @@ def voltage_detectability(record: Record, threshold: np.ndarray, window: float =
 
 
 def _save(fig, bottom_axes, path: Path) -> Path:
-    """Time axis label on the bottom row, tight layout, saved at 110 dpi and closed."""
-    import matplotlib.pyplot as plt
-
+    """Time axis label on the bottom row, then :func:`save_figure`."""
     for ax in np.atleast_1d(bottom_axes):
         ax.set_xlabel("time [s]")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def plot_thrusters(records: dict[str, Record], onsets, path: Path) -> Path:

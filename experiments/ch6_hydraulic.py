@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from robofdi.errors import RobofdiError
+from robofdi.evaluate.figures import save_figure
 from robofdi.evaluate import summarize
 from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir
 from robofdi.evaluate.summary import write_summary
@@ -261,9 +262,7 @@ def plot_fault_figures(records: dict, folder: Path) -> None:
             for ax in axes:
                 ax.axvline(f["onset"], color="b", lw=0.6, ls="--")
         fig.suptitle(f"Fig. {6 + k} analogue: {sc} (black) vs fault-free (grey), NLAR tests")
-        fig.tight_layout()
-        fig.savefig(folder / f"fig{6 + k}_{sc}.png", dpi=110)
-        plt.close(fig)
+        save_figure(fig, folder / f"fig{6 + k}_{sc}.png")
 
 
 def plot_linearisation_error(path: Path) -> None:
@@ -285,9 +284,7 @@ def plot_linearisation_error(path: Path) -> None:
     ax.set_ylabel("flow linearisation error [l/min]")
     ax.set_title(f"Fig. 5 analogue: servovalve linearisation error (linearised at u0={u0:.3f}, p0={p0 / 1e5:.1f} bar)")
     ax.legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def plot_linear_vs_plar(base: HydraulicScenario, cal, path: Path) -> None:
@@ -311,9 +308,7 @@ def plot_linear_vs_plar(base: HydraulicScenario, cal, path: Path) -> None:
     axes[0].set_ylabel("R4 [Pa/s]")
     axes[0].legend()
     fig.suptitle("Fig. 11 analogue: linear AR vs PLAR (pressure test), ramp to 60 rpm")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def main(argv=None) -> int:

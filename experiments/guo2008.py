@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from robofdi.evaluate.figures import save_figure
 from robofdi.evaluate import summarize
 from robofdi.evaluate.reproduction import reproduction_check as check
 from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, write_run_folder
@@ -52,9 +53,7 @@ def _figures(run_dir: Path, rec, J, names):
     ax.set_xlabel("time [s]")
     ax.legend(fontsize=6, ncol=3)
     ax.set_title("Fig. 2 (like): outputs under the gust (10 s) and the elevator lock (15 s)", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(run_dir / "figures" / "fig2_outputs.png", dpi=110)
-    plt.close(fig)
+    save_figure(fig, run_dir / "figures" / "fig2_outputs.png")
     fig, ax = plt.subplots(figsize=(7, 3))
     for j, a in enumerate(names):
         ax.plot(tr.time, tr.estimate[:, j], lw=0.9, label=f"û {a}")
@@ -63,9 +62,7 @@ def _figures(run_dir: Path, rec, J, names):
     ax.set_ylabel("lock estimate [deg]")
     ax.legend(fontsize=7)
     ax.set_title("Fig. 3 (like): lock estimate of the isolated model", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(run_dir / "figures" / "fig3_lock_estimate.png", dpi=110)
-    plt.close(fig)
+    save_figure(fig, run_dir / "figures" / "fig3_lock_estimate.png")
     fig, ax = plt.subplots(figsize=(7, 3))
     for j, a in enumerate(names):
         ax.semilogy(tr.time, np.maximum(J[:, j], 1e-4), lw=0.9, label=f"J {a}")
@@ -74,9 +71,7 @@ def _figures(run_dir: Path, rec, J, names):
     ax.set_xlim(14, tr.time[-1])
     ax.legend(fontsize=7)
     ax.set_title("Fig. 4 (like): switching indices (21); the matched model's is smallest", fontsize=9)
-    fig.tight_layout()
-    fig.savefig(run_dir / "figures" / "fig4_switching_index.png", dpi=110)
-    plt.close(fig)
+    save_figure(fig, run_dir / "figures" / "fig4_switching_index.png")
 
 
 def run(name: str = "guo2008", out: str | Path = "runs", seed: int = 0, progress: bool = True, replay: bool = False,

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from robofdi.evaluate.figures import save_figure
 from robofdi.evaluate import summarize
 from robofdi.evaluate.reproduction import reproduction_check as check
 from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, write_run_folder
@@ -114,9 +115,7 @@ def _figures(run_dir: Path, noisy, noise_free, ftc_free, noftc, ui, ui_sc, zeta)
         ax.legend(fontsize=7)
     axes[-1].set_xlabel("time [s]")
     fig.suptitle("Fig. 1 (like): estimated vs true loss of effectiveness")
-    fig.tight_layout()
-    fig.savefig(run_dir / "figures" / "fig1_effectiveness.png", dpi=110)
-    plt.close(fig)
+    save_figure(fig, run_dir / "figures" / "fig1_effectiveness.png")
     fig, axes = plt.subplots(4, 1, figsize=(7, 7), sharex=True)
     for i, ax in enumerate(axes):
         ax.plot(ftc_free.time, ftc_free.truth_state[:, i], "k", lw=2, label="fault-free")
@@ -126,9 +125,7 @@ def _figures(run_dir: Path, noisy, noise_free, ftc_free, noftc, ui, ui_sc, zeta)
     axes[0].legend(fontsize=7)
     axes[-1].set_xlabel("time [s]")
     fig.suptitle("Fig. 2 (like): closed-loop states, noise-free (units not given by the paper)")
-    fig.tight_layout()
-    fig.savefig(run_dir / "figures" / "fig2_states.png", dpi=110)
-    plt.close(fig)
+    save_figure(fig, run_dir / "figures" / "fig2_states.png")
     fig, axes = plt.subplots(2, 1, figsize=(7, 4.5), sharex=True)
     axes[0].plot(ui.time, zeta[:, 0], label="ζ̂")
     axes[0].axhline(ui_sc.unknown_input, color="k", ls="--", label="ζ = 0.1")
@@ -141,9 +138,7 @@ def _figures(run_dir: Path, noisy, noise_free, ftc_free, noftc, ui, ui_sc, zeta)
     axes[1].set_xlabel("time [s]")
     axes[1].legend(fontsize=7)
     fig.suptitle("Figs. 3–4 (like): unknown input ζ and r₃, augmented filter, noise-free")
-    fig.tight_layout()
-    fig.savefig(run_dir / "figures" / "fig3_4_unknown_input.png", dpi=110)
-    plt.close(fig)
+    save_figure(fig, run_dir / "figures" / "fig3_4_unknown_input.png")
 
 
 def run(name: str = "jiang2005", out: str | Path = "runs", seed: int = 0, progress: bool = True, replay: bool = False):

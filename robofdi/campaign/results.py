@@ -11,6 +11,7 @@ import pandas as pd
 from robofdi.campaign.metrics import analyse, detection_curve
 from robofdi.campaign.runs import UNITS
 from robofdi.errors import RobofdiError
+from robofdi.evaluate.figures import save_figure
 from robofdi.evaluate.summary import _jsonable
 
 __all__ = ["CampaignResult", "load", "write_outputs", "report_markdown"]
@@ -82,10 +83,7 @@ def _figures(result: CampaignResult, metrics: dict) -> list[str]:
         ax.set_xlabel("isolated target [runs]")
         ax.set_ylabel("true target")
         ax.set_title(f"{name}: confusion over {len(rows)} faults", fontsize=9)
-        fig.tight_layout()
-        path = folder / f"confusion_{name}.png"
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
+        path = save_figure(fig, folder / f"confusion_{name}.png")
         written.append(path.name)
     # delay CDFs and detection probability against size, one panel per fault kind
     for what in ("delay_cdf", "detection_vs_size"):
@@ -116,10 +114,7 @@ def _figures(result: CampaignResult, metrics: dict) -> list[str]:
         for ax in list(axes.flat)[len(kinds):]:
             ax.axis("off")
         axes.flat[0].legend(fontsize=7)
-        fig.tight_layout()
-        path = folder / f"{what}.png"
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
+        path = save_figure(fig, folder / f"{what}.png")
         written.append(path.name)
     return written
 

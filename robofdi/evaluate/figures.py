@@ -15,6 +15,15 @@ from robofdi.record import Record  # noqa: E402
 __all__ = ["plot_residuals", "plot_estimates"]
 
 
+def save_figure(fig, path: str | Path, dpi: int = 110) -> Path:
+    """Lay out, write and close a figure (every robofdi figure goes through here); returns the path."""
+    path = Path(path)
+    fig.tight_layout()
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return path
+
+
 def _onsets(ax, faults):
     for f in faults:
         ax.axvline(f["onset"], color="0.5", lw=0.8, ls=":")
@@ -47,11 +56,7 @@ def plot_residuals(record: Record, diagnoser: str, path: str | Path) -> Path:
     for ax in axes[-1]:
         ax.set_xlabel("time [s]")
     fig.suptitle(f"{record.scenario}: {diagnoser} residuals |r_i| vs thresholds (dashed); alarms in red", fontsize=9)
-    fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def plot_estimates(record: Record, path: str | Path, diagnosers=None) -> Path:
@@ -73,8 +78,4 @@ def plot_estimates(record: Record, path: str | Path, diagnosers=None) -> Path:
         ax.tick_params(labelsize=7)
         ax.legend(fontsize=7, ncol=3)
     axes[-1, 0].set_xlabel("time [s]")
-    fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
