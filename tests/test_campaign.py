@@ -188,12 +188,31 @@ def test_a_run_that_raises_is_an_error_row_and_the_campaign_goes_on(tmp_path):
     (("magnitude_fraction = [0.05, 0.4]", "magnitude = [0.1, 2.5]"),
      "faults[0].magnitude: [0.1, 2.5] is outside the limits of target 'tau_L'"),
     (("onset_fraction = [0.4, 0.8]", "onset_fraction = [0.4, 1.0]"), "faults[0].onset_fraction"),
+    (('targets = ["enc*"]', 'targets = ["enc*"]\nmagnitude_draw = "exponential"'),
+     "faults[1].magnitude_draw: expected one of uniform, log_uniform"),
+    (("magnitude_fraction = [0.05, 0.4]", 'magnitude_fraction = [0.0, 0.4]\nmagnitude_draw = "log_uniform"'),
+     "faults[0].magnitude_draw: log_uniform needs a range with low > 0"),
 ])
 def test_bad_spec_is_one_line_naming_the_field(edit, message):
     text = LINEAR.format(ff=2, faulty=2).replace(*edit, 1)
     with pytest.raises(RobofdiError) as info:
         load_spec(text)
     assert message in str(info.value) and "\n" not in str(info.value)
+
+
+def test_log_uniform_sizes_spread_evenly_over_the_decades():
+    from robofdi.campaign.runs import draw_fault
+
+    log_sizes = 'magnitude_fraction = [0.0001, 0.1]\nmagnitude_draw = "log_uniform"\nweight = 1e6'
+    text = LINEAR.format(ff=0, faulty=400).replace("magnitude_fraction = [0.005, 0.05]", log_sizes)
+    spec = load_spec(text)
+    sizes = []
+    for i in range(400):
+        fault, info = draw_fault(spec, run_seed(spec.seed, i), 3.0)
+        assert fault.kind == "sensor_bias"
+        sizes.append(abs(fault.magnitude) / info["limit"])
+    counts = np.histogram(np.log10(sizes), bins=[-4, -3, -2, -1])[0]
+    assert counts.sum() == 400 and counts.min() > 100          # a third per decade, not 90 % in the top one
 
 
 def test_cli_bad_spec_exits_2_with_one_line_before_any_run(tmp_path):

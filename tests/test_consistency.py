@@ -81,7 +81,7 @@ def test_actuator_step_raises_its_joint_only_and_no_sensor_row(designed):
     assert z[before & (t > SKIP * 0.002)].max() < 2.0
     first = t[after][np.argmax(z[after, 2] > 2.0)]
     assert z[after, 2].max() > 2.0 and first - 1.0 <= 0.012          # within 6 samples of 2 ms
-    assert z[after, n:].max() < 2.0                                  # kinematic rows: actuator faults cannot raise them
+    assert z[after, n:2 * n].max() < 2.0                             # kinematic rows: actuator faults cannot raise them
     assert _first_isolation(tr)[1] == "joint3"
     np.testing.assert_allclose(tr.estimate[(t > 1.15) & (t < 1.2), 2].mean(), 60.0, rtol=0.15)
 
@@ -99,6 +99,24 @@ def test_position_sensor_bias_raises_its_kinematic_row(designed):
     time, isolated = _first_isolation(tr)
     assert isolated == "joint2_pos" and time - 1.0 <= 0.0021
     np.testing.assert_allclose(tr.estimate[t > 1.1, tr.estimate_components.index("joint2_pos")].mean(), 1e-3, rtol=0.1)
+
+
+@pytest.mark.parametrize("fault, isolated", [("sensor_bias:joint5_vel:0.05@1.0", "joint5_vel"),
+                                             ("sensor_drift:joint5_pos:-0.05@1.0", "joint5_pos")])
+def test_velocity_bias_and_encoder_drift_are_told_apart_by_the_step_row(designed, fault, isolated):
+    """Kinematically identical (both add −T·0.05 rad to every e_k); only the velocity step has no torque behind it."""
+    _, _, model, rates, _, design = designed
+    sc = arm_scenario("arm6.xml", faults=[fault], seed=5, schemes=("momentum",))
+    tr = _trace(run_scenario(sc, calibration(sc)[0]), model, design, rates)
+    n, t = model.n, tr.time
+    step = np.abs(tr.residual[:, 2 * n + 4])
+    assert step[(t > SKIP * 0.002) & (t < 1.0)].max() < 2.0
+    if isolated.endswith("_vel"):       # ν = b on its own joint: 0.05 rad/s against ≈ 0.01 fault-free
+        assert step[(t >= 1.0) & (t < 1.01)].max() * design.step_scale[4] == pytest.approx(0.05, rel=0.25)
+    else:
+        assert step[t >= 1.0].max() < 2.0
+    time, got = _first_isolation(tr)
+    assert got == isolated and time - 1.0 < 0.1
 
 
 def test_kinematic_stepping_matches_the_offline_sums():

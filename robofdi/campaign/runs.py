@@ -53,10 +53,13 @@ def draw_fault(spec: CampaignSpec, seed: int, duration: float) -> tuple[Fault, d
     dist = spec.faults[int(g.choice(len(weights), p=weights / weights.sum()))]
     target = dist.targets[int(g.integers(len(dist.targets)))]
     limit, unit = dist.limits[target]
-    if dist.magnitude_fraction is not None:
-        magnitude = float(g.uniform(*dist.magnitude_fraction)) * limit
+    low, high = dist.magnitude_fraction if dist.magnitude_fraction is not None else dist.magnitude
+    if dist.magnitude_draw == "log_uniform":
+        magnitude = float(np.exp(g.uniform(np.log(low), np.log(high))))
     else:
-        magnitude = float(g.uniform(*dist.magnitude))
+        magnitude = float(g.uniform(low, high))
+    if dist.magnitude_fraction is not None:
+        magnitude *= limit
     if dist.random_sign and g.random() < 0.5:
         magnitude = -magnitude
     profile = profile_from_dict(dist.profiles[int(g.integers(len(dist.profiles)))])

@@ -16,6 +16,7 @@
     kind = "actuator_additive"
     targets = ["joint*"]           # names or shell patterns; default every target of the kind
     magnitude_fraction = [0.02, 0.4]     # of the target's limit (or: magnitude = [lo, hi] in the kind's unit)
+    magnitude_draw = "uniform"     # or "log_uniform": sizes spread evenly over decades (needs low > 0)
     random_sign = true             # default true for additive, bias and drift kinds
     profiles = [{type = "step"}, {type = "ramp", duration = 0.5}]   # one drawn per fault; default step
     onset_fraction = [0.2, 0.6]    # onset drawn in this part of the run
@@ -45,6 +46,8 @@ from robofdi.faults.profiles import profile_from_dict
 
 __all__ = ["CampaignSpec", "FaultDistribution", "load_spec", "parse_spec", "SIGNED_KINDS", "shipped_specs"]
 
+#: How a fault entry draws its size inside its range.
+MAGNITUDE_DRAWS = ("uniform", "log_uniform")
 #: Kinds whose magnitude has a sign that matters and a symmetric range (random_sign defaults to true).
 SIGNED_KINDS = ("actuator_additive", "actuator_drift", "sensor_bias", "sensor_drift", "sensor_outliers")
 
@@ -81,6 +84,7 @@ class FaultDistribution:
     targets: tuple = ("*",)
     magnitude: tuple | None = None
     magnitude_fraction: tuple | None = None
+    magnitude_draw: str = "uniform"
     random_sign: bool | None = None
     profiles: tuple = ({"type": "step"},)
     onset_fraction: tuple = (0.2, 0.6)
@@ -133,6 +137,12 @@ class FaultDistribution:
                 if max(abs(magnitude[0]), abs(magnitude[1])) > lim.limit or (magnitude[0] < 0 and low == 0.0):
                     raise RobofdiError(f"{where}.magnitude: [{magnitude[0]:g}, {magnitude[1]:g}] is outside the limits of "
                                        f"target {t!r}: [{low * lim.limit:g}, {lim.limit:g}] {lim.unit}")
+        draw = table.get("magnitude_draw", "uniform")
+        if draw not in MAGNITUDE_DRAWS:
+            raise RobofdiError(f"{where}.magnitude_draw: expected one of {', '.join(MAGNITUDE_DRAWS)}, got {draw!r}")
+        if draw == "log_uniform" and (fraction or magnitude)[0] <= 0:
+            raise RobofdiError(f"{where}.magnitude_draw: log_uniform needs a range with low > 0 (the sign comes from "
+                               f"random_sign), got [{(fraction or magnitude)[0]:g}, {(fraction or magnitude)[1]:g}]")
         profiles = table.get("profiles", [{"type": "step"}])
         if not isinstance(profiles, list) or not profiles:
             raise RobofdiError(f"{where}.profiles: expected a non-empty list of profiles like {{type = \"step\"}}, "
@@ -157,7 +167,7 @@ class FaultDistribution:
             except RobofdiError as exc:
                 raise RobofdiError(f"{where}.profiles[{i}]: {exc}") from None
             parsed.append(profile.to_dict())
-        return cls(kind, tuple(targets), magnitude, fraction, signed, tuple(parsed), onset, duration, dict(params),
+        return cls(kind, tuple(targets), magnitude, fraction, draw, signed, tuple(parsed), onset, duration, dict(params),
                    float(weight), {t: (lim.limit, lim.unit) for t, lim in limits.items()})
 
 

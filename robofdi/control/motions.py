@@ -407,9 +407,37 @@ def _far_pose(model, limits: MotionLimits, rng, chosen: list, candidates: int) -
     return best
 
 
+def _top_speed(model, limits: MotionLimits, rng, factor: float) -> Sequence:
+    """Each joint in turn sweeps its whole usable range and back, alone, at ``factor`` × the shortest admissible
+    duration, from a centre pose where gravity leaves torque for the motion (the others hold it)."""
+    lo, hi = limits.usable_lower, limits.usable_upper
+    centre = 0.5 * (lo + hi)
+
+    def ends(c, i):
+        a, b = c.copy(), c.copy()
+        a[i], b[i] = lo[i], hi[i]
+        return a, b
+
+    for attempt in range(_MAX_TRIES):
+        if attempt:
+            centre = rng.uniform(lo, hi)
+        if all(_statically_fine(model, *ends(centre, i), limits, samples=33) for i in range(limits.n)):
+            break
+    else:
+        raise RobofdiError("calibration_motions: found no centre pose from which every joint can sweep its usable "
+                           "range with gravity leaving torque for motion; raise 'torque_fraction'")
+    path = [centre]
+    for i in range(limits.n):
+        a, b = ends(centre, i)
+        path += [a, b, centre]
+    durations = [float(np.ceil(factor * fit_duration(model, p, q, limits) * 1000.0 - 1e-6) / 1000.0)
+                 for p, q in zip(path[:-1], path[1:])]
+    return Sequence.through(path, durations)
+
+
 def calibration_motions(model, limits: MotionLimits, seed, *, low_velocity_time: float = 16.0,
                         sweep_fraction: float = 1 / 3, waypoints: int = 3, n_random: int = 0,
-                        random_segments: int = 3) -> dict[str, Sequence]:
+                        random_segments: int = 3, top_speed: bool = False) -> dict[str, Sequence]:
     """The worst-case fault-free motions of Caccavale & Villani Sec. 6, derived from the ranges and limits.
 
     "low_velocity": every joint sweeps ``sweep_fraction`` of its usable range there and back, slowly, in
@@ -417,7 +445,11 @@ def calibration_motions(model, limits: MotionLimits, seed, *, low_velocity_time:
     "high_acceleration": through ``waypoints`` (>= 2) far-apart random poses and back along the same path, every
     segment at the shortest admissible duration (:func:`fit_duration`: at the torque budget).
     "random_1" … "random_<n_random>": :func:`random_point_to_point` motions of ``random_segments`` segments,
-    to cover the workspace. Each motion starts at rest at its ``start_pose``; seed (an int >= 0 or a
+    to cover the workspace.
+    "top_speed" (with ``top_speed``): every joint alone sweeps its whole usable range and back at the fastest
+    "normal" speed factor — a joint's top speed grows with its displacement, so this covers the speeds any
+    "normal" random motion reaches (speed-dependent scales are then interpolated, not extrapolated).
+    Each motion starts at rest at its ``start_pose``; seed (an int >= 0 or a
     SeedSequence) gives each motion its own stream ``rng(seed, "motion", "calibration", <name>)``.
     """
     _check_model(model, limits)
@@ -442,4 +474,7 @@ def calibration_motions(model, limits: MotionLimits, seed, *, low_velocity_time:
     for i in range(1, int(n_random) + 1):
         motions[f"random_{i}"] = random_point_to_point(
             model, limits, _generator(seed, "calibration", f"random_{i}"), int(random_segments))
+    if top_speed:
+        motions["top_speed"] = _top_speed(model, limits, _generator(seed, "calibration", "top_speed"),
+                                          SPEEDS["normal"][0])
     return motions

@@ -9,10 +9,21 @@ the design runs):
   actuator fault raises exactly its own joint, and no estimation runs inside it that could absorb a slow fault.
 * ``joint<i>_kin`` — kinematic consistency between the joint's position and velocity sensors
   (:mod:`robofdi.observers.kinematic`), which no actuator fault can raise.
+* ``joint<i>_step`` — the velocity innovation ν_k = M(q_k)⁻¹ (r_k − r_{k−1}) / K_O [rad/s]: the part of the
+  measured velocity change the dynamics cannot explain (the momentum observer's one-step prediction error,
+  r_k − r_{k−1} = K_O (p_k − p_{k−1} − T (ū − β − r_{k−1}))). A velocity-sensor step of b gives ν = b on its own
+  joint only (M⁻¹ undoes the inertial coupling); a drifting or offset encoder gives none (the true velocity is
+  untouched). Its peak is held as long as the longest kinematic window, the time the kinematic row may take to
+  confirm the same fault.
 
-Signatures (the hypotheses): actuator fault on joint i raises ``joint<i>``; a position-sensor fault raises
-``joint<i>_kin`` (the dynamic rows may follow through gravity); a velocity-sensor fault raises ``joint<i>_kin``
-and ``joint<i>`` (the measured velocity enters the momentum M(q) q̇).
+Why three row sets: kinematically an encoder drift of rate ρ and a velocity bias of −ρ are identical (both add
+a mean −T b to e_k), so only the dynamics can tell them apart, and only at the onset — a real velocity cannot
+jump by b in one sample without a torque to accelerate it.
+
+Signatures (the hypotheses): actuator fault on joint i raises ``joint<i>`` (the step rows may follow, through
+M⁻¹); a position-sensor fault raises ``joint<i>_kin`` (the dynamic rows may follow through gravity); a
+velocity-sensor fault raises ``joint<i>_kin`` and ``joint<i>_step`` (the dynamic rows may follow: the measured
+velocity enters the momentum M(q) q̇).
 
 Everything it needs from fault-free data is one :class:`ConsistencyDesign`, computed once per robot by
 :func:`design_consistency` from a motion suite.
@@ -45,13 +56,15 @@ DEFAULT_GAIN = 150.0
 class ConsistencyDesign:
     """What :class:`ConsistencyResidual` learns once per robot: ``friction`` (identified), ``envelope`` (n, 4)
     bound coefficients of the dynamic rows, ``skew`` (n,) [s] and ``window_scales`` (n, len(windows), 2) of the
-    kinematic rows (:func:`~robofdi.observers.kinematic.design_window_scales`), the observer ``gain`` K_O [1/s],
-    sample time ``T`` [s] and the kinematic ``windows`` [s]."""
+    kinematic rows (:func:`~robofdi.observers.kinematic.design_window_scales`), ``step_scale`` (n,) [rad/s] of
+    the step rows (the largest fault-free |ν|), the observer ``gain`` K_O [1/s], sample time ``T`` [s] and the
+    kinematic ``windows`` [s]."""
 
     friction: JointFriction
     envelope: np.ndarray
     skew: np.ndarray
     window_scales: np.ndarray
+    step_scale: np.ndarray
     gain: float
     T: float
     windows: tuple = WINDOWS
@@ -61,36 +74,39 @@ class ConsistencyDesign:
         f = self.friction
         return {"friction": f.coefficients, "friction_shape": np.array([f.stribeck_velocity, f.smoothing]),
                 "envelope": self.envelope, "skew": self.skew, "window_scales": self.window_scales,
-                "gain_T": np.array([self.gain, self.T]), "windows": np.array(self.windows, dtype=float)}
+                "step_scale": self.step_scale, "gain_T": np.array([self.gain, self.T]),
+                "windows": np.array(self.windows, dtype=float)}
 
     @classmethod
     def from_arrays(cls, a: dict) -> ConsistencyDesign:
         shape = a["friction_shape"]
         return cls(JointFriction.from_coefficients(a["friction"], float(shape[0]), float(shape[1])),
                    np.asarray(a["envelope"]), np.asarray(a["skew"]), np.asarray(a["window_scales"]),
-                   float(a["gain_T"][0]), float(a["gain_T"][1]), tuple(float(w) for w in a["windows"]))
+                   np.asarray(a["step_scale"]), float(a["gain_T"][0]), float(a["gain_T"][1]),
+                   tuple(float(w) for w in a["windows"]))
 
 
 class ConsistencyResidual:
-    """Diagnoser (see the module docstring). Residual components ``joint<i>`` and ``joint<i>_kin``
-    (dimensionless); estimates: actuator torque ``joint<i>`` [N·m] (level), position offset ``joint<i>_pos``
+    """Diagnoser (see the module docstring). Residual components ``joint<i>``, ``joint<i>_kin`` and
+    ``joint<i>_step`` (dimensionless); estimates: actuator torque ``joint<i>`` [N·m] (level), position offset ``joint<i>_pos``
     [rad] (increment) and velocity bias ``joint<i>_vel`` [rad/s] (level)."""
 
     def __init__(self, model: ManipulatorModel, design: ConsistencyDesign):
         n = model.n
-        if design.envelope.shape != (n, 4) or design.skew.shape != (n,):
+        if design.envelope.shape != (n, 4) or design.skew.shape != (n,) or design.step_scale.shape != (n,):
             raise RobofdiError(f"ConsistencyResidual: design is for {design.skew.shape[0]} joints, the model has {n}")
         self.model, self.design, self.n, self.T = model, design, n, design.T
         self._momentum = MomentumObserver(model, design.T, design.gain, design.friction)
         self._kinematic = KinematicConsistency(design.T, design.skew, design.window_scales, design.windows)
         self._a = design.gain * design.T
+        self._hold = max(1, int(round(max(design.windows) / design.T)))
         names = list(model.joint_names)
         self.inputs = names
         self.measurements = [f"{j}_pos" for j in names] + [f"{j}_vel" for j in names]
-        self.components = names + [f"{j}_kin" for j in names]
+        self.components = names + [f"{j}_kin" for j in names] + [f"{j}_step" for j in names]
         self.estimate_components = names + [f"{j}_pos" for j in names] + [f"{j}_vel" for j in names]
         self.estimate_modes = ["level"] * n + ["increment"] * n + ["level"] * n
-        self.units = {"residual": ["1"] * (2 * n), "estimate": ["N·m"] * n + ["rad"] * n + ["rad/s"] * n}
+        self.units = {"residual": ["1"] * (3 * n), "estimate": ["N·m"] * n + ["rad"] * n + ["rad/s"] * n}
         self.reset()
 
     def reset(self) -> None:
@@ -98,10 +114,21 @@ class ConsistencyResidual:
         self._kinematic.reset()
         self._features = None
         self._v_prev = None
+        self._r_prev = None
+        self.innovation = np.zeros(self.n)      # ν of the last sample [rad/s]
+        self._steps = np.zeros((self._hold, self.n))     # ring buffer of |ν| / scale over the hold
+        self._k = 0
 
     def bound(self) -> np.ndarray:
         """The current operating-point bound of the dynamic rows [N·m]."""
         return np.maximum(np.einsum("nf,nf->n", self._features, self.design.envelope), 1e-12)
+
+    def velocity_innovation(self, q: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """ν_k = M(q_k)⁻¹ (r_k − r_{k−1}) / K_O [rad/s] (module docstring); 0 at the first sample."""
+        previous, self._r_prev = self._r_prev, r.copy()
+        if previous is None:
+            return np.zeros(self.n)
+        return np.linalg.solve(self.model.mass_matrix(q), r - previous) / self.design.gain
 
     def update(self, y: np.ndarray, u: np.ndarray) -> Residual:
         """y = [q; q̇](k), u = ū(k−1)."""
@@ -110,13 +137,16 @@ class ConsistencyResidual:
         u = check_measurement(u, n, "u")
         r = self._momentum.update(y, u).r
         q, v = y[:n], y[n:]
+        self.innovation = self.velocity_innovation(q, r)
         if self._features is None:      # at rest before the start
             self._features = envelope_features(np.zeros(n), v)
         else:       # the residual's own first-order dynamics: a torque acting over (k−1, k] shows in r_k
             self._features = (1 - self._a) * self._features + self._a * envelope_features(u, self._v_prev)
         self._v_prev = v
         kin, e = self._kinematic.update(q, v)
-        z = np.concatenate([r / self.bound(), kin])
+        self._steps[self._k % self._hold] = np.abs(self.innovation) / self.design.step_scale
+        self._k += 1
+        z = np.concatenate([r / self.bound(), kin, self._steps.max(axis=0)])
         estimate = np.concatenate([r, e, -e / self.T])
         return Residual(z, estimate)
 
@@ -124,10 +154,10 @@ class ConsistencyResidual:
         from robofdi.decision import Signature
 
         names = list(self.model.joint_names)
-        dynamic = frozenset(names)
-        sigs = [Signature(j, frozenset([j])) for j in names]
+        dynamic, steps = frozenset(names), frozenset(f"{j}_step" for j in names)
+        sigs = [Signature(j, frozenset([j]), steps) for j in names]
         sigs += [Signature(f"{j}_pos", frozenset([f"{j}_kin"]), dynamic) for j in names]
-        sigs += [Signature(f"{j}_vel", frozenset([f"{j}_kin", j]), dynamic) for j in names]
+        sigs += [Signature(f"{j}_vel", frozenset([f"{j}_kin", f"{j}_step"]), dynamic) for j in names]
         return sigs
 
 
@@ -136,7 +166,8 @@ def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray,
                        ) -> ConsistencyDesign:
     """Learn a :class:`ConsistencyDesign` from fault-free runs, each given as the (Y, U) the diagnoser sees
     ((N, 2n) measurements, (N, n) inputs ū(k−1); see :func:`robofdi.loop.diagnoser_inputs`): friction, then the
-    operating-point bound of the friction-compensated residual, then the kinematic skew and window scales."""
+    operating-point bound of the friction-compensated residual and the step scale, then the kinematic skew and
+    window scales."""
     n = model.n
     if not runs:
         raise RobofdiError("design_consistency: expected at least one fault-free run")
@@ -154,15 +185,18 @@ def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray,
 
     plain = replay(MomentumObserver(model, T, gain))
     friction = identify_friction(plain, [np.asarray(Y)[:, n:] for Y, _ in runs], gain, T, skip)
-    unit = ConsistencyDesign(friction, np.ones((n, 4)), np.zeros(n), np.ones((n, len(windows), 2)), gain, T, tuple(windows))
-    features, residuals = [], []
+    unit = ConsistencyDesign(friction, np.ones((n, 4)), np.zeros(n), np.ones((n, len(windows), 2)), np.ones(n),
+                             gain, T, tuple(windows))
+    features, residuals, step = [], [], np.full(n, 1e-9)
     for Y, U in runs:
         d = ConsistencyResidual(model, unit)
         rows, feats = [], []
-        for y, u in zip(Y, U):
+        for k, (y, u) in enumerate(zip(Y, U)):
             res = d.update(y, u)
             rows.append(res.estimate[:n])
             feats.append(d._features.copy())
+            if k >= skip:
+                np.maximum(step, np.abs(d.innovation), out=step)
         residuals.append(np.array(rows))
         features.append(np.array(feats))
     envelope = design_envelope(features, residuals, skip)
@@ -170,4 +204,4 @@ def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray,
     vs = [np.asarray(Y)[:, n:] for Y, _ in runs]
     skew = identify_skew(qs, vs, T, skip)
     scales = design_window_scales([kinematic_increments(q, v, T, skew) for q, v in zip(qs, vs)], vs, T, skip, windows)
-    return ConsistencyDesign(friction, envelope, skew, scales, gain, T, tuple(windows))
+    return ConsistencyDesign(friction, envelope, skew, scales, step, gain, T, tuple(windows))

@@ -49,6 +49,8 @@ ACCOMMODATIONS = (None, "compensation")
 #: Random motions added to the derived calibration suite when the consistency scheme runs: the first half
 #: designs it (with the worst-case motions), the second half, never seen by the design, sets its thresholds.
 CONSISTENCY_RANDOM_MOTIONS = 6
+#: Bumped whenever what a cached calibration holds changes (2: the consistency design's step scale).
+CALIBRATION_FORMAT = 2
 #: Schemes whose thresholds are also calibrated in the book's state space (reported next to the book's).
 STATE_SPACE_SCHEMES = ("time_delayed", "recursive")
 
@@ -153,8 +155,9 @@ def calibration_trajectories(scenario: ArmScenario, sim: ArmSimulator | None = N
     sim = sim or scenario.simulator()
     model = model or scenario.nominal_model(sim)
     limits = MotionLimits.from_ranges(sim.joint_range[:, 0], sim.joint_range[:, 1], model.torque_limit)
-    n_random = CONSISTENCY_RANDOM_MOTIONS if "consistency" in scenario.schemes else 0
-    return calibration_motions(model, limits, scenario.seed, n_random=n_random)
+    consistency = "consistency" in scenario.schemes
+    return calibration_motions(model, limits, scenario.seed, n_random=CONSISTENCY_RANDOM_MOTIONS if consistency else 0,
+                               top_speed=consistency)
 
 
 def consistency_split(names) -> tuple[list[str], list[str]]:
@@ -267,6 +270,7 @@ def _calibration_key(scenario: ArmScenario, sim: ArmSimulator, trajectories: Map
         "mismatch": repr(scenario.mismatch), "rates": repr(scenario.loop_rates(sim)), "settings": repr(scenario.settings),
         "schemes": list(scenario.schemes), "margin": scenario.threshold_margin, "blanking": scenario.startup_blanking,
         "motions": {k: repr(v) for k, v in trajectories.items()}, "version": __version__,
+        "format": CALIBRATION_FORMAT,
     }
     return hashlib.sha256(json.dumps(description, sort_keys=True).encode()).hexdigest()[:20]
 
