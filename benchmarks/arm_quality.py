@@ -10,7 +10,8 @@ Each robot's campaign is resumable (re-running the command continues it). Per di
 - the median detection delay of abrupt actuator faults, in diagnosis samples (2 ms);
 - the detection rate of incipient actuator faults (against the momentum baseline's);
 - for encoder drifts: the accumulated offset at detection and the smallest detectable encoder bias of the same
-  joint (medians over the drifts; the bias MDF is an upper bound when the smallest bias drawn was detected).
+  joint (medians over the drifts; the bias MDF is an upper bound when the smallest bias drawn was detected), and
+  how many of the drifts whose offset reached DRIFT_FACTOR × that bias by the end of the run were detected.
 Also the robot's calibration cost (one calibration per robot, computed before the campaign and timed).
 """
 from __future__ import annotations
@@ -32,6 +33,7 @@ from robofdi.campaign.results import load
 
 HERE = Path(__file__).resolve().parent
 SAMPLE = 0.002          # diagnosis period of the shipped arms [s]
+DRIFT_FACTOR = 3.0      # a drift "should be detected" once its accumulated offset reaches this × the bias MDF
 
 
 def _class(row) -> str:
@@ -69,13 +71,20 @@ def quality(table: pd.DataFrame) -> pd.DataFrame:
         correct = big["correct"].fillna(False).astype(bool) & det
         abrupt = f[(f["class"] == "actuator_abrupt") & f["detected"].fillna(False).astype(bool)]
         incipient = f[f["class"] == "actuator_incipient"]
-        drift = f[(f["class"] == "sensor_drift_pos") & f["detected"].fillna(False).astype(bool)]
+        drift = f[f["class"] == "sensor_drift_pos"]
         offsets, biases = [], []      # [rad]: a drift's accumulated offset at detection; the joint's MDF bias
+        reached = caught = 0          # drifts whose final offset reached DRIFT_FACTOR × the MDF bias; detected
         for _, r in drift.iterrows():
             bias = mdf.get(("sensor_bias_pos", r["target"]))
-            if bias:
+            if not bias:
+                continue
+            detected = bool(r["detected"]) if pd.notna(r["detected"]) else False
+            if detected:
                 offsets.append(abs(r["magnitude"]) * r["delay"])
                 biases.append(bias * r["limit"])
+            if abs(r["magnitude"]) * (r["duration"] - r["onset"]) >= DRIFT_FACTOR * bias * r["limit"]:
+                reached += 1
+                caught += detected
         rows.append({
             "diagnoser": name,
             "false-alarm runs": f"{fa}/{len(free)}",
@@ -85,7 +94,8 @@ def quality(table: pd.DataFrame) -> pd.DataFrame:
             "abrupt delay [samples]": f"{np.median(abrupt['delay']) / SAMPLE:.1f}" if len(abrupt) else "-",
             "incipient detected": f"{int(incipient['detected'].fillna(False).sum())}/{len(incipient)}",
             "drift offset at detection / MDF bias [mrad]":
-                f"{1e3 * np.median(offsets):.2f} / {1e3 * np.median(biases):.2f}" if offsets else "-",
+                f"{1e3 * np.median(offsets):.3f} / {1e3 * np.median(biases):.3f}" if offsets else "-",
+            f"drifts reaching {DRIFT_FACTOR:g}×MDF bias detected": f"{caught}/{reached}",
         })
     return pd.DataFrame(rows).set_index("diagnoser")
 

@@ -119,21 +119,6 @@ def test_velocity_bias_and_encoder_drift_are_told_apart_by_the_step_row(designed
     assert got == isolated and time - 1.0 < 0.1
 
 
-def test_an_encoder_step_of_a_few_counts_is_isolated(designed):
-    """5 counts of the 20-bit encoder (30 µrad): too small for the 0.1 s and 0.5 s sums, seen by one sample only;
-    the held single-sample term keeps that evidence, so the decision isolates it instead of answering "unknown"."""
-    _, _, model, rates, _, design = designed
-    bias = 5 * 2 * np.pi / 2 ** 20
-    sc = arm_scenario("arm6.xml", faults=[f"sensor_bias:joint2_pos:{bias}@1.0"], seed=6, schemes=("momentum",))
-    tr = _trace(run_scenario(sc, calibration(sc)[0]), model, design, rates)
-    n, t = model.n, tr.time
-    kin = np.abs(tr.residual[:, n + 1])
-    assert kin[(t > SKIP * 0.002) & (t < 1.0)].max() < 1.0
-    assert np.mean(kin[(t >= 1.0) & (t < 1.4)] > 1.0) > 0.95            # held for the longest window (0.5 s)
-    time, got = _first_isolation(tr)
-    assert got == "joint2_pos" and time - 1.0 < 0.02
-
-
 def test_kinematic_stepping_matches_the_offline_sums():
     rng = np.random.default_rng(0)
     T, n = 0.002, 2
@@ -144,12 +129,6 @@ def test_kinematic_stepping_matches_the_offline_sums():
     k = KinematicConsistency(T, np.zeros(n), scales, windows=(0.0, 0.1))
     ratios = np.array([k.update(qq, vv)[0] for qq, vv in zip(q, v)])
     assert ratios.max() <= 1.0 + 1e-6 and ratios.max() > 0.99      # tight: the bound touches the data
-    k.reset()
-    step = q.copy()
-    step[200:, 0] += 3 * scales[0, 0, 0]                          # a step only the single-sample term sees
-    held = np.array([k.update(qq, vv)[0][0] for qq, vv in zip(step, v)])
-    assert held[200] > 1.5 and np.all(held[200:250] == held[200])   # held for the longest window (0.1 s here) ...
-    assert held[250:].max() <= 1.0 + 1e-6                           # ... then released
 
 
 def test_bad_inputs_are_named():

@@ -11,10 +11,7 @@ Basseville & Nikiforov 1993, Sec. 2.4, evaluated on a few window lengths). Each 
 fault-free scale σ_W = a_W + b_W · mean_W |q̇| (integration errors grow with speed; a, b >= 0 designed as the
 tightest bound over fault-free runs, :func:`robofdi.decision.envelope.design_envelope`), so the residual
 max_W |Σ_W e| / σ_W is dimensionless and ≤ 1 on fault-free data where the scales were designed. Actuator
-faults cannot raise it: the relation is pure kinematics. The single-sample term is peak-held over the longest
-window: a W-sample sum keeps a step for W samples by itself, and the hold gives a step too small for any longer
-sum the same duration of evidence (a step of a few encoder counts is then isolated, not left "unknown" after
-one alarmed sample). The hold adds no crossing: a run without an alarm is unchanged.
+faults cannot raise it: the relation is pure kinematics.
 
 Valid only when the velocity does not come from differentiating the same encoder (then e ≡ 0 by construction
 and encoder faults must be found through the dynamics).
@@ -112,7 +109,6 @@ class KinematicConsistency:
         self._prev = None
         n = self.skew.shape[0]
         self._history = np.zeros((max(self.sizes) + 1, 2, n))   # ring buffer of cumulative sums of e and |q̇|
-        self._single = np.zeros((max(self.sizes), n))            # ring buffer of the single-sample ratios (hold)
         self._k = 0
 
     def update(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -130,10 +126,6 @@ class KinematicConsistency:
         for j, w in enumerate(self.sizes):
             window = cum - self._history[(self._k - w) % size] if self._k >= w else cum
             scale = self.scales[:, j, 0] + self.scales[:, j, 1] * window[1] / w
-            term = np.abs(window[0]) / scale
-            if w == 1:
-                self._single[self._k % self._single.shape[0]] = term
-                term = self._single.max(axis=0)
-            ratio = np.maximum(ratio, term)
+            ratio = np.maximum(ratio, np.abs(window[0]) / scale)
         self._k += 1
         return ratio, e
