@@ -13,8 +13,9 @@ the design runs):
   measured velocity change the dynamics cannot explain (the momentum observer's one-step prediction error,
   r_k − r_{k−1} = K_O (p_k − p_{k−1} − T (ū − β − r_{k−1}))). A velocity-sensor step of b gives ν = b on its own
   joint only (M⁻¹ undoes the inertial coupling); a drifting or offset encoder gives none (the true velocity is
-  untouched). Its peak is held as long as the longest kinematic window, the time the kinematic row may take to
-  confirm the same fault.
+  untouched), except that a large encoder step moves M(q) q̇ at once: a sample whose kinematic increment is more
+  than a velocity step of ν can make (T |ν| plus its fault-free scale) is not counted. Its peak is held as long
+  as the longest kinematic window, the time the kinematic row may take to confirm the same fault.
 
 Why three row sets: kinematically an encoder drift of rate ρ and a velocity bias of −ρ are identical (both add
 a mean −T b to e_k), so only the dynamics can tell them apart, and only at the onset — a real velocity cannot
@@ -100,6 +101,7 @@ class ConsistencyResidual:
         self._kinematic = KinematicConsistency(design.T, design.skew, design.window_scales, design.windows)
         self._a = design.gain * design.T
         self._hold = max(1, int(round(max(design.windows) / design.T)))
+        self._single = int(np.argmin(design.windows))       # the single-sample kinematic window
         names = list(model.joint_names)
         self.inputs = names
         self.measurements = [f"{j}_pos" for j in names] + [f"{j}_vel" for j in names]
@@ -130,6 +132,15 @@ class ConsistencyResidual:
             return np.zeros(self.n)
         return np.linalg.solve(self.model.mass_matrix(q), r - previous) / self.design.gain
 
+    def _velocity_steps(self, e: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """|ν| / step scale, except where this sample's kinematic increment is more than a velocity step of ν
+        can make (|e_k| > T |ν| + its single-sample scale): that increment holds a position step, which moved
+        M(q) q̇ and so ν, and is no evidence of a velocity-sensor fault."""
+        a, b = self.design.window_scales[:, self._single, 0], self.design.window_scales[:, self._single, 1]
+        nu = np.abs(self.innovation)
+        position_step = np.abs(e) > self.T * nu + a + b * np.abs(v)
+        return np.where(position_step, 0.0, nu / self.design.step_scale)
+
     def update(self, y: np.ndarray, u: np.ndarray) -> Residual:
         """y = [q; q̇](k), u = ū(k−1)."""
         n = self.n
@@ -144,7 +155,7 @@ class ConsistencyResidual:
             self._features = (1 - self._a) * self._features + self._a * envelope_features(u, self._v_prev)
         self._v_prev = v
         kin, e = self._kinematic.update(q, v)
-        self._steps[self._k % self._hold] = np.abs(self.innovation) / self.design.step_scale
+        self._steps[self._k % self._hold] = self._velocity_steps(e, v)
         self._k += 1
         z = np.concatenate([r / self.bound(), kin, self._steps.max(axis=0)])
         estimate = np.concatenate([r, e, -e / self.T])
