@@ -18,7 +18,7 @@ from robofdi import RobofdiError, __version__
 # EXPERIMENTS {name: description} and run().
 MODULES = ("robofdi.experiments.ch3_industrial_robot", "robofdi.experiments.arm", "robofdi.experiments.ch4_auv",
            "robofdi.experiments.ch6_hydraulic", "robofdi.experiments.jiang2005", "robofdi.experiments.guo2008",
-           "robofdi.experiments.ch2_wang", "robofdi.experiments.adaptive_fe")
+           "robofdi.experiments.ch2_wang", "robofdi.experiments.adaptive_fe", "robofdi.experiments.robosuite_lift")
 # options of `robofdi run` that only some experiments take (module attribute OPTIONS lists them)
 EXPERIMENT_OPTIONS = {"robot": "--robot", "faults": "--fault", "joints": "--joints", "torque_motors": "--torque-motors"}
 

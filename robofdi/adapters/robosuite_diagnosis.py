@@ -43,8 +43,9 @@ from robofdi.protocols import HEALTHY, Health
 from robofdi.record import DiagnoserTrace
 from robofdi.seeding import rng
 
-__all__ = ["arm_model", "RobotDiagnoser", "RobotDiagnosis", "LiftScript", "make_lift", "run_lift_episode",
-           "LiftCalibration", "calibrate_lift", "DIAGNOSERS", "BELIEF", "EPISODE_STEPS", "PHASES"]
+__all__ = ["arm_model", "RobotDiagnoser", "RobotDiagnosis", "LiftScript", "make_lift", "run_lift_episode", "Episode",
+           "LiftCalibration", "calibrate_lift", "lift_calibration", "run_lift", "DIAGNOSERS", "BELIEF", "EPISODE_STEPS",
+           "PHASES", "CALIBRATION_SEEDS"]
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -54,6 +55,8 @@ DIAGNOSERS = ("momentum", "momentum_friction")
 BELIEF = ModelMismatch(mass=0.05, inertia=0.05, damping=0.2, armature=0.1, seed=1)
 #: Length of a scripted Lift episode in policy steps (20 Hz): 7 s.
 EPISODE_STEPS = 140
+#: Seeds of the fault-free calibration episodes (held-out evaluation uses other seeds).
+CALIBRATION_SEEDS = tuple(range(1000, 1030))
 #: The scripted phases, in order.
 PHASES = ("approach", "descend", "grasp", "lift", "hold")
 OBSERVER_GAIN = 50.0          # K_O [1/s]
@@ -224,12 +227,14 @@ def make_lift(**kwargs):
 
 @dataclass
 class Episode:
-    """One scripted episode: success, the policy-step phases and times, the wrapper (history and diagnosers)."""
+    """One scripted episode: success, the first time the cube was lifted [s], the policy-step times [s], phases and
+    cube heights above the table [m], the wrapper (history and diagnosers)."""
 
     success: bool
     lifted_at: float | None
     step_times: np.ndarray
     phases: list[str]
+    cube_height: np.ndarray
     env: FaultyRobosuiteEnv
 
 
@@ -239,14 +244,16 @@ def run_lift_episode(env: FaultyRobosuiteEnv, policy_seed: int, steps: int = EPI
     obs = env.reset()
     script = LiftScript(policy_seed)
     dt = 1.0 / float(env.env.control_freq)
-    times, phases, lifted_at = [], [], None
+    table = float(env.env.table_offset[2])
+    times, phases, heights, lifted_at = [], [], [], None
     for _ in range(steps):
         times.append(env.time)
         phases.append(script.phase)
+        heights.append(float(obs["cube_pos"][2]) - table)
         obs, _, _, _ = env.step(script(obs, dt))
         if lifted_at is None and env.env._check_success():
             lifted_at = env.time
-    return Episode(bool(env.env._check_success()), lifted_at, np.array(times), phases, env)
+    return Episode(bool(env.env._check_success()), lifted_at, np.array(times), phases, np.array(heights), env)
 
 
 # ------------------------------------------------------------------------------------------------ calibration
@@ -275,7 +282,7 @@ class LiftCalibration:
         return RobotDiagnosis(out, health_source)
 
 
-def calibrate_lift(env_factory=make_lift, seeds=range(1000, 1030), belief: ModelMismatch = BELIEF,
+def calibrate_lift(env_factory=make_lift, seeds=CALIBRATION_SEEDS, belief: ModelMismatch = BELIEF,
                    steps: int = EPISODE_STEPS, progress=None) -> LiftCalibration:
     """Fault-free scripted Lift episodes (one per seed: its own cube pose, initial joint noise, script variation
     and sensor noise): friction identified on the plain residuals, then thresholds = 1.2 × max |r| for both
@@ -313,3 +320,69 @@ def calibrate_lift(env_factory=make_lift, seeds=range(1000, 1030), belief: Model
     raw.close()
     return LiftCalibration(thresholds, friction, seeds, belief, success)
 
+
+
+def lift_calibration(seeds=CALIBRATION_SEEDS, belief: ModelMismatch = BELIEF, steps: int = EPISODE_STEPS,
+                     progress=None, cache: bool = True) -> tuple[LiftCalibration, bool]:
+    """:func:`calibrate_lift`, computed once per (seeds, belief, steps, robofdi and robosuite versions) and pickled
+    in :func:`robofdi.scenarios.arm.cache_dir`; returns (calibration, True if it came from the cache)."""
+    import hashlib
+    import json
+    import pickle
+
+    import robosuite
+
+    from robofdi import __version__
+    from robofdi.scenarios.arm import cache_dir
+
+    seeds = tuple(int(s) for s in seeds)
+    key = hashlib.sha256(json.dumps({"seeds": seeds, "belief": repr(belief), "steps": steps, "version": __version__,
+                                     "robosuite": robosuite.__version__, "observer_gain": OBSERVER_GAIN,
+                                     "margin": MARGIN}, sort_keys=True).encode()).hexdigest()[:20]
+    path = cache_dir() / f"robosuite-lift-calibration-{key}.pkl"
+    if cache and path.is_file():
+        try:
+            with path.open("rb") as fh:
+                return pickle.load(fh), True
+        except (OSError, pickle.UnpicklingError, EOFError, AttributeError):
+            pass                                    # a torn or stale file is recomputed
+    cal = calibrate_lift(seeds=seeds, belief=belief, steps=steps, progress=progress)
+    if cache:
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            tmp = path.with_name(f"{path.name}.{np.random.default_rng().integers(1 << 62)}.tmp")
+            with tmp.open("wb") as fh:
+                pickle.dump(cal, fh)
+            tmp.replace(path)
+        except OSError:
+            pass  # a read-only cache only costs the next run its calibration
+    return cal, False
+
+
+def run_lift(calibration: LiftCalibration, faults=(), seed: int = 0, accommodation: bool = False,
+             health_source: str = "momentum", diagnosers=DIAGNOSERS, env=None, steps: int = EPISODE_STEPS,
+             scenario: str = "robosuite-lift", meta: dict | None = None):
+    """One scripted Lift episode (cube pose, script and noise from ``seed``) with ``faults`` and the calibrated
+    diagnosers online; ``accommodation``: :class:`~robofdi.ftc.EffectivenessCompensation` fed by the health of
+    ``health_source`` (one substep late). ``env``: a robosuite Lift to reuse (default a new one). Returns
+    (:class:`Episode`, :class:`~robofdi.record.Record`)."""
+    from robofdi.ftc import EffectivenessCompensation
+
+    raw = make_lift() if env is None else env
+    model = arm_model(raw, calibration.belief)
+    T = float(raw.sim.model.opt.timestep)
+    diagnosis = calibration.diagnosis(model, T, health_source if accommodation else None, diagnosers)
+    acc = EffectivenessCompensation(model.joint_names) if accommodation else None
+    wrapped = FaultyRobosuiteEnv(raw, list(faults), seed=seed, diagnosis=diagnosis, accommodation=acc)
+    try:
+        ep = run_lift_episode(wrapped, seed, steps)
+        record = wrapped.record(scenario, diagnosis.traces(), {
+            "success": ep.success, "lifted_at": ep.lifted_at, "primary_diagnoser": health_source,
+            "health_source": health_source if accommodation else None,
+            "identified_loss": {name: {j: float(v) for j, v in d.health.estimate.items()}
+                                for name, d in diagnosis.diagnosers.items()}, **(meta or {})})
+    finally:
+        wrapped.detach()
+        if env is None:
+            raw.close()
+    return ep, record
