@@ -190,10 +190,11 @@ class FaultyRobosuiteEnv:
     """``env`` with ``faults`` on its arm's torques, joint sensors and components, and labels in every step's
     ``info["robofdi_faults"]`` (module docstring). ``sensors``: the joint sensor model (default: 20-bit encoders,
     1e-3 rad/s velocity noise; ``SensorModel.ideal()`` for exact readings). ``diagnosis`` / ``accommodation``:
-    optional, stepped at every substep."""
+    optional, stepped at every substep. ``robot`` / ``part``: which robot of the environment and which of its
+    controlled parts (robosuite's part names: ``right``, ``left`` for a second arm)."""
 
     def __init__(self, env, faults: Sequence[Fault | str] = (), seed: int = 0, robot: int = 0,
-                 sensors: SensorModel | None = None, diagnosis=None, accommodation=None):
+                 sensors: SensorModel | None = None, diagnosis=None, accommodation=None, part: str = "right"):
         if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
             raise RobofdiError(f"FaultyRobosuiteEnv: field 'seed' must be an integer >= 0, got {seed!r}")
         sensors = SensorModel() if sensors is None else sensors
@@ -201,7 +202,7 @@ class FaultyRobosuiteEnv:
             raise RobofdiError(f"FaultyRobosuiteEnv: field 'sensors' must be a SensorModel, got {type(sensors).__name__}")
         if getattr(env, "_robofdi_wrapped", False):
             raise RobofdiError("FaultyRobosuiteEnv: this environment is already wrapped")
-        self.arm = RobotArm(env, robot)
+        self.arm = RobotArm(env, robot, part)
         self.env, self.seed, self.faults, self.sensors = env, int(seed), _faults(faults), sensors
         for f in self.faults:
             self.arm.check_target(f)

@@ -268,13 +268,14 @@ class LiftCalibration:
     success: int
 
     def diagnosis(self, model: MultibodyModel, T: float, health_source: str | None = None,
-                  diagnosers=DIAGNOSERS) -> RobotDiagnosis:
-        """Calibrated diagnosers on ``model`` (built by :func:`arm_model` with :attr:`belief`)."""
+                  diagnosers=None) -> RobotDiagnosis:
+        """Calibrated diagnosers on ``model`` (built by :func:`arm_model` with :attr:`belief`); default: every
+        diagnoser this calibration has thresholds for."""
         blank = int(round(BLANKING / T))
         out = []
-        for name in diagnosers:
-            if name not in DIAGNOSERS:
-                raise RobofdiError(f"diagnosers: unknown diagnoser {name!r}; expected some of {list(DIAGNOSERS)}")
+        for name in (tuple(self.thresholds) if diagnosers is None else diagnosers):
+            if name not in self.thresholds:
+                raise RobofdiError(f"diagnosers: {name!r} has no calibrated thresholds; expected some of {list(self.thresholds)}")
             comps = list(model.joint_names)
             decision = ThresholdDecision(comps, np.asarray(self.thresholds[name]), [Signature(j, frozenset([j])) for j in comps],
                                          blanking=blank, confirm=CONFIRM)
@@ -283,43 +284,46 @@ class LiftCalibration:
 
 
 def calibrate_lift(env_factory=make_lift, seeds=CALIBRATION_SEEDS, belief: ModelMismatch = BELIEF,
-                   steps: int = EPISODE_STEPS, progress=None) -> LiftCalibration:
+                   steps: int = EPISODE_STEPS, progress=None, diagnosers=DIAGNOSERS) -> LiftCalibration:
     """Fault-free scripted Lift episodes (one per seed: its own cube pose, initial joint noise, script variation
-    and sensor noise): friction identified on the plain residuals, then thresholds = 1.2 × max |r| for both
-    diagnosers (after the start-up blanking)."""
+    and sensor noise): friction identified on the plain residuals, then thresholds = 1.2 × max |r| for each of
+    ``diagnosers`` (after the start-up blanking). Without ``momentum_friction`` the second pass is skipped."""
     seeds = tuple(int(s) for s in seeds)
     if len(seeds) < 2:
         raise RobofdiError(f"seeds: expected at least 2 calibration episodes, got {len(seeds)}")
+    unknown = [d for d in diagnosers if d not in DIAGNOSERS]
+    if unknown or not diagnosers:
+        raise RobofdiError(f"diagnosers: expected some of {list(DIAGNOSERS)}, got {list(diagnosers)}")
     raw = env_factory()
     model = arm_model(raw, belief)
     T = float(raw.sim.model.opt.timestep)
     blank = int(round(BLANKING / T))
-    plain, vels, success = [], [], 0
-    for s in seeds:
-        d = RobotDiagnoser("momentum", model, T)
-        env = FaultyRobosuiteEnv(raw, (), seed=s, diagnosis=d)
-        ep = run_lift_episode(env, s, steps)
-        success += ep.success
-        plain.append(d.residuals())
-        vels.append(np.array(env.history["y_meas"])[:, model.n:])
-        env.detach()
-        if progress is not None:
-            progress(1)
-    friction = identify_friction(plain, vels, OBSERVER_GAIN, T, skip=blank)
-    with_friction = []
-    for s in seeds:
-        d = RobotDiagnoser("momentum_friction", model, T, friction)
-        env = FaultyRobosuiteEnv(raw, (), seed=s, diagnosis=d)
-        run_lift_episode(env, s, steps)
-        with_friction.append(d.residuals())
-        env.detach()
-        if progress is not None:
-            progress(1)
-    thresholds = {"momentum": calibrate_thresholds(plain, MARGIN, blank).tolist(),
-                  "momentum_friction": calibrate_thresholds(with_friction, MARGIN, blank).tolist()}
-    raw.close()
-    return LiftCalibration(thresholds, friction, seeds, belief, success)
 
+    def residuals(name, friction=None):
+        out, vels, success = [], [], 0
+        for s in seeds:
+            d = RobotDiagnoser(name, model, T, friction)
+            env = FaultyRobosuiteEnv(raw, (), seed=s, diagnosis=d)
+            try:
+                success += run_lift_episode(env, s, steps).success
+            finally:
+                env.detach()
+            out.append(d.residuals())
+            vels.append(np.array(env.history["y_meas"])[:, model.n:])
+            if progress is not None:
+                progress(1)
+        return out, vels, success
+
+    try:
+        plain, vels, success = residuals("momentum")
+        friction = identify_friction(plain, vels, OBSERVER_GAIN, T, skip=blank)
+        runs = {"momentum": plain}
+        if "momentum_friction" in diagnosers:
+            runs["momentum_friction"] = residuals("momentum_friction", friction)[0]
+    finally:
+        raw.close()
+    thresholds = {name: calibrate_thresholds(runs[name], MARGIN, blank).tolist() for name in diagnosers}
+    return LiftCalibration(thresholds, friction, seeds, belief, success)
 
 
 def lift_calibration(seeds=CALIBRATION_SEEDS, belief: ModelMismatch = BELIEF, steps: int = EPISODE_STEPS,
@@ -360,12 +364,12 @@ def lift_calibration(seeds=CALIBRATION_SEEDS, belief: ModelMismatch = BELIEF, st
 
 
 def run_lift(calibration: LiftCalibration, faults=(), seed: int = 0, accommodation: bool = False,
-             health_source: str = "momentum", diagnosers=DIAGNOSERS, env=None, steps: int = EPISODE_STEPS,
-             scenario: str = "robosuite-lift", meta: dict | None = None):
+             health_source: str = "momentum", diagnosers=None, env=None, steps: int = EPISODE_STEPS,
+             scenario: str = "robosuite-lift", meta: dict | None = None, policy_seed: int | None = None):
     """One scripted Lift episode (cube pose, script and noise from ``seed``) with ``faults`` and the calibrated
     diagnosers online; ``accommodation``: :class:`~robofdi.ftc.EffectivenessCompensation` fed by the health of
     ``health_source`` (one substep late). ``env``: a robosuite Lift to reuse (default a new one). Returns
-    (:class:`Episode`, :class:`~robofdi.record.Record`)."""
+    (:class:`Episode`, :class:`~robofdi.record.Record`). ``policy_seed``: the script's variations (default ``seed``)."""
     from robofdi.ftc import EffectivenessCompensation
 
     raw = make_lift() if env is None else env
@@ -375,7 +379,7 @@ def run_lift(calibration: LiftCalibration, faults=(), seed: int = 0, accommodati
     acc = EffectivenessCompensation(model.joint_names) if accommodation else None
     wrapped = FaultyRobosuiteEnv(raw, list(faults), seed=seed, diagnosis=diagnosis, accommodation=acc)
     try:
-        ep = run_lift_episode(wrapped, seed, steps)
+        ep = run_lift_episode(wrapped, seed if policy_seed is None else int(policy_seed), steps)
         record = wrapped.record(scenario, diagnosis.traces(), {
             "success": ep.success, "lifted_at": ep.lifted_at, "primary_diagnoser": health_source,
             "health_source": health_source if accommodation else None,
