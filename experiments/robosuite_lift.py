@@ -56,23 +56,26 @@ def run(name: str = "robosuite-lift", out: str | Path = "runs", seed: int = 0, p
     from tqdm.auto import tqdm
 
     from robofdi.adapters import robosuite_diagnosis as rd
+    from robofdi.adapters.robosuite import FaultyRobosuiteEnv
     from robofdi.faults import parse_fault_spec
 
     faults = [parse_fault_spec(f) if isinstance(f, str) else f for f in (faults or [DEFAULT_FAULT])]
+    env = rd.make_lift()
+    FaultyRobosuiteEnv(env, faults).detach()          # bad targets fail here, before anything is simulated
     run_dir = prepare_run_dir(out, name, seed)
+    steps = rd.EPISODE_STEPS
     bar = tqdm(total=2 * len(rd.CALIBRATION_SEEDS) + 3, desc=f"{name}: calibrate", unit="episode",
                disable=not progress, leave=False)
     with bar, keep_partial(run_dir):
-        cal, cached = rd.lift_calibration(progress=bar.update)
+        cal, cached = rd.lift_calibration(rd.CALIBRATION_SEEDS, steps=steps, progress=bar.update)
         if cached:
             bar.update(2 * len(rd.CALIBRATION_SEEDS))
-        env = rd.make_lift()
         episodes, records = {}, {}
         for label, fs, acc in (("fault-free", [], False), ("no accommodation", faults, False),
                                ("compensation", faults, True)):
             bar.set_description(f"{name}: {label}")
             episodes[label], records[label] = rd.run_lift(cal, fs, seed, accommodation=acc, health_source=HEALTH_SOURCE,
-                                                         env=env, scenario=name, meta={"variant": label})
+                                                         env=env, steps=steps, scenario=name, meta={"variant": label})
             bar.update(1)
         env.close()
     record = records["no accommodation"]

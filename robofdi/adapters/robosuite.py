@@ -80,7 +80,9 @@ TORQUE_CONTROLLERS = (OperationalSpaceController, JointPositionController, Joint
 
 
 def _controller_name(controller) -> str:
-    return str(getattr(controller, "name", None) or type(controller).__name__)
+    """robosuite's name of an arm controller (OSC_POSE, …); the class name for others (a gripper's reuses names)."""
+    name = getattr(controller, "name", None) if isinstance(controller, TORQUE_CONTROLLERS) else None
+    return str(name or type(controller).__name__)
 
 
 class RobotArm:
@@ -101,7 +103,7 @@ class RobotArm:
         self.robot, self.part, self.name = r, part, str(r.name)
         controller = controllers[part]
         if not isinstance(controller, TORQUE_CONTROLLERS):
-            raise RobofdiError(f"controller {_controller_name(controller)!r} of {r.name} does not output joint torques; "
+            raise RobofdiError(f"part {part!r}: controller {_controller_name(controller)} of {r.name} does not output joint torques; "
                                f"expected one of {', '.join(c.__name__ for c in TORQUE_CONTROLLERS)} "
                                "(OSC_POSE, OSC_POSITION, JOINT_POSITION, IK_POSE, JOINT_VELOCITY, JOINT_TORQUE)")
         self.controller = _controller_name(controller)
