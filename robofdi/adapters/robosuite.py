@@ -103,8 +103,8 @@ class RobotArm:
         self.robot, self.part, self.name = r, part, str(r.name)
         controller = controllers[part]
         if not isinstance(controller, TORQUE_CONTROLLERS):
-            raise RobofdiError(f"part {part!r}: controller {_controller_name(controller)} of {r.name} does not output joint torques; "
-                               f"expected one of {', '.join(c.__name__ for c in TORQUE_CONTROLLERS)} "
+            raise RobofdiError(f"part {part!r}: controller {_controller_name(controller)} of {r.name} does not output "
+                               f"joint torques; expected one of {', '.join(c.__name__ for c in TORQUE_CONTROLLERS)} "
                                "(OSC_POSE, OSC_POSITION, JOINT_POSITION, IK_POSE, JOINT_VELOCITY, JOINT_TORQUE)")
         self.controller = _controller_name(controller)
         prefix = r.robot_model.naming_prefix
