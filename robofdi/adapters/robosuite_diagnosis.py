@@ -329,38 +329,22 @@ def calibrate_lift(env_factory=make_lift, seeds=CALIBRATION_SEEDS, belief: Model
 def lift_calibration(seeds=CALIBRATION_SEEDS, belief: ModelMismatch = BELIEF, steps: int = EPISODE_STEPS,
                      progress=None, cache: bool = True) -> tuple[LiftCalibration, bool]:
     """:func:`calibrate_lift`, computed once per (seeds, belief, steps, robofdi and robosuite versions) and pickled
-    in :func:`robofdi.scenarios.arm.cache_dir`; returns (calibration, True if it came from the cache)."""
-    import hashlib
-    import json
-    import pickle
-
+    in :func:`robofdi.scenarios.arm.cache_dir` (the campaigns' calibration cache); returns (calibration, True if it
+    came from the cache)."""
     import robosuite
 
-    from robofdi import __version__
-    from robofdi.scenarios.arm import cache_dir
+    from robofdi.campaign.systems import _cached_calibration
 
     seeds = tuple(int(s) for s in seeds)
-    key = hashlib.sha256(json.dumps({"seeds": seeds, "belief": repr(belief), "steps": steps, "version": __version__,
-                                     "robosuite": robosuite.__version__, "observer_gain": OBSERVER_GAIN,
-                                     "margin": MARGIN}, sort_keys=True).encode()).hexdigest()[:20]
-    path = cache_dir() / f"robosuite-lift-calibration-{key}.pkl"
-    if cache and path.is_file():
-        try:
-            with path.open("rb") as fh:
-                return pickle.load(fh), True
-        except (OSError, pickle.UnpicklingError, EOFError, AttributeError):
-            pass                                    # a torn or stale file is recomputed
-    cal = calibrate_lift(seeds=seeds, belief=belief, steps=steps, progress=progress)
-    if cache:
-        try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            tmp = path.with_name(f"{path.name}.{np.random.default_rng().integers(1 << 62)}.tmp")
-            with tmp.open("wb") as fh:
-                pickle.dump(cal, fh)
-            tmp.replace(path)
-        except OSError:
-            pass  # a read-only cache only costs the next run its calibration
-    return cal, False
+
+    def compute():
+        return calibrate_lift(seeds=seeds, belief=belief, steps=steps, progress=progress)
+
+    if not cache:
+        return compute(), False
+    description = {"seeds": seeds, "belief": repr(belief), "steps": steps, "robosuite": robosuite.__version__,
+                   "observer_gain": OBSERVER_GAIN, "margin": MARGIN, "blanking": BLANKING, "confirm": CONFIRM}
+    return _cached_calibration("robosuite-lift", description, compute)
 
 
 def run_lift(calibration: LiftCalibration, faults=(), seed: int = 0, accommodation: bool = False,
