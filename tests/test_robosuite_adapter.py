@@ -154,8 +154,8 @@ def test_component_faults_change_the_model_and_are_undone_at_reset(lift):
 
 
 def test_same_seed_same_episode(lift):
-    def episode(seed):
-        env = FaultyRobosuiteEnv(lift, ["sensor_outliers:joint3_vel:0.5@0.1;probability=0.2"], seed=seed)
+    def episode(seed, raw=lift):
+        env = FaultyRobosuiteEnv(raw, ["sensor_outliers:joint3_vel:0.5@0.1;probability=0.2"], seed=seed)
         try:
             obs = env.reset()
             script = rd.LiftScript(seed)
@@ -168,6 +168,12 @@ def test_same_seed_same_episode(lift):
     a, b, c = episode(3), episode(3), episode(4)
     assert np.array_equal(a[0], b[0]) and np.array_equal(a[1], b[1])
     assert not np.array_equal(a[0], c[0])
+    fresh = rd.make_lift()                       # another environment (robosuite's construction draw seeded alike)
+    try:
+        d = episode(3, fresh)
+    finally:
+        fresh.close()
+    assert np.array_equal(a[0], d[0]) and np.array_equal(a[1], d[1])
 
 
 def test_loe_on_joint2_detected_and_isolated_after_onset_only(lift, calibration):

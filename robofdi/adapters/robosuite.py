@@ -37,7 +37,8 @@ is kept for :meth:`FaultyRobosuiteEnv.record`.
 Seeds: episode k draws its sensor noise and fault randomness from ``robofdi.seeding.stream(seed, "episode", str(k))``
 and seeds robosuite's own task randomness (cube placement, initial joint noise, which robosuite draws from the
 global ``np.random``) from the same stream, restoring the global state afterwards: the same seed replays the
-same episodes.
+same episodes. What robosuite draws once at construction (Lift's cube size, with ``hard_reset=False``) is not the
+wrapper's: seed it around ``robosuite.make`` (as :func:`robofdi.adapters.robosuite_diagnosis.make_lift` does).
 
 Diagnosis and accommodation (optional): ``diagnosis.update(t, y, u)`` runs at every substep on the measurement y and
 the command u held over the previous substep (:mod:`robofdi.adapters.robosuite_diagnosis`) and returns a

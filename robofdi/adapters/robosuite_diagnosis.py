@@ -215,14 +215,23 @@ class LiftScript:
         return action
 
 
-def make_lift(**kwargs):
-    """robosuite's Lift with the Panda, headless and light (no renderer, no cameras, no hard reset)."""
+def make_lift(seed: int = 0, **kwargs):
+    """robosuite's Lift with the Panda, headless and light (no renderer, no cameras, no hard reset).
+
+    robosuite draws part of the task at construction from the global ``np.random`` (Lift: the cube's size); without a
+    hard reset that draw stays for every episode, so it is seeded here (``rng(seed, "task", "construction")``, the
+    global state restored afterwards): two environments made with the same seed are the same."""
     import robosuite
 
     opts = dict(robots="Panda", has_renderer=False, has_offscreen_renderer=False, use_camera_obs=False, hard_reset=False,
                 horizon=10_000, ignore_done=True)
     opts.update(kwargs)
-    return robosuite.make("Lift", **opts)
+    state = np.random.get_state()
+    np.random.seed(int(rng(seed, "task", "construction").integers(2**31)))
+    try:
+        return robosuite.make("Lift", **opts)
+    finally:
+        np.random.set_state(state)
 
 
 @dataclass
@@ -343,7 +352,8 @@ def lift_calibration(seeds=CALIBRATION_SEEDS, belief: ModelMismatch = BELIEF, st
     if not cache:
         return compute(), False
     description = {"seeds": seeds, "belief": repr(belief), "steps": steps, "robosuite": robosuite.__version__,
-                   "observer_gain": OBSERVER_GAIN, "margin": MARGIN, "blanking": BLANKING, "confirm": CONFIRM}
+                   "env": "make_lift(0)", "observer_gain": OBSERVER_GAIN, "margin": MARGIN, "blanking": BLANKING,
+                   "confirm": CONFIRM}
     return _cached_calibration("robosuite-lift", description, compute)
 
 
