@@ -121,7 +121,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--out", default="runs", help="parent folder of the run folder (default: ./runs)")
     run.add_argument("--seed", type=int, default=0)
     run.add_argument("--quiet", action="store_true", help="no progress bar")
-    arm = run.add_argument_group("options of `run arm`")
+    arm = run.add_argument_group("options of `run arm` (--fault also of `run robosuite-lift`)")
     arm.add_argument("--robot", help="the arm's MJCF file (default: the shipped arm6.xml)")
     arm.add_argument("--fault", dest="faults", action="append", metavar="SPEC",
                      help="KIND:TARGET:MAGNITUDE@ONSET[-END][~PROFILE][;NAME=VALUE], repeatable, "
@@ -142,7 +142,8 @@ def build_parser() -> argparse.ArgumentParser:
     view.set_defaults(func=_cmd_view)
     camp = sub.add_parser("campaign", help="many seeded fault scenarios, locally or on a Dask cluster")
     camp.add_argument("spec", metavar="SPEC",
-                      help="a campaign TOML file, or a shipped one by name (arm, auv, helicopter, hydraulic, linear)")
+                      help="a campaign TOML file, or a shipped one by name (arm, auv, helicopter, hydraulic, linear, "
+                           "robosuite-lift, dm_control-cartpole)")
     camp.add_argument("--workers", type=int, default=None, help="local worker processes (default: the core count)")
     camp.add_argument("--scheduler", metavar="ADDRESS", help="run on the Dask scheduler at ADDRESS (tcp://HOST:8786)")
     camp.add_argument("--out", metavar="DIR", help="campaign folder (default: runs/campaign-<spec name>)")
