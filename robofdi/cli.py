@@ -18,7 +18,7 @@ from robofdi import RobofdiError, __version__
 # EXPERIMENTS {name: description} and run().
 MODULES = ("robofdi.experiments.ch3_industrial_robot", "robofdi.experiments.arm", "robofdi.experiments.ch4_auv",
            "robofdi.experiments.ch6_hydraulic", "robofdi.experiments.jiang2005", "robofdi.experiments.guo2008",
-           "robofdi.experiments.ch2_wang", "robofdi.experiments.adaptive_fe")
+           "robofdi.experiments.ch2_wang", "robofdi.experiments.adaptive_fe", "robofdi.experiments.robosuite_lift")
 # options of `robofdi run` that only some experiments take (module attribute OPTIONS lists them)
 EXPERIMENT_OPTIONS = {"robot": "--robot", "faults": "--fault", "joints": "--joints", "torque_motors": "--torque-motors"}
 
@@ -121,7 +121,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--out", default="runs", help="parent folder of the run folder (default: ./runs)")
     run.add_argument("--seed", type=int, default=0)
     run.add_argument("--quiet", action="store_true", help="no progress bar")
-    arm = run.add_argument_group("options of `run arm`")
+    arm = run.add_argument_group("options of `run arm` (--fault also of `run robosuite-lift`)")
     arm.add_argument("--robot", help="the arm's MJCF file (default: the shipped arm6.xml)")
     arm.add_argument("--fault", dest="faults", action="append", metavar="SPEC",
                      help="KIND:TARGET:MAGNITUDE@ONSET[-END][~PROFILE][;NAME=VALUE], repeatable, "
@@ -142,7 +142,8 @@ def build_parser() -> argparse.ArgumentParser:
     view.set_defaults(func=_cmd_view)
     camp = sub.add_parser("campaign", help="many seeded fault scenarios, locally or on a Dask cluster")
     camp.add_argument("spec", metavar="SPEC",
-                      help="a campaign TOML file, or a shipped one by name (arm, auv, helicopter, hydraulic, linear)")
+                      help="a campaign TOML file, or a shipped one by name (arm, auv, helicopter, hydraulic, linear, "
+                           "robosuite-lift, dm_control-cartpole)")
     camp.add_argument("--workers", type=int, default=None, help="local worker processes (default: the core count)")
     camp.add_argument("--scheduler", metavar="ADDRESS", help="run on the Dask scheduler at ADDRESS (tcp://HOST:8786)")
     camp.add_argument("--out", metavar="DIR", help="campaign folder (default: runs/campaign-<spec name>)")

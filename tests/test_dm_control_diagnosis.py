@@ -81,3 +81,28 @@ def test_a_model_with_free_joints_is_refused():
         suite_model("humanoid")   # a free-floating root
     with pytest.raises(RobofdiError, match="not a dm_control suite domain"):
         suite_model("nope")
+
+
+def test_cartpole_campaign_system(tmp_path):
+    import pandas as pd
+
+    from robofdi.campaign import load_spec, run_campaign
+
+    spec = load_spec("""
+seed = 1
+fault_free_runs = 2
+faulty_runs = 3
+[system]
+name = "dm_control-cartpole"
+calibration_episodes = 20
+[[faults]]
+kind = "actuator_additive"
+magnitude_fraction = [0.1, 0.2]
+onset_fraction = [0.3, 0.6]
+""")
+    assert spec.diagnosers == ("momentum",) and spec.faults[0].limits == {"slide": (1.0, "1 (action)")}
+    run_campaign(spec, tmp_path / "c", workers=1, progress=False)
+    rows = pd.read_parquet(tmp_path / "c" / "results.parquet")
+    assert rows["error"].isna().all() and (rows["false_alarms"] == 0).all()
+    faulty = rows[rows["faulty"]]
+    assert len(faulty) == 3 and (faulty["isolated"] == "slide").all() and (faulty["delay"] < 0.3).all(), faulty

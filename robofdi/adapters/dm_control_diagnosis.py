@@ -32,7 +32,7 @@ from robofdi.observers.momentum import MomentumObserver
 from robofdi.seeding import rng
 
 __all__ = ["suite_model", "cartpole_measurement", "CartpoleDiagnoser", "ExcitationPolicy", "run_episode",
-           "calibrate_cartpole"]
+           "calibrate_cartpole", "cartpole_record"]
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -119,3 +119,52 @@ def calibrate_cartpole(diagnoser: CartpoleDiagnoser, seeds, steps: int, skip: in
     runs = [run_episode(cartpole_env((), s), diagnoser, ExcitationPolicy(s), steps)[1] for s in seeds]
     return ThresholdDecision(diagnoser.components, calibrate_thresholds(runs, margin, skip), diagnoser.signatures,
                              blanking=skip, confirm=3)
+
+
+def cartpole_record(faults, seed: int, diagnoser: CartpoleDiagnoser, decision: ThresholdDecision, steps: int,
+                    policy_seed: int | None = None, name: str = "momentum", scenario: str = "dm_control-cartpole"):
+    """One cartpole episode (:func:`cartpole_env` with ``faults`` and ``seed``, :class:`ExcitationPolicy` of
+    ``policy_seed``) diagnosed by ``diagnoser`` + ``decision``, as a robofdi :class:`~robofdi.record.Record` at the
+    10 ms control step: truth/state the physics' [x, θ, ẋ, θ̇], y_meas the observation's (the diagnoser's input),
+    the diagnoser's trace under ``name``."""
+    from robofdi.record import DiagnoserTrace, FaultLabels, Record
+
+    env = cartpole_env(faults, seed)
+    policy = ExcitationPolicy(seed if policy_seed is None else policy_seed)
+    ts = env.reset()
+    diagnoser.reset()
+    decision.reset()
+    dt = env.env.control_timestep()
+    rows = {k: [] for k in ("time", "x", "y", "u", "labels", "r", "alarm", "isolated")}
+    data = env.physics.data
+    for k in range(steps + 1):
+        obs = {key: v for key, v in ts.observation.items() if key != LABELS_KEY}
+        action = policy(k * dt, obs)
+        r = diagnoser.update(obs, action)
+        alarms = decision.update(r)
+        for key, value in (("time", k * dt), ("x", np.r_[data.qpos, data.qvel]), ("y", cartpole_measurement(obs)), ("u", action),
+                           ("labels", ts.observation[LABELS_KEY]), ("r", r), ("alarm", alarms.alarm),
+                           ("isolated", "+".join(alarms.isolated))):
+            rows[key].append(value)
+        if k < steps:
+            ts = env.step(action)
+    t = np.round(np.array(rows["time"]), 9)
+    labels = np.array(rows["labels"]).reshape(len(t), len(env.faults), 2)
+    comps = diagnoser.components
+    units = {"actuator": "1 (action)", "sensor": "observation unit"}
+    trace = DiagnoserTrace(time=t, residual=np.array(rows["r"]), threshold=np.asarray(decision.threshold, dtype=float),
+                           alarm=np.array(rows["alarm"], dtype=bool), isolated=np.array(rows["isolated"], dtype=object),
+                           estimate=np.zeros((len(t), 0)), components=list(comps), estimate_components=[],
+                           units={"residual": ["N", "N·m"], "estimate": []})
+    state, y = np.array(rows["x"]), np.array(rows["y"])
+    u = np.array(rows["u"])
+    return Record(system="dm_control-cartpole", scenario=scenario, seed=int(seed),
+                  rates={"control_hz": 1.0 / dt, "diagnosis_hz": 1.0 / dt}, time=t, truth_state=state,
+                  faults={f.name: FaultLabels(labels[:, i, 0] > 0, labels[:, i, 1], units.get(f.family, ""))
+                          for i, f in enumerate(env.faults)},
+                  signals={"u_cmd": u, "y_meas": y}, diagnosers={name: trace}, u_applied=u,
+                  meta={"faults": [f.to_dict() for f in env.faults], "duration": float(t[-1]), "injection": "online"},
+                  columns={"truth/state": ["x", "theta", "x_dot", "theta_dot"], "truth/u_applied": env.actuators,
+                           "signals/u_cmd": env.actuators, "signals/y_meas": ["x", "theta", "x_dot", "theta_dot"]},
+                  units={"truth/state": ["m", "rad", "m/s", "rad/s"], "truth/u_applied": ["1"],
+                         "signals/u_cmd": ["1"], "signals/y_meas": ["m", "rad", "m/s", "rad/s"]})

@@ -24,7 +24,8 @@ from robofdi.seeding import rng
 
 __all__ = ["TargetLimit", "Mission", "CampaignSystem", "SYSTEMS", "register_system", "get_system", "fault_limit",
            "ArmCampaign", "LinearCampaign", "ArmOptions", "LinearOptions", "AuvCampaign", "AuvOptions",
-           "HydraulicCampaign", "HydraulicOptions", "HelicopterCampaign", "HelicopterOptions"]
+           "HydraulicCampaign", "HydraulicOptions", "HelicopterCampaign", "HelicopterOptions", "RobosuiteLiftCampaign",
+           "RobosuiteLiftOptions", "CartpoleCampaign", "CartpoleOptions"]
 
 
 @dataclass(frozen=True)
@@ -619,3 +620,155 @@ class HelicopterCampaign:
 register_system(AuvCampaign())
 register_system(HydraulicCampaign())
 register_system(HelicopterCampaign())
+
+
+# ------------------------------------------------------------------------------------------------ adapters
+def _adapter(module: str, extra: str):
+    """An adapter module, or one clear error naming the optional extra it needs."""
+    try:
+        return import_module(module)
+    except ImportError as exc:
+        raise RobofdiError(f"system: {module} needs the optional extra: pip install 'robofdi[{extra}]' ({exc})") from None
+
+
+@dataclass(frozen=True)
+class RobosuiteLiftOptions:
+    """The ``[system]`` table of a robosuite Lift campaign (:mod:`robofdi.adapters.robosuite_diagnosis`: the Panda
+    with OSC_POSE and the scripted grasp). robot_seeds: one calibration each, on ``calibration_episodes``
+    fault-free episodes of seeds 1000·(1 + robot seed) + i; episode_steps: policy steps (20 Hz) per episode;
+    accommodation: effectiveness compensation fed by ``health_source``."""
+
+    robot_seeds: tuple = (0,)
+    calibration_episodes: int = 30
+    episode_steps: int = 140
+    accommodation: bool = False
+    health_source: str = "momentum"
+
+    def __post_init__(self):
+        _robot_seeds(self)
+        _check_fields("system", self, [
+            ("calibration_episodes", _is_int(self.calibration_episodes, 2), "an integer >= 2"),
+            ("episode_steps", _is_int(self.episode_steps, 20) and self.episode_steps <= 2000, "an integer in [20, 2000]"),
+            ("accommodation", isinstance(self.accommodation, bool), "true or false"),
+            ("health_source", self.health_source in ("momentum", "momentum_friction"), "'momentum' or 'momentum_friction'"),
+        ])
+
+    def calibration_seeds(self, key: int) -> tuple:
+        return tuple(1000 * (1 + int(key)) + i for i in range(self.calibration_episodes))
+
+
+@functools.lru_cache(maxsize=1)
+def _lift_env():
+    """One robosuite Lift per process, reused by every run (robosuite.make takes seconds)."""
+    return _adapter("robofdi.adapters.robosuite_diagnosis", "robosuite").make_lift()
+
+
+class RobosuiteLiftCampaign:
+    """robosuite's Lift with the Panda (OSC_POSE, scripted grasp; the script's variations are the mission), arm
+    faults through :class:`~robofdi.adapters.robosuite.FaultyRobosuiteEnv`, the momentum diagnosers online."""
+
+    name = "robosuite-lift"
+    options_type = RobosuiteLiftOptions
+
+    def diagnosers(self, options):
+        return _adapter("robofdi.adapters.robosuite_diagnosis", "robosuite").DIAGNOSERS
+
+    def targets(self, options):
+        from robofdi.adapters.robosuite import RobotArm
+
+        arm = RobotArm(_lift_env())
+        width = arm.joint_range[:, 1] - arm.joint_range[:, 0]
+        sensors = {ch: TargetLimit(float(width[i % arm.n]), "rad" if i < arm.n else "rad/s")
+                   for i, ch in enumerate(arm.sensor_channels)}          # velocity channels: one range per second
+        return {"actuator": {j: TargetLimit(float(np.abs(arm.torque_range[i]).max()), "N·m") for i, j in enumerate(arm.joints)},
+                "sensor": sensors,
+                "component_friction": {j: TargetLimit(1.0, "1") for j in arm.joints},
+                "component_mass": {"payload": TargetLimit(3.0, "kg")}}      # the Panda's rated payload
+
+    def calibration_keys(self, options):
+        return list(options.robot_seeds)
+
+    def calibrate(self, options, key, diagnosers):
+        rd = _adapter("robofdi.adapters.robosuite_diagnosis", "robosuite")
+        return rd.lift_calibration(options.calibration_seeds(key), steps=options.episode_steps)
+
+    def mission(self, options, key, generator):
+        script = int(generator.integers(2**31))
+        return Mission(options.episode_steps / 20.0, script, {"script_seed": script})
+
+    def run(self, options, calibration, key, mission, faults, seed, diagnosers):
+        rd = _adapter("robofdi.adapters.robosuite_diagnosis", "robosuite")
+        return rd.run_lift(calibration, faults, seed, accommodation=options.accommodation,
+                           health_source=options.health_source, diagnosers=tuple(diagnosers), env=_lift_env(),
+                           steps=options.episode_steps, scenario="campaign-robosuite-lift", policy_seed=mission.plan,
+                           meta={"robot_seed": int(key)})[1]
+
+
+@dataclass(frozen=True)
+class CartpoleOptions:
+    """The ``[system]`` table of a dm_control cartpole campaign (:mod:`robofdi.adapters.dm_control_diagnosis`: the
+    momentum residual on both joints of the suite's cart-pole). robot_seeds: one belief (mass ±``mismatch``, damping
+    ±4·``mismatch``) and calibration each, on ``calibration_episodes`` fault-free episodes; steps: 10 ms control
+    steps per episode; blanking: start-up samples without alarms."""
+
+    robot_seeds: tuple = (0,)
+    calibration_episodes: int = 30
+    steps: int = 300
+    mismatch: float = 0.05
+    blanking: int = 5
+
+    def __post_init__(self):
+        _robot_seeds(self)
+        _check_fields("system", self, [
+            ("calibration_episodes", _is_int(self.calibration_episodes, 2), "an integer >= 2"),
+            ("steps", _is_int(self.steps, 20) and self.steps <= 100_000, "an integer in [20, 100000]"),
+            ("mismatch", isinstance(self.mismatch, (int, float)) and 0 <= self.mismatch < 0.125, "a fraction in [0, 0.125)"),
+            ("blanking", _is_int(self.blanking, 0) and self.blanking < self.steps, "an integer in [0, steps)"),
+        ])
+
+
+class CartpoleCampaign:
+    """dm_control's cartpole (swingup) under a seeded excitation policy (the mission), faults through
+    :class:`~robofdi.adapters.dm_control.FaultyEnvironment`, the momentum residual with calibrated thresholds."""
+
+    name = "dm_control-cartpole"
+    options_type = CartpoleOptions
+
+    def diagnosers(self, options):
+        return ("momentum",)
+
+    def _diagnoser(self, options, key):
+        from robofdi.models.manipulator import ModelMismatch
+
+        dc = _adapter("robofdi.adapters.dm_control_diagnosis", "dm_control")
+        belief = ModelMismatch(mass=options.mismatch, damping=4 * options.mismatch, seed=int(key))
+        return dc, dc.CartpoleDiagnoser(dc.suite_model("cartpole", belief), 0.01)
+
+    def targets(self, options):
+        dc, _ = self._diagnoser(options, 0)
+        env = dc.cartpole_env()
+        ranges = {"position[0]": 3.6, "position[1]": 2.0, "position[2]": 2.0, "velocity[0]": 5.0, "velocity[1]": 20.0}
+        return {"actuator": {a: TargetLimit(1.0, "1 (action)") for a in env.actuators},
+                "sensor": {c: TargetLimit(ranges[c], "observation unit") for c in env.sensors if c in ranges}}
+
+    def calibration_keys(self, options):
+        return list(options.robot_seeds)
+
+    def calibrate(self, options, key, diagnosers):
+        dc, diagnoser = self._diagnoser(options, key)
+        seeds = range(1000 * (1 + int(key)), 1000 * (1 + int(key)) + options.calibration_episodes)
+        return _cached_calibration("dm_control-cartpole", {"options": repr(options), "key": int(key)},
+                                   lambda: dc.calibrate_cartpole(diagnoser, seeds, options.steps, options.blanking))
+
+    def mission(self, options, key, generator):
+        policy = int(generator.integers(2**31))
+        return Mission(options.steps * 0.01, policy, {"policy_seed": policy})
+
+    def run(self, options, calibration, key, mission, faults, seed, diagnosers):
+        dc, diagnoser = self._diagnoser(options, key)
+        return dc.cartpole_record(faults, seed, diagnoser, calibration, options.steps, policy_seed=mission.plan,
+                                  scenario="campaign-dm_control-cartpole")
+
+
+register_system(RobosuiteLiftCampaign())
+register_system(CartpoleCampaign())

@@ -21,19 +21,21 @@ from robofdi.models.manipulator import (
 __all__ = ["MultibodyModel", "actuation_matrix"]
 
 
-def actuation_matrix(m: mujoco.MjModel, joint_ids: list[int]) -> np.ndarray:
-    """B (len(joint_ids) × nu): joint torque [N·m] or force [N] per unit of each actuator's ctrl (gear · gain).
-    Every actuator must be a motor on one of the joints (a joint transmission, fixed gain, no bias, no dynamics)."""
+def actuation_matrix(m: mujoco.MjModel, joint_ids: list[int], actuators: list[int] | None = None) -> np.ndarray:
+    """B (len(joint_ids) × len(actuators)): joint torque [N·m] or force [N] per unit of each actuator's ctrl
+    (gear · gain); ``actuators``: MuJoCo actuator ids (default all). Every one must be a motor on one of the joints
+    (a joint transmission, fixed gain, no bias, no dynamics)."""
     dof = {j: k for k, j in enumerate(joint_ids)}
-    B = np.zeros((len(joint_ids), m.nu))
-    for a in range(m.nu):
+    actuators = list(range(m.nu)) if actuators is None else list(actuators)
+    B = np.zeros((len(joint_ids), len(actuators)))
+    for col, a in enumerate(actuators):
         label = _name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a) or f"#{a}"
         if int(m.actuator_trntype[a]) not in _JOINT_TRANSMISSIONS or int(m.actuator_trnid[a, 0]) not in dof:
             raise RobofdiError(f"model: actuator {label!r} does not drive a hinge/slide joint; expected joint "
                                "transmissions only (tendon and site actuators are not supported)")
         if not _is_motor(m, a):
             raise RobofdiError(f"model: actuator {label!r} is {_actuator_kind(m, a)}; expected a torque motor")
-        B[dof[int(m.actuator_trnid[a, 0])], a] = m.actuator_gear[a, 0] * m.actuator_gainprm[a, 0]
+        B[dof[int(m.actuator_trnid[a, 0])], col] = m.actuator_gear[a, 0] * m.actuator_gainprm[a, 0]
     return B
 
 
@@ -43,18 +45,33 @@ class MultibodyModel(ManipulatorModel):
     ``m``: a MuJoCo model compiled from the MJCF file (not the running simulator's: the belief is read from the
     file). Free and ball joints are refused. The dynamics methods are :class:`ManipulatorModel`'s; the joint torque
     of an action u is ``B @ u`` (:meth:`joint_torque`).
+
+    ``joints``: the joint names to model (in tree order), e.g. a robot's arm in a scene with objects and a gripper;
+    every other joint (free objects included) is locked at its reference and its bodies are lumped into the modelled
+    joint that carries them (objects on the world: into the fixed base). The actuators are then those driving the
+    listed joints. Default: every joint.
     """
 
-    def __init__(self, m: mujoco.MjModel, system: str, mismatch: ModelMismatch | None = None):
+    def __init__(self, m: mujoco.MjModel, system: str, mismatch: ModelMismatch | None = None,
+                 joints: list[str] | None = None):
         mismatch = mismatch or ModelMismatch()
         if not isinstance(mismatch, ModelMismatch):
             raise RobofdiError(f"mismatch: expected a ModelMismatch, got {type(mismatch).__name__}")
-        kinds = [_JOINT_KINDS.get(int(m.jnt_type[j]), "unknown") for j in range(m.njnt)]
-        bad = [f"{_name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or j} ({k})" for j, k in enumerate(kinds) if k not in ("hinge", "slide")]
+        all_names = [_name(m, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(m.njnt)]
+        if joints is None:
+            ids = list(range(m.njnt))
+        else:
+            unknown = [j for j in joints if j not in all_names]
+            if unknown or not joints:
+                raise RobofdiError(f"joints: {unknown or joints} are not joints of {system}; expected names among {all_names}")
+            ids = [all_names.index(j) for j in joints]
+            if ids != sorted(ids):
+                raise RobofdiError(f"joints: list them in the model's order, got {list(joints)}")
+        kinds = [_JOINT_KINDS.get(int(m.jnt_type[j]), "unknown") for j in ids]
+        bad = [f"{all_names[j] or j} ({k})" for j, k in zip(ids, kinds) if k not in ("hinge", "slide")]
         if bad:
             raise RobofdiError(f"model: {system} has joints {', '.join(bad)}; expected hinge and slide joints only")
-        ids = list(range(m.njnt))
-        names = [_name(m, mujoco.mjtObj.mjOBJ_JOINT, j) or f"joint{j}" for j in ids]
+        names = [all_names[j] or f"joint{j}" for j in ids]
         self.path, self.system, self.mismatch = None, system, mismatch
         model = pinocchio_model(m, ids)
         model.name = system
@@ -62,11 +79,14 @@ class MultibodyModel(ManipulatorModel):
         self.model, self.data = model, model.createData()
         self.joint_names, self.n = names, model.nv
         self.damping = np.array(model.damping, dtype=float)
-        self.B = actuation_matrix(m, ids)
-        self.actuator_names = [_name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a) or f"actuator{a}" for a in range(m.nu)]
-        lim = np.where(m.actuator_ctrllimited[:, None].astype(bool), m.actuator_ctrlrange, [-np.inf, np.inf])
-        self.torque_range = np.sort(np.abs(self.B).sum(axis=0)[:, None] * lim, axis=1) if m.nu else np.zeros((0, 2))
-        self.torque_limit = np.abs(self.torque_range).max(axis=1) if m.nu else np.zeros(0)
+        chosen = set(ids)
+        acts = [a for a in range(m.nu) if joints is None or (int(m.actuator_trntype[a]) in _JOINT_TRANSMISSIONS
+                                                             and int(m.actuator_trnid[a, 0]) in chosen)]
+        self.B = actuation_matrix(m, ids, acts)
+        self.actuator_names = [_name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a) or f"actuator{a}" for a in acts]
+        lim = np.where(m.actuator_ctrllimited[acts, None].astype(bool), m.actuator_ctrlrange[acts], [-np.inf, np.inf])
+        self.torque_range = np.sort(np.abs(self.B).sum(axis=0)[:, None] * lim, axis=1) if acts else np.zeros((0, 2))
+        self.torque_limit = np.abs(self.torque_range).max(axis=1) if acts else np.zeros(0)
         self.joint_range = np.where(m.jnt_limited[ids, None].astype(bool), m.jnt_range[ids], [-np.inf, np.inf])
         self._ref = np.array([m.qpos0[m.jnt_qposadr[j]] for j in ids])
         self._has_ref = bool(np.any(self._ref != 0))
