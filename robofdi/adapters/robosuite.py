@@ -48,18 +48,10 @@ health one substep late.
 """
 from __future__ import annotations
 
+import logging
 from collections.abc import Sequence
 
 import numpy as np
-
-try:
-    import robosuite  # noqa: F401
-    from robosuite.controllers.parts.arm.osc import OperationalSpaceController
-    from robosuite.controllers.parts.generic.joint_pos import JointPositionController
-    from robosuite.controllers.parts.generic.joint_tor import JointTorqueController
-    from robosuite.controllers.parts.generic.joint_vel import JointVelocityController
-except ImportError:  # pragma: no cover - exercised only without the extra
-    raise ImportError("robofdi.adapters.robosuite needs robosuite: pip install 'robofdi[robosuite]'") from None
 
 import mujoco
 
@@ -71,6 +63,22 @@ from robofdi.record import FaultLabels, Record
 from robofdi.seeding import stream
 from robofdi.sims.arm import SensorModel
 from robofdi.sims.noise import ChannelNoise
+
+# robosuite's import-time advice (a private macro file, optional robot packages, a GR1 IK) and its per-environment
+# INFO lines are not for robofdi's users: its logger is muted while importing, then keeps warnings and errors.
+_ROBOSUITE_LOG = logging.getLogger("robosuite_logs")
+_ROBOSUITE_LOG.disabled = True
+try:
+    import robosuite  # noqa: F401
+    from robosuite.controllers.parts.arm.osc import OperationalSpaceController
+    from robosuite.controllers.parts.generic.joint_pos import JointPositionController
+    from robosuite.controllers.parts.generic.joint_tor import JointTorqueController
+    from robosuite.controllers.parts.generic.joint_vel import JointVelocityController
+except ImportError:  # pragma: no cover - exercised only without the extra
+    raise ImportError("robofdi.adapters.robosuite needs robosuite: pip install 'robofdi[robosuite]'") from None
+finally:
+    _ROBOSUITE_LOG.disabled = False
+    _ROBOSUITE_LOG.setLevel(logging.WARNING)
 
 __all__ = ["FaultyRobosuiteEnv", "LABELS_KEY", "TORQUE_CONTROLLERS", "RobotArm"]
 
