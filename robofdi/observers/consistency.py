@@ -14,7 +14,7 @@ the design runs):
   r_k − r_{k−1} = K_O (p_k − p_{k−1} − T (ū − β − r_{k−1}))). A velocity-sensor step of b gives ν = b on its own
   joint only (M⁻¹ undoes the inertial coupling); a drifting or offset encoder gives none (the true velocity is
   untouched), except that a large encoder step moves M(q) q̇ at once: a sample whose kinematic increment is more
-  than a velocity step of ν can make (T |ν| plus its fault-free scale) is not counted. Its peak is held as long
+  than a velocity step of ν can make (twice (T/2 + τ_s)|ν|, plus its fault-free scale) is not counted. Its peak is held as long
   as the longest kinematic window, the time the kinematic row may take to confirm the same fault.
 
 Why three row sets: kinematically an encoder drift of rate ρ and a velocity bias of −ρ are identical (both add
@@ -134,11 +134,13 @@ class ConsistencyResidual:
 
     def _velocity_steps(self, e: np.ndarray, v: np.ndarray) -> np.ndarray:
         """|ν| / step scale, except where this sample's kinematic increment is more than a velocity step of ν
-        can make (|e_k| > T |ν| + its single-sample scale): that increment holds a position step, which moved
-        M(q) q̇ and so ν, and is no evidence of a velocity-sensor fault."""
+        can make: a step b in q̇_k adds −(T/2 + τ_s) b to e_k (:mod:`~robofdi.observers.kinematic`), so
+        |e_k| > 2 (T/2 + |τ_s|) |ν| + its single-sample scale (a factor 2 for ν's own error) holds a position step,
+        which moved M(q) q̇ and so ν, and is no evidence of a velocity-sensor fault."""
         a, b = self.design.window_scales[:, self._single, 0], self.design.window_scales[:, self._single, 1]
         nu = np.abs(self.innovation)
-        position_step = np.abs(e) > self.T * nu + a + b * np.abs(v)
+        velocity_step_increment = 2 * (self.T / 2 + np.abs(self.design.skew)) * nu
+        position_step = np.abs(e) > velocity_step_increment + a + b * np.abs(v)
         return np.where(position_step, 0.0, nu / self.design.step_scale)
 
     def update(self, y: np.ndarray, u: np.ndarray) -> Residual:

@@ -50,8 +50,8 @@ ACCOMMODATIONS = (None, "compensation")
 #: designs it (with the worst-case motions), the second half, never seen by the design, sets its thresholds.
 CONSISTENCY_RANDOM_MOTIONS = 6
 #: Bumped whenever what a cached calibration holds changes (2: the consistency design's step scale;
-#: 3: a reverted experiment; 4: step-row thresholds without the samples that hold a position step).
-CALIBRATION_FORMAT = 4
+#: 3: a reverted experiment; 4, 5: step-row thresholds without the samples that hold a position step).
+CALIBRATION_FORMAT = 5
 #: Schemes whose thresholds are also calibrated in the book's state space (reported next to the book's).
 STATE_SPACE_SCHEMES = ("time_delayed", "recursive")
 
