@@ -283,17 +283,34 @@ def _set_camera(vis, scene: MeshcatScene, qs: np.ndarray) -> None:
 
     meshcat 0.3.2's orbit controls always look at the world origin (the robot's base) and the camera lives in
     the y-up frame ``/Cameras/default/rotated``: world (x, y, z) -> three.js (x, z, -y). The camera is put on
-    a raised diagonal, at the smallest distance where every geom (over a subsample of the frames, plus its
-    size) lies within a cone of 30 deg around the view axis (the vertical half field of view is 37.5 deg).
+    a raised diagonal, at the smallest distance where every geom of the bodies that move in the replay (all
+    non-world ones if none moves; over a subsample of the frames, plus its own radius) lies within a cone of 30 deg around the view axis (the vertical half field of view is 37.5 deg).
     """
     world = scene.body_names[0]
-    moving = [gs for gs in scene.geoms if gs.body != world]
+    idx = np.unique(np.linspace(0, len(qs) - 1, min(len(qs), 40)).astype(int))
+    poses = [scene.body_transforms(qs[i]) for i in idx]
+    moves = {b for b in scene.body_names if any(not np.allclose(P[b], poses[0][b], atol=1e-6) for P in poses)}
+    moving = [gs for gs in scene.geoms if gs.body in moves] or [gs for gs in scene.geoms if gs.body != world]
     if not moving:
         return
-    margin = max(gs.radius for gs in moving)
-    idx = np.unique(np.linspace(0, len(qs) - 1, min(len(qs), 40)).astype(int))
-    pts = np.array([T[:3, 3] for i in idx for p, T in scene.geom_transforms(qs[i]).items()
-                    if not p.startswith(world + "/")])
+    radius = np.array([gs.radius for gs in moving])
+    pts, margin = [], []
+    for i in idx:
+        Ts = scene.geom_transforms(qs[i])
+        pts += [Ts[gs.path][:3, 3] for gs in moving]
+        margin.append(radius)
+    pts, margin = np.array(pts), np.concatenate(margin)
+    centre = (pts.min(axis=0) + pts.max(axis=0)) / 2
+    centre[2] = max(centre[2] - 0.5 * (pts[:, 2].max() - pts[:, 2].min()), 0.0)   # the orbit point: low in the motion
+    if np.linalg.norm(centre) > 0.3:
+        # meshcat orbits the world origin: the scene is shifted so that the motion is around it (grid and axes,
+        # which stay at the origin, are hidden)
+        shift = np.eye(4)
+        shift[:3, 3] = -centre
+        vis[ROOT].set_transform(shift)
+        vis["/Grid"].set_property("visible", False)
+        vis["/Axes"].set_property("visible", False)
+        pts = pts - centre
     direction = np.array([1.0, -1.2, 0.55])
     direction /= np.linalg.norm(direction)
     limit = math.radians(30.0)

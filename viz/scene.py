@@ -10,8 +10,9 @@ below ``robot/<body>`` (e.g. fault markers) moves with that link.
 
 Mesh geoms are drawn from the *compiled* model's own mesh data (``mesh_vert``/``mesh_face``: already recentred
 and reoriented by MuJoCo's compiler, so ``geom_pos``/``geom_quat`` place them), thinned by vertex clustering;
-nothing is read from the mesh files at drawing time. A body that has visual-only geoms (contype = conaffinity
-= 0, robosuite's group 1) is drawn by those: its colliding geoms (collision hulls) are skipped.
+nothing is read from the mesh files at drawing time. Colliding geoms (contype or conaffinity not 0) other than
+planes are skipped where visual-only geoms stand for them: in a body that has visual-only geoms, and in a geom group
+that holds no visual-only geom while another group does (robosuite: group 1 visual, group 0 collision).
 """
 from __future__ import annotations
 
@@ -80,6 +81,22 @@ def rgba_to_material(rgba, *, scale_opacity: float = 1.0) -> g.MeshPhongMaterial
     return g.MeshPhongMaterial(color=color, opacity=opacity, transparent=opacity < 1.0)
 
 
+def _geom_rgba(m: mujoco.MjModel, i: int) -> np.ndarray:
+    """Colour of geom ``i``: its material's rgba times the mean colour of the material's texture if it has one
+    (meshcat gets no textures: a textured cube keeps its hue), else the geom's rgba."""
+    matid = int(m.geom_matid[i])
+    if matid < 0:
+        return np.array(m.geom_rgba[i], dtype=float)
+    rgba = np.array(m.mat_rgba[matid], dtype=float)
+    tex = next((int(t) for t in np.atleast_1d(m.mat_texid[matid]) if t >= 0), -1)
+    if tex >= 0 and int(m.tex_nchannel[tex]) >= 3:
+        adr, c = int(m.tex_adr[tex]), int(m.tex_nchannel[tex])
+        n = int(m.tex_width[tex]) * int(m.tex_height[tex]) * c
+        pixels = np.asarray(m.tex_data[adr:adr + n], dtype=float).reshape(-1, c)
+        rgba[:3] *= pixels[:, :3].mean(axis=0) / 255.0
+    return rgba
+
+
 @dataclass
 class GeomSpec:
     """One drawable geom: its meshcat path, primitive type, sizes, colour and fixed offset in its body frame."""
@@ -144,8 +161,8 @@ class MeshcatScene:
     """A MuJoCo model, ready to be drawn into a :class:`meshcat.Visualizer` and posed from ``qpos``.
 
     ``mjcf``: an MJCF XML file, a compiled binary model (``.mjb``) or a :class:`mujoco.MjModel`. Height fields,
-    fully transparent geoms and the colliding geoms of bodies that have visual-only geoms are skipped (listed
-    in :attr:`skipped`). ``mesh_cell``: the vertex-clustering cell that thins mesh geoms [m] (0: every vertex).
+    fully transparent geoms and collision geoms that visual geoms stand for (module docstring) are skipped
+    (listed in :attr:`skipped`). ``mesh_cell``: the vertex-clustering cell that thins mesh geoms [m] (0: every vertex).
     """
 
     def __init__(self, mjcf: str | Path | mujoco.MjModel, mesh_cell: float = MESH_CELL):
@@ -172,12 +189,13 @@ class MeshcatScene:
         self.skipped: list[int] = []
         colliding = (m.geom_contype != 0) | (m.geom_conaffinity != 0)
         has_visual = set(int(b) for b in m.geom_bodyid[~colliding])
+        visual_groups = set(int(k) for k in m.geom_group[~colliding])
         meshes: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         for i in range(m.ngeom):
             tname = _TYPE_NAMES.get(int(m.geom_type[i]))
-            matid = int(m.geom_matid[i])
-            rgba = np.array(m.mat_rgba[matid] if matid >= 0 else m.geom_rgba[i], dtype=float)
-            hull = bool(colliding[i]) and int(m.geom_bodyid[i]) in has_visual and tname != "plane"
+            rgba = _geom_rgba(m, i)
+            hull = bool(colliding[i]) and tname != "plane" and (
+                int(m.geom_bodyid[i]) in has_visual or (visual_groups and int(m.geom_group[i]) not in visual_groups))
             if tname is None or rgba[3] <= 0.0 or hull:
                 self.skipped.append(i)
                 continue
