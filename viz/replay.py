@@ -281,10 +281,13 @@ def _animate_visibility(anim: Animation, vis, path: str, intervals, frame_times:
 def _set_camera(vis, scene: MeshcatScene, qs: np.ndarray) -> None:
     """Place the default camera so that the robot is in view over the whole motion ``qs`` (frames x nq).
 
-    meshcat 0.3.2's orbit controls always look at the world origin (the robot's base) and the camera lives in
-    the y-up frame ``/Cameras/default/rotated``: world (x, y, z) -> three.js (x, z, -y). The camera is put on
-    a raised diagonal, at the smallest distance where every geom of the bodies that move in the replay (all
-    non-world ones if none moves; over a subsample of the frames, plus its own radius) lies within a cone of 30 deg around the view axis (the vertical half field of view is 37.5 deg).
+    meshcat 0.3.2's orbit controls always look at the world origin and the camera lives in the y-up frame
+    ``/Cameras/default/rotated``: world (x, y, z) -> three.js (x, z, -y). The geoms of the bodies that move in the
+    replay (all non-world ones if none moves; over a subsample of the frames) are framed: if their centre (taken
+    low, half their height below the middle) is more than 0.3 m from the origin, the whole scene is shifted to put
+    it there (grid and axes hidden). The camera is put on a raised diagonal, at the smallest distance where every
+    such geom, plus its own radius, lies within a cone of 30 deg around the view axis (the vertical half field of
+    view is 37.5 deg).
     """
     world = scene.body_names[0]
     idx = np.unique(np.linspace(0, len(qs) - 1, min(len(qs), 40)).astype(int))
