@@ -14,8 +14,11 @@ Three episodes with the same seed: fault-free; faulty without accommodation; fau
 :class:`~robofdi.ftc.EffectivenessCompensation` fed by the loss of effectiveness ``HEALTH_SOURCE`` identifies after
 isolation (one 2 ms substep late). summary.json["task"] holds robosuite's success (cube lifted more than 4 cm
 above the table at the end of the 7 s episode) of each, summary.json["accommodation"] the identified loss.
-The record is the faulty episode without accommodation (``compensated.h5``: with it). No replay.html: viz/
-draws primitive geoms only, and robosuite's Panda is made of meshes.
+The record is the faulty episode without accommodation (``compensated.h5``: with it). ``replay.html`` (self-contained
+Meshcat, offline) replays that episode: the Panda's meshes, fingers and cube from the recorded qpos, the faulty
+joint ringed from the onset and lit red from its isolation by ``momentum``; ``replay_compensated.html`` the same
+with compensation (the cube is lifted). Both are drawn from the environment's own MJCF, written as ``model.xml``
+into the run folder (so ``robofdi view`` works on the folder, with the installed robosuite's mesh files).
 """
 from __future__ import annotations
 
@@ -51,12 +54,12 @@ def plot_cube_heights(episodes: dict, faults, path: Path) -> Path:
 
 
 def run(name: str = "robosuite-lift", out: str | Path = "runs", seed: int = 0, progress: bool = True,
-        replay: bool = False, faults=()):
+        replay: bool = True, faults=()):
     """Calibrate (cached), run fault-free, faulty, faulty + compensation; evaluate, plot; returns (summary, run folder)."""
     from tqdm.auto import tqdm
 
     from robofdi.adapters import robosuite_diagnosis as rd
-    from robofdi.adapters.robosuite import FaultyRobosuiteEnv
+    from robofdi.adapters.robosuite import FaultyRobosuiteEnv, write_mjcf
     from robofdi.faults import parse_fault_spec
 
     faults = [parse_fault_spec(f) if isinstance(f, str) else f for f in (faults or [DEFAULT_FAULT])]
@@ -77,6 +80,7 @@ def run(name: str = "robosuite-lift", out: str | Path = "runs", seed: int = 0, p
             episodes[label], records[label] = rd.run_lift(cal, fs, seed, accommodation=acc, health_source=HEALTH_SOURCE,
                                                          env=env, steps=steps, scenario=name, meta={"variant": label})
             bar.update(1)
+        write_mjcf(env, run_dir)                     # the model the records name (meta["mjcf"]) for the replays
         env.close()
     record = records["no accommodation"]
     summary = summarize(record, name, [f.to_dict() for f in faults], controller=record.meta["controller"],
@@ -99,6 +103,10 @@ def run(name: str = "robosuite-lift", out: str | Path = "runs", seed: int = 0, p
     write_run_folder(run_dir, record, summary, {"compensated": compensated, "fault_free": records["fault-free"]},
                      replay=replay)
     plot_cube_heights(episodes, faults, run_dir / "figures" / "cube_height.png")
+    if replay:
+        from robofdi.viz import write_replay_html
+
+        write_replay_html(run_dir / "compensated.h5", run_dir / "replay_compensated.html")
     return summary, run_dir
 
 

@@ -227,6 +227,12 @@ def test_robofdi_run_robosuite_lift_writes_the_run_folder(tmp_path, monkeypatch,
     assert task["fault-free"]["success"] and not task["no accommodation"]["success"] and task["compensation"]["success"]
     assert {p.name for p in (run / "figures").iterdir()} >= {"cube_height.png", "residuals_momentum.png"}
     assert (run / "record.h5").is_file() and (run / "compensated.h5").is_file()
+    # the replays: the faulty episode's joint 2 ringed from the onset and lit red from its isolation by momentum
+    assert (run / "model.xml").is_file() and (run / "replay_compensated.html").is_file()
+    clips = _clips(_replay_commands((run / "replay.html").read_text()))
+    onset = _first_visible(clips["/meshcat/robot/robot0_link2/fault_onset_robot0_joint2"])
+    detected = _first_visible(clips["/meshcat/robot/robot0_link2/fault_detected_robot0_joint2"])
+    assert onset == pytest.approx(ONSET, abs=0.02) and detected == pytest.approx(ONSET + det["delay"], abs=0.02)
     capsys.readouterr()
     assert main(["run", "robosuite-lift", "--out", str(tmp_path / "bad"), "--quiet", "--fault",
                  "actuator_additive:joint9:5@1"]) == 2
@@ -263,3 +269,68 @@ onset_fraction = [0.3, 0.5]
     assert faulty["detected"].all() and (faulty["isolated"] == faulty["target"]).all(), faulty
     with pytest.raises(RobofdiError, match=r"system: field 'episode_steps' must be an integer in \[20, 2000\]"):
         load_spec({"system": {"name": "robosuite-lift", "episode_steps": 5}, "fault_free_runs": 1})
+
+
+# ------------------------------------------------------------------------------------------------ replay
+def _replay_commands(html: str) -> list[dict]:
+    """The meshcat commands embedded in a static replay html (base64 msgpack blobs)."""
+    import base64
+    import re
+
+    import umsgpack
+
+    blobs = re.findall(r"data:application/octet-binary;base64,([A-Za-z0-9+/=]+)", html)
+    return [umsgpack.unpackb(base64.b64decode(b)) for b in blobs]
+
+
+def _clips(cmds) -> dict:
+    (anim,) = [c for c in cmds if c["type"] == "set_animation"]
+    return {a["path"]: a["clip"] for a in anim["animations"]}
+
+
+def _first_visible(clip) -> float | None:
+    """Record time [s] of the first key of a clip's visibility track that shows the object."""
+    (track,) = [t for t in clip["tracks"] if t["name"] == ".visible"]
+    assert track["keys"][0]["value"] is False
+    return next((k["time"] / clip["fps"] for k in track["keys"] if k["value"]), None)
+
+
+def test_replay_of_an_episode_draws_the_panda_meshes_fingers_cube_and_the_faulty_joint(lift, tmp_path):
+    import re
+
+    from robofdi.record import load
+    from robofdi.viz import MeshcatScene, write_replay_html
+    from robofdi.viz.replay import _resample, resolve_mjcf
+
+    wrapped = FaultyRobosuiteEnv(lift, ["actuator_loss_of_effectiveness:joint2:0.6@0.3"], seed=0)
+    try:
+        rd.run_lift_episode(wrapped, 0, steps=12)                         # 0.6 s
+        wrapped.record("replay-test").save(tmp_path / "record.h5")
+        wrapped.write_mjcf(tmp_path)
+    finally:
+        wrapped.detach()
+    record = load(tmp_path / "record.h5")
+    m = lift.sim.model._model
+    qpos, cols = record.signals["qpos"], record.columns["signals/qpos"]
+    assert qpos.shape == (len(record.time), m.nq) and len(cols) == m.nq
+    arm = [cols.index(f"robot0_joint{i}") for i in range(1, 8)]
+    np.testing.assert_array_equal(qpos[:, arm], record.truth_state[:, :7])          # the same instants as the truth
+    table = float(lift.table_offset[2])
+    assert np.all(qpos[:, cols.index("cube_joint0_z")] > table)                        # the cube stands on the table
+    # the model the record names resolves in its folder, and the replay is drawn from it with the recorded qpos
+    assert resolve_mjcf(record, tmp_path) == tmp_path / "model.xml"
+    scene = MeshcatScene(tmp_path / "model.xml")
+    ft, qs = _resample(record, scene, 50)
+    np.testing.assert_allclose(qs[-1], qpos[np.searchsorted(record.time, ft[-1])], atol=1e-9)
+    html = write_replay_html(tmp_path / "record.h5", tmp_path / "out" / "replay.html").read_text()
+    assert len(html) < 8e6
+    assert not re.search(r'(src|href)\s*=\s*["\']?\s*(https?:)?//', html, re.I)
+    assert not re.search(r'(fetch|import)\s*\(?\s*["\']https?://', html)
+    cmds = _replay_commands(html)
+    meshes = {c["path"].split("/")[3] for c in cmds if c["type"] == "set_object"
+              and c["object"]["geometries"][0]["type"] == "BufferGeometry"}
+    assert {f"robot0_link{i}" for i in range(8)} | {"gripper0_right_leftfinger", "gripper0_right_rightfinger"} <= meshes
+    clips = _clips(cmds)
+    assert {"/meshcat/robot/cube_main", "/meshcat/robot/gripper0_right_leftfinger"} <= set(clips)
+    assert _first_visible(clips["/meshcat/robot/robot0_link2/fault_onset_robot0_joint2"]) == pytest.approx(0.3, abs=0.02)
+    assert not any("fault_" in p and "joint4" in p for p in clips)

@@ -34,7 +34,7 @@ from robofdi import RobofdiError
 
 from .scene import MeshcatScene, rgba_to_material
 
-__all__ = ["Replay", "Marker", "resolve_mjcf", "fault_joint", "isolated_joints", "build_replay",
+__all__ = ["Replay", "Marker", "resolve_mjcf", "scene_joints", "fault_joint", "isolated_joints", "build_replay",
            "write_replay_html", "view", "close_visualizer"]
 
 ROOT = "robot"
@@ -74,15 +74,28 @@ class Replay:
 
 
 # ---------------------------------------------------------------------------- record helpers
-def resolve_mjcf(record) -> Path:
-    """The model file of ``record``: ``record.meta["mjcf"]``, relative names resolved against ``robofdi.ASSETS``."""
+def resolve_mjcf(record, folder: str | Path | None = None) -> Path:
+    """The model file of ``record``: ``record.meta["mjcf"]`` (an MJCF XML or a compiled ``.mjb``); a relative name
+    is the file of that name in ``folder`` (the record's run folder, where e.g. the robosuite experiment writes the
+    environment's MJCF) if there is one, else in ``robofdi.ASSETS``."""
     name = (record.meta or {}).get("mjcf")
     if not name or not isinstance(name, str):
         raise RobofdiError("record.meta['mjcf']: missing; expected the MJCF file name of the simulated robot")
     p = Path(name)
     if not p.is_absolute():
-        p = Path(robofdi.ASSETS) / p
+        local = Path(folder) / p if folder is not None else None
+        p = local if local is not None and local.is_file() else Path(robofdi.ASSETS) / p
     return p
+
+
+def scene_joints(record, scene: MeshcatScene) -> dict[str, str]:
+    """Record joint name → the scene's joint name: the same, or with ``record.meta["mjcf_joint_prefix"]`` added
+    (robosuite names the Panda's ``joint2`` ``robot0_joint2`` in its MJCF)."""
+    prefix = str((record.meta or {}).get("mjcf_joint_prefix") or "")
+    out = {j: j for j in scene.joint_names}
+    if prefix:
+        out.update({j[len(prefix):]: j for j in scene.joint_names if j.startswith(prefix)})
+    return out
 
 
 def fault_joint(target: str, joint_names) -> str | None:
@@ -121,14 +134,17 @@ def _choose_diagnoser(record, diagnoser: str | None) -> str | None:
 
 
 def _fault_intervals(record, joint_names) -> dict[str, list[tuple[float, float]]]:
+    """Intervals of the true faults per joint; ``joint_names`` is a list, or a mapping record name → scene name."""
+    alias = joint_names if isinstance(joint_names, dict) else {j: j for j in joint_names}
     faults = (record.meta or {}).get("faults") or []
     out: dict[str, list[tuple[float, float]]] = {}
     for k, f in enumerate(faults):
         if not isinstance(f, dict) or "target" not in f:
             raise RobofdiError(f"record.meta['faults'][{k}]: expected a dict with 'target' and 'onset'")
-        j = fault_joint(f["target"], joint_names)
+        j = fault_joint(f["target"], list(alias))
         if j is None:
             continue  # not a joint-related fault: nothing to draw on the arm
+        j = alias[j]
         onset = f.get("onset")
         onset = 0.0 if onset is None else float(onset)
         end = f.get("end")
@@ -138,6 +154,8 @@ def _fault_intervals(record, joint_names) -> dict[str, list[tuple[float, float]]
 
 
 def _detection_times(record, diag: str | None, joint_names) -> dict[str, float]:
+    """First isolation time per joint; ``joint_names`` as in :func:`_fault_intervals`."""
+    alias = joint_names if isinstance(joint_names, dict) else {j: j for j in joint_names}
     if diag is None:
         return {}
     tr = record.diagnosers[diag]
@@ -147,20 +165,28 @@ def _detection_times(record, diag: str | None, joint_names) -> dict[str, float]:
             iso = iso.decode()
         if not iso:
             continue
-        for j in isolated_joints(iso, joint_names):
-            out.setdefault(j, float(t))
+        for j in isolated_joints(iso, list(alias)):
+            out.setdefault(alias[j], float(t))
     return out
 
 
 def _resample(record, scene: MeshcatScene, fps: int) -> tuple[np.ndarray, np.ndarray]:
-    """Frame times at ``fps`` and the full qpos of the scene at each: the recorded joints (``meta["joint_names"]``,
-    the first columns of the state) at their addresses, every other joint (a gripper) at its reference qpos0.
-    A record without joint names is read as qpos first (the whole qpos)."""
+    """Frame times at ``fps`` and the full qpos of the scene at each: the record's whole MuJoCo qpos if it has one
+    (``signals["qpos"]``, e.g. a robosuite episode: arm, fingers and the cube's free joint), else the recorded
+    joints (``meta["joint_names"]``, the first columns of the state) at their addresses and every other joint (a
+    gripper) at its reference qpos0. A record without either is read as qpos first (the whole qpos)."""
     t = np.asarray(record.time, dtype=float).reshape(-1)
     x = np.asarray(record.truth_state, dtype=float)
     if t.size == 0:
         raise RobofdiError("record.time: empty; expected at least one time stamp")
-    names = list((record.meta or {}).get("joint_names") or [])
+    qpos = (record.signals or {}).get("qpos")
+    if qpos is not None:
+        qpos = np.asarray(qpos, dtype=float)
+        if qpos.shape != (t.size, scene.nq):
+            raise RobofdiError(f"record.signals['qpos']: expected shape ({t.size}, {scene.nq}) (the model's qpos at "
+                               f"every time stamp), got {qpos.shape}")
+        x = qpos
+    names = [] if qpos is not None else list((record.meta or {}).get("joint_names") or [])
     if names:
         address = [scene.joint(j)["qposadr"] for j in names]
     else:
@@ -187,13 +213,21 @@ def _perp_frame(axis: np.ndarray) -> np.ndarray:
     return np.column_stack([x, y, z])
 
 
-def _body_radius(scene: MeshcatScene, body: str) -> float:
-    """A ring radius that encloses the body's geometry near the joint."""
+def _body_radius(scene: MeshcatScene, body: str, anchor=None, axis=None) -> float:
+    """A ring radius that encloses the body's geometry near the joint (meshes: their vertices within 5 cm of the
+    joint anchor along its axis, 90th percentile of the distance to the axis)."""
     r = 0.05
     for gs in scene.geoms:
         if gs.body != body:
             continue
-        if gs.type in ("cylinder", "capsule", "sphere"):
+        if gs.type == "mesh" and anchor is not None:
+            v = gs.vertices @ gs.local[:3, :3].T + gs.local[:3, 3] - anchor
+            a = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+            along = v @ a
+            near = np.abs(along) < 0.05
+            if near.any():
+                r = max(r, float(np.percentile(np.linalg.norm(v[near] - np.outer(along[near], a), axis=1), 90)))
+        elif gs.type in ("cylinder", "capsule", "sphere"):
             r = max(r, gs.size[0])
         elif gs.type == "box":
             r = max(r, float(np.min(gs.size[:3])))
@@ -205,7 +239,7 @@ def _draw_markers(vis, scene: MeshcatScene, joint: str) -> tuple[str, str]:
     body, anchor, axis = info["body"], info["pos"], info["axis"]
     onset = f"{ROOT}/{body}/{_ONSET_NAME.format(joint)}"
     det = f"{ROOT}/{body}/{_DETECTED_NAME.format(joint)}"
-    r = _body_radius(scene, body) * 1.35
+    r = _body_radius(scene, body, anchor, axis) * 1.35
     T = np.eye(4)
     T[:3, :3] = _perp_frame(axis)
     T[:3, 3] = anchor
@@ -247,19 +281,39 @@ def _animate_visibility(anim: Animation, vis, path: str, intervals, frame_times:
 def _set_camera(vis, scene: MeshcatScene, qs: np.ndarray) -> None:
     """Place the default camera so that the robot is in view over the whole motion ``qs`` (frames x nq).
 
-    meshcat 0.3.2's orbit controls always look at the world origin (the robot's base) and the camera lives in
-    the y-up frame ``/Cameras/default/rotated``: world (x, y, z) -> three.js (x, z, -y). The camera is put on
-    a raised diagonal, at the smallest distance where every geom (over a subsample of the frames, plus its
-    size) lies within a cone of 30 deg around the view axis (the vertical half field of view is 37.5 deg).
+    meshcat 0.3.2's orbit controls always look at the world origin and the camera lives in the y-up frame
+    ``/Cameras/default/rotated``: world (x, y, z) -> three.js (x, z, -y). The geoms of the bodies that move in the
+    replay (all non-world ones if none moves; over a subsample of the frames) are framed: if their centre (taken
+    low, half their height below the middle) is more than 0.3 m from the origin, the whole scene is shifted to put
+    it there (grid and axes hidden). The camera is put on a raised diagonal, at the smallest distance where every
+    such geom, plus its own radius, lies within a cone of 30 deg around the view axis (the vertical half field of
+    view is 37.5 deg).
     """
     world = scene.body_names[0]
-    moving = [gs for gs in scene.geoms if gs.body != world]
+    idx = np.unique(np.linspace(0, len(qs) - 1, min(len(qs), 40)).astype(int))
+    poses = [scene.body_transforms(qs[i]) for i in idx]
+    moves = {b for b in scene.body_names if any(not np.allclose(P[b], poses[0][b], atol=1e-6) for P in poses)}
+    moving = [gs for gs in scene.geoms if gs.body in moves] or [gs for gs in scene.geoms if gs.body != world]
     if not moving:
         return
-    margin = max(float(np.max(gs.size)) for gs in moving)
-    idx = np.unique(np.linspace(0, len(qs) - 1, min(len(qs), 40)).astype(int))
-    pts = np.array([T[:3, 3] for i in idx for p, T in scene.geom_transforms(qs[i]).items()
-                    if not p.startswith(world + "/")])
+    radius = np.array([gs.radius for gs in moving])
+    pts, margin = [], []
+    for i in idx:
+        Ts = scene.geom_transforms(qs[i])
+        pts += [Ts[gs.path][:3, 3] for gs in moving]
+        margin.append(radius)
+    pts, margin = np.array(pts), np.concatenate(margin)
+    centre = (pts.min(axis=0) + pts.max(axis=0)) / 2
+    centre[2] = max(centre[2] - 0.5 * (pts[:, 2].max() - pts[:, 2].min()), 0.0)   # the orbit point: low in the motion
+    if np.linalg.norm(centre) > 0.3:
+        # meshcat orbits the world origin: the scene is shifted so that the motion is around it (grid and axes,
+        # which stay at the origin, are hidden)
+        shift = np.eye(4)
+        shift[:3, 3] = -centre
+        vis[ROOT].set_transform(shift)
+        vis["/Grid"].set_property("visible", False)
+        vis["/Axes"].set_property("visible", False)
+        pts = pts - centre
     direction = np.array([1.0, -1.2, 0.55])
     direction /= np.linalg.norm(direction)
     limit = math.radians(30.0)
@@ -276,17 +330,19 @@ def _set_camera(vis, scene: MeshcatScene, qs: np.ndarray) -> None:
 
 
 # ---------------------------------------------------------------------------- public API
-def build_replay(vis: meshcat.Visualizer, record, diagnoser: str | None = None, fps: int = 50) -> Replay:
+def build_replay(vis: meshcat.Visualizer, record, diagnoser: str | None = None, fps: int = 50,
+                 folder: str | Path | None = None) -> Replay:
     """Draw ``record``'s robot into ``vis`` and set an animation of its motion with fault markers.
 
     ``diagnoser`` picks the trace whose isolation drives the "detected" markers (default:
     ``record.meta["primary_diagnoser"]``, else the first diagnoser). Frames are the record's truth
-    ``qpos`` linearly resampled at ``fps``.
+    ``qpos`` linearly resampled at ``fps``. ``folder``: where a relative ``meta["mjcf"]`` is looked for first
+    (:func:`resolve_mjcf`).
     """
     if not isinstance(fps, (int, np.integer)) or fps <= 0:
         raise RobofdiError(f"fps: expected a positive integer, got {fps!r}")
     fps = int(fps)
-    scene = MeshcatScene(resolve_mjcf(record))
+    scene = MeshcatScene(resolve_mjcf(record, folder))
     diag = _choose_diagnoser(record, diagnoser)
     ft, q = _resample(record, scene, fps)
     n = len(ft)
@@ -296,10 +352,10 @@ def build_replay(vis: meshcat.Visualizer, record, diagnoser: str | None = None, 
     scene.set_pose(vis, q[0], ROOT)
     _set_camera(vis, scene, q)
 
-    joints = scene.joint_names
-    onsets = _fault_intervals(record, joints)
-    detections = _detection_times(record, diag, joints)
-    marked = [j for j in joints if j in onsets or j in detections]
+    alias = scene_joints(record, scene)
+    onsets = _fault_intervals(record, alias)
+    detections = _detection_times(record, diag, alias)
+    marked = [j for j in scene.joint_names if j in onsets or j in detections]
 
     anim = Animation(default_framerate=fps)
     for i in range(n):
@@ -361,10 +417,12 @@ def write_replay_html(record, path: str | Path, diagnoser: str | None = None, fp
     """Write a self-contained HTML replay (meshcat's JS inlined, works offline) to ``path``; returns the path.
 
     ``record`` is a :class:`robofdi.record.Record` or the path of a saved one. AUV records go to
-    :func:`robofdi.viz.auv_replay.write_auv_replay_html` (at most 10 frames per second).
+    :func:`robofdi.viz.auv_replay.write_auv_replay_html` (at most 10 frames per second). A relative model name
+    in the record is looked for next to the saved record, else next to ``path`` (the run folder).
     """
-    record = _as_record(record)
     path = Path(path)
+    folder = Path(record).parent if isinstance(record, (str, Path)) else path.parent
+    record = _as_record(record)
     if _is_auv(record):
         from .auv_replay import build_auv_replay
 
@@ -374,7 +432,7 @@ def write_replay_html(record, path: str | Path, diagnoser: str | None = None, fp
             build_auv_replay(vis, record, shown, min(int(fps), 10))
     else:
         def build(vis):
-            build_replay(vis, record, diagnoser=diagnoser, fps=fps)
+            build_replay(vis, record, diagnoser=diagnoser, fps=fps, folder=folder)
     with contextlib.redirect_stdout(io.StringIO()):
         vis = meshcat.Visualizer()
     try:
@@ -427,6 +485,7 @@ def view(record_path, diagnoser: str | None = None, open_browser: bool = True, f
 
     Either signal (and SIGHUP) stops the viewer cleanly: the meshcat server subprocess is killed before return.
     """
+    folder = Path(record_path).parent if isinstance(record_path, (str, Path)) else None
     record = _as_record(record_path)
     stop_signals = [signal.SIGINT, signal.SIGTERM] + ([signal.SIGHUP] if hasattr(signal, "SIGHUP") else [])
     vis = None
@@ -441,7 +500,7 @@ def view(record_path, diagnoser: str | None = None, open_browser: bool = True, f
                 shown = diagnoser or record.meta.get("health_source")
                 build_auv_replay(vis, record, shown, min(int(fps), 10))
             else:
-                shown = build_replay(vis, record, diagnoser=diagnoser, fps=fps).diagnoser
+                shown = build_replay(vis, record, diagnoser=diagnoser, fps=fps, folder=folder).diagnoser
             url = vis.url()
             print(f"robofdi view: {url}  (diagnoser: {shown or 'none'}; "
                   f"use the 'Animations' panel to replay; Ctrl-C to quit)", flush=True)

@@ -1,4 +1,4 @@
-"""A MuJoCo model drawn in meshcat: one meshcat group per body, one primitive per geom.
+"""A MuJoCo model drawn in meshcat: one meshcat group per body, one primitive or triangle mesh per geom.
 
 Layout of the meshcat tree (below the visualizer's root)::
 
@@ -7,6 +7,12 @@ Layout of the meshcat tree (below the visualizer's root)::
 
 Posing the robot is therefore a matter of setting the (few) body transforms; anything attached
 below ``robot/<body>`` (e.g. fault markers) moves with that link.
+
+Mesh geoms are drawn from the *compiled* model's own mesh data (``mesh_vert``/``mesh_face``: already recentred
+and reoriented by MuJoCo's compiler, so ``geom_pos``/``geom_quat`` place them), thinned by vertex clustering;
+nothing is read from the mesh files at drawing time. Colliding geoms (contype or conaffinity not 0) other than
+planes are skipped where visual-only geoms stand for them: in a body that has visual-only geoms, and in a geom group
+that holds no visual-only geom while another group does (robosuite: group 1 visual, group 0 collision).
 """
 from __future__ import annotations
 
@@ -19,7 +25,7 @@ import numpy as np
 
 from robofdi import RobofdiError
 
-__all__ = ["MeshcatScene", "GeomSpec", "rgba_to_material"]
+__all__ = ["MeshcatScene", "GeomSpec", "rgba_to_material", "cluster_vertices", "MESH_CELL"]
 
 _T = mujoco.mjtGeom
 #: Rotation taking meshcat's cylinder axis (+y) onto MuJoCo's (+z): +90 deg about x.
@@ -27,6 +33,31 @@ _Y_TO_Z = np.array([[1.0, 0, 0, 0], [0, 0, -1, 0], [0, 1, 0, 0], [0, 0, 0, 1]])
 #: Thickness of the slab that stands in for a plane [m]; a plane of size 0 (infinite) is drawn this big.
 _PLANE_THICKNESS = 0.01
 _PLANE_DEFAULT_HALF = 2.0
+#: Default cell of the vertex clustering that thins meshes for drawing [m].
+MESH_CELL = 0.004
+
+
+def cluster_vertices(vertices, faces, cell: float) -> tuple[np.ndarray, np.ndarray]:
+    """A lighter mesh: vertices merged per cubic cell of edge ``cell`` [m] at their mean, collapsed and repeated
+    faces dropped, unused vertices removed (vertex clustering, Rossignac & Borrel 1993, eq. of the cell index
+    floor(v / cell)). ``cell`` <= 0 only drops unused vertices."""
+    v = np.asarray(vertices, dtype=float).reshape(-1, 3)
+    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    if cell > 0 and len(v):
+        _, cluster, counts = np.unique(np.floor(v / cell).astype(np.int64), axis=0, return_inverse=True,
+                                       return_counts=True)
+        cluster = cluster.reshape(-1)
+        merged = np.zeros((counts.size, 3))
+        np.add.at(merged, cluster, v)
+        v, f = merged / counts[:, None], cluster[f]
+        f = f[(f[:, 0] != f[:, 1]) & (f[:, 1] != f[:, 2]) & (f[:, 0] != f[:, 2])]
+        if len(f):
+            first = np.argmin(f, axis=1)                      # one rotation per triangle: repeats become equal rows
+            rolled = np.take_along_axis(f, (first[:, None] + np.arange(3)) % 3, axis=1)
+            _, keep = np.unique(rolled, axis=0, return_index=True)
+            f = f[np.sort(keep)]
+    used, f = np.unique(f, return_inverse=True)
+    return v[used], f.reshape(-1, 3)
 
 
 def _homogeneous(pos, rot) -> np.ndarray:
@@ -50,6 +81,22 @@ def rgba_to_material(rgba, *, scale_opacity: float = 1.0) -> g.MeshPhongMaterial
     return g.MeshPhongMaterial(color=color, opacity=opacity, transparent=opacity < 1.0)
 
 
+def _geom_rgba(m: mujoco.MjModel, i: int) -> np.ndarray:
+    """Colour of geom ``i``: its material's rgba times the mean colour of the material's texture if it has one
+    (meshcat gets no textures: a textured cube keeps its hue), else the geom's rgba."""
+    matid = int(m.geom_matid[i])
+    if matid < 0:
+        return np.array(m.geom_rgba[i], dtype=float)
+    rgba = np.array(m.mat_rgba[matid], dtype=float)
+    tex = next((int(t) for t in np.atleast_1d(m.mat_texid[matid]) if t >= 0), -1)
+    if tex >= 0 and int(m.tex_nchannel[tex]) >= 3:
+        adr, c = int(m.tex_adr[tex]), int(m.tex_nchannel[tex])
+        n = int(m.tex_width[tex]) * int(m.tex_height[tex]) * c
+        pixels = np.asarray(m.tex_data[adr:adr + n], dtype=float).reshape(-1, c)
+        rgba[:3] *= pixels[:, :3].mean(axis=0) / 255.0
+    return rgba
+
+
 @dataclass
 class GeomSpec:
     """One drawable geom: its meshcat path, primitive type, sizes, colour and fixed offset in its body frame."""
@@ -61,6 +108,15 @@ class GeomSpec:
     size: np.ndarray          # MuJoCo size vector (3,)
     rgba: np.ndarray          # (4,)
     local: np.ndarray         # (4, 4) pose of the meshcat object in the body frame (cylinder axis fix included)
+    vertices: np.ndarray | None = None   # "mesh": (n, 3) in the geom frame [m]
+    faces: np.ndarray | None = None      # "mesh": (m, 3) vertex indices
+
+    @property
+    def radius(self) -> float:
+        """Radius of a sphere around the geom, centred at its frame origin [m]."""
+        if self.type == "mesh":
+            return float(np.max(np.linalg.norm(self.vertices, axis=1))) if len(self.vertices) else 0.0
+        return float(np.max(self.size))
 
     def geometries(self, inflate: float = 0.0) -> list[tuple[str, g.Geometry, np.ndarray]]:
         """Meshcat primitives ``(name, geometry, pose in the geom's meshcat frame)``; ``inflate`` grows every size [m]."""
@@ -68,6 +124,9 @@ class GeomSpec:
         eye = np.eye(4)
         if self.type == "box":
             return [("", g.Box(2 * s[:3]), eye)]
+        if self.type == "mesh":
+            scale = 1.0 + inflate / max(self.radius, 0.02)     # grown about the geom origin (the mesh centre)
+            return [("", g.TriangularMeshGeometry(self.vertices * scale, self.faces), eye)]
         if self.type == "plane":
             hx = self.size[0] if self.size[0] > 0 else _PLANE_DEFAULT_HALF
             hy = self.size[1] if self.size[1] > 0 else _PLANE_DEFAULT_HALF
@@ -94,25 +153,33 @@ _TYPE_NAMES = {
     _T.mjGEOM_ELLIPSOID: "ellipsoid",
     _T.mjGEOM_CYLINDER: "cylinder",
     _T.mjGEOM_BOX: "box",
+    _T.mjGEOM_MESH: "mesh",
 }
 
 
 class MeshcatScene:
-    """A MuJoCo MJCF model, ready to be drawn into a :class:`meshcat.Visualizer` and posed from ``qpos``.
+    """A MuJoCo model, ready to be drawn into a :class:`meshcat.Visualizer` and posed from ``qpos``.
 
-    Geoms of unsupported types (meshes, height fields) and fully transparent geoms are skipped
-    (listed in :attr:`skipped`).
+    ``mjcf``: an MJCF XML file, a compiled binary model (``.mjb``) or a :class:`mujoco.MjModel`. Height fields,
+    fully transparent geoms and collision geoms that visual geoms stand for (module docstring) are skipped
+    (listed in :attr:`skipped`). ``mesh_cell``: the vertex-clustering cell that thins mesh geoms [m] (0: every vertex).
     """
 
-    def __init__(self, mjcf_path: str | Path):
-        path = Path(mjcf_path)
-        if not path.is_file():
-            raise RobofdiError(f"mjcf file {str(path)!r}: does not exist (expected an MJCF XML file)")
-        try:
-            self.model = mujoco.MjModel.from_xml_path(str(path))
-        except Exception as exc:  # mujoco raises ValueError with the parser's message
-            msg = str(exc).strip().replace("\n", " ")
-            raise RobofdiError(f"mjcf file {str(path)!r}: not a valid MJCF model ({msg})") from exc
+    def __init__(self, mjcf: str | Path | mujoco.MjModel, mesh_cell: float = MESH_CELL):
+        if isinstance(mjcf, mujoco.MjModel):
+            self.model, path = mjcf, Path("<MjModel>")
+        else:
+            path = Path(mjcf)
+            if not path.is_file():
+                raise RobofdiError(f"mjcf file {str(path)!r}: does not exist (expected an MJCF XML file or an .mjb)")
+            try:
+                load = mujoco.MjModel.from_binary_path if path.suffix == ".mjb" else mujoco.MjModel.from_xml_path
+                self.model = load(str(path))
+            except Exception as exc:  # mujoco raises ValueError with the parser's message
+                msg = str(exc).strip().replace("\n", " ")
+                raise RobofdiError(f"mjcf file {str(path)!r}: not a valid MuJoCo model ({msg})") from exc
+        if not (isinstance(mesh_cell, (int, float)) and mesh_cell >= 0):
+            raise RobofdiError(f"mesh_cell: expected a clustering cell >= 0 m, got {mesh_cell!r}")
         self.path = path
         self.data = mujoco.MjData(self.model)
         m = self.model
@@ -120,13 +187,29 @@ class MeshcatScene:
         self.joint_names: list[str] = [m.joint(i).name or f"joint{i}" for i in range(m.njnt)]
         self.geoms: list[GeomSpec] = []
         self.skipped: list[int] = []
+        colliding = (m.geom_contype != 0) | (m.geom_conaffinity != 0)
+        has_visual = set(int(b) for b in m.geom_bodyid[~colliding])
+        visual_groups = set(int(k) for k in m.geom_group[~colliding])
+        meshes: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         for i in range(m.ngeom):
             tname = _TYPE_NAMES.get(int(m.geom_type[i]))
-            matid = int(m.geom_matid[i])
-            rgba = np.array(m.mat_rgba[matid] if matid >= 0 else m.geom_rgba[i], dtype=float)
-            if tname is None or rgba[3] <= 0.0:
+            rgba = _geom_rgba(m, i)
+            hull = bool(colliding[i]) and tname != "plane" and (
+                int(m.geom_bodyid[i]) in has_visual or (visual_groups and int(m.geom_group[i]) not in visual_groups))
+            if tname is None or rgba[3] <= 0.0 or hull:
                 self.skipped.append(i)
                 continue
+            vertices = faces = None
+            if tname == "mesh":
+                mesh = int(m.geom_dataid[i])
+                if mesh not in meshes:
+                    va, vn = int(m.mesh_vertadr[mesh]), int(m.mesh_vertnum[mesh])
+                    fa, fn = int(m.mesh_faceadr[mesh]), int(m.mesh_facenum[mesh])
+                    meshes[mesh] = cluster_vertices(m.mesh_vert[va:va + vn], m.mesh_face[fa:fa + fn], mesh_cell)
+                vertices, faces = meshes[mesh]
+                if not len(faces):
+                    self.skipped.append(i)
+                    continue
             body = self.body_names[int(m.geom_bodyid[i])]
             local = _homogeneous(m.geom_pos[i], _quat_to_mat(m.geom_quat[i]))
             if tname in ("cylinder", "capsule"):
@@ -135,7 +218,7 @@ class MeshcatScene:
                 local = local.copy()
                 local[:3, 3] -= local[:3, 2] * _PLANE_THICKNESS / 2  # top face at the plane
             self.geoms.append(GeomSpec(i, body, f"{body}/geom_{i}", tname, np.array(m.geom_size[i], dtype=float),
-                                       rgba, local))
+                                       rgba, local, vertices, faces))
 
     # ------------------------------------------------------------------ kinematics
     @property

@@ -31,8 +31,13 @@ The gripper is not a fault target (a fault named after it is refused), and the w
 arm controller does not output joint torques or whose arm actuators are not torque motors.
 
 Labels: ``info["robofdi_faults"]`` after every step, the same layout as the dm_control adapter (column 0: active,
-column 1: the change the fault made to its target). The per-substep history (truth, commands, measurements, labels)
-is kept for :meth:`FaultyRobosuiteEnv.record`.
+column 1: the change the fault made to its target). The per-substep history (truth, commands, measurements, labels,
+and the whole MuJoCo ``qpos``: arm, gripper fingers, objects) is kept for :meth:`FaultyRobosuiteEnv.record`.
+
+Replay: the record names the environment's MJCF ``model.xml`` (``meta["mjcf"]``, with robosuite's joint-name prefix
+in ``meta["mjcf_joint_prefix"]``); :meth:`FaultyRobosuiteEnv.write_mjcf` writes that file into the record's folder,
+and :func:`robofdi.viz.write_replay_html` / ``robofdi view`` draw the run from it (its mesh files are robosuite's
+installed assets, read when the model is loaded; nothing downloads).
 
 Seeds: episode k draws its sensor noise and fault randomness from ``robofdi.seeding.stream(seed, "episode", str(k))``
 and seeds robosuite's own task randomness (cube placement, initial joint noise, which robosuite draws from the
@@ -49,6 +54,7 @@ health one substep late.
 from __future__ import annotations
 
 import logging
+from pathlib import Path
 from collections.abc import Sequence
 
 import numpy as np
@@ -80,12 +86,40 @@ finally:
     _ROBOSUITE_LOG.disabled = False
     _ROBOSUITE_LOG.setLevel(logging.WARNING)
 
-__all__ = ["FaultyRobosuiteEnv", "LABELS_KEY", "TORQUE_CONTROLLERS", "RobotArm"]
+__all__ = ["FaultyRobosuiteEnv", "LABELS_KEY", "TORQUE_CONTROLLERS", "RobotArm", "MJCF_FILE", "qpos_columns", "write_mjcf"]
 
 #: The ``info`` entry that carries the ground-truth labels (as in the dm_control adapter).
 LABELS_KEY = "robofdi_faults"
+#: The file name of the environment's MJCF in a run folder (``record.meta["mjcf"]``, see ``write_mjcf``).
+MJCF_FILE = "model.xml"
 #: robosuite's arm controllers whose output robosuite writes to the arm actuators as joint torques.
 TORQUE_CONTROLLERS = (OperationalSpaceController, JointPositionController, JointVelocityController, JointTorqueController)
+
+
+def qpos_columns(m) -> tuple[list[str], list[str]]:
+    """Names and units of the MuJoCo model ``m``'s qpos entries: a hinge or slide joint's name; a free joint's
+    ``<name>_x``, ``_y``, ``_z`` [m] and ``_qw`` … ``_qz`` [1]; a ball joint's ``<name>_qw`` … ``_qz``."""
+    names, units = [], []
+    for j in range(m.njnt):
+        name, kind = m.joint(j).name or f"joint{j}", int(m.jnt_type[j])
+        if kind == mujoco.mjtJoint.mjJNT_FREE:
+            names += [f"{name}_{c}" for c in ("x", "y", "z", "qw", "qx", "qy", "qz")]
+            units += ["m"] * 3 + ["1"] * 4
+        elif kind == mujoco.mjtJoint.mjJNT_BALL:
+            names += [f"{name}_{c}" for c in ("qw", "qx", "qy", "qz")]
+            units += ["1"] * 4
+        else:
+            names.append(name)
+            units.append("rad" if kind == mujoco.mjtJoint.mjJNT_HINGE else "m")
+    return names, units
+
+
+def write_mjcf(env, folder) -> Path:
+    """Write robosuite environment ``env``'s MJCF (its simulator's ``get_xml()``) as ``folder/model.xml``, the model
+    that a record's ``meta["mjcf"]`` names for the replay; returns its path."""
+    path = Path(folder) / MJCF_FILE
+    path.write_text(env.sim.model.get_xml(), encoding="utf-8")
+    return path
 
 
 def _controller_name(controller) -> str:
@@ -282,7 +316,7 @@ class FaultyRobosuiteEnv:
             self.diagnosis.reset()
         if self.accommodation is not None:
             self.accommodation.reset()
-        self.history = {k: [] for k in ("time", "state", "u_cmd", "u", "u_applied", "y_true", "y_meas", "labels")}
+        self.history = {k: [] for k in ("time", "state", "u_cmd", "u", "u_applied", "y_true", "y_meas", "labels", "qpos")}
         return self._observe(obs)
 
     def step(self, action):
@@ -299,6 +333,10 @@ class FaultyRobosuiteEnv:
     def close(self):
         self.detach()
         self.env.close()
+
+    def write_mjcf(self, folder) -> Path:
+        """:func:`write_mjcf` of the wrapped environment."""
+        return write_mjcf(self.env, folder)
 
     def detach(self):
         """Give the robosuite environment back its own substep (it can then be wrapped again); returns it."""
@@ -353,6 +391,7 @@ class FaultyRobosuiteEnv:
         accommodate, inject the actuator faults into data.ctrl, set the components."""
         m, d, a = self.sim.model._model, self.sim.data._data, self.arm
         t = self.time
+        qpos = d.qpos.copy()
         y_true, y = self.measure()
         health = self.health
         if self.diagnosis is not None:
@@ -385,6 +424,7 @@ class FaultyRobosuiteEnv:
         h["y_true"].append(y_true)
         h["y_meas"].append(y)
         h["labels"].append([self.injector.labels[n] for n in self.fault_names])
+        h["qpos"].append(qpos)
 
     def _apply_component(self, kind: str, target: str, value: float) -> None:
         if self._components.get((kind, target)) == value:
@@ -423,6 +463,7 @@ class FaultyRobosuiteEnv:
             columns[f"signals/{key}"], units[f"signals/{key}"] = joints, units_u
         for key in ("y_true", "y_meas"):
             columns[f"signals/{key}"], units[f"signals/{key}"] = channels, units_y
+        columns["signals/qpos"], units["signals/qpos"] = qpos_columns(self.sim.model._model)
         u = np.array(h["u"])
         return Record(
             system=f"robosuite-{type(self.env).__name__}-{a.name}", scenario=scenario, seed=self.seed,
@@ -433,10 +474,11 @@ class FaultyRobosuiteEnv:
                     for i, f in enumerate(self.faults)},
             signals={"reference": np.floor(np.array(h["time"])[:, None] * getattr(self.env, "control_freq", 1.0) + 1e-6),
                      "u_cmd": np.array(h["u_cmd"]), "u": u, "u_diag": u, "y_true": np.array(h["y_true"]),
-                     "y_meas": np.array(h["y_meas"])},
+                     "y_meas": np.array(h["y_meas"]), "qpos": np.array(h["qpos"])},
             diagnosers=dict(diagnosers or {}),
             meta={"injection": "online", "duration": float(h["time"][-1]), "faults": [f.to_dict() for f in self.faults],
-                  "controller": a.controller, "episode": self._episode,
+                  "controller": a.controller, "episode": self._episode, "mjcf": MJCF_FILE,
+                  "mjcf_joint_prefix": a.prefix,
                   "accommodation": type(self.accommodation).__name__ if self.accommodation is not None else None,
                   **(meta or {})},
             columns=columns, units=units)
