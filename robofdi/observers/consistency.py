@@ -14,8 +14,8 @@ the design runs):
   r_k − r_{k−1} = K_O (p_k − p_{k−1} − T (ū − β − r_{k−1}))). A velocity-sensor step of b gives ν = b on its own
   joint only (M⁻¹ undoes the inertial coupling); a drifting or offset encoder gives none (the true velocity is
   untouched), except that a large encoder step moves M(q) q̇ at once: a sample whose kinematic increment is more
-  than a velocity step of ν can make (twice (T/2 + τ_s)|ν|, plus its fault-free scale) is not counted. Its peak is held as long
-  as the longest kinematic window, the time the kinematic row may take to confirm the same fault.
+  than a velocity step of ν can make (twice (T/2 + τ_s)|ν|, plus its fault-free scale) is not counted. Its peak
+  is held as long as the longest kinematic window, the time the kinematic row may take to confirm the same fault.
 
 Why three row sets: kinematically an encoder drift of rate ρ and a velocity bias of −ρ are identical (both add
 a mean −T b to e_k), so only the dynamics can tell them apart, and only at the onset — a real velocity cannot
@@ -89,8 +89,8 @@ class ConsistencyDesign:
 
 class ConsistencyResidual:
     """Diagnoser (see the module docstring). Residual components ``joint<i>``, ``joint<i>_kin`` and
-    ``joint<i>_step`` (dimensionless); estimates: actuator torque ``joint<i>`` [N·m] (level), position offset ``joint<i>_pos``
-    [rad] (increment) and velocity bias ``joint<i>_vel`` [rad/s] (level)."""
+    ``joint<i>_step`` (dimensionless); estimates: actuator torque ``joint<i>`` [N·m] (level), position offset
+    ``joint<i>_pos`` [rad] (increment) and velocity bias ``joint<i>_vel`` [rad/s] (level)."""
 
     def __init__(self, model: ManipulatorModel, design: ConsistencyDesign):
         n = model.n
