@@ -315,16 +315,16 @@ register_system(LinearCampaign())
 
 # ------------------------------------------------------------------------------------ calibration cache (pickled)
 def _cached_calibration(system: str, description: dict, compute) -> tuple[Any, bool]:
-    """``compute()`` once per ``description`` (system options, robot seed, robofdi version), pickled in
-    :func:`robofdi.scenarios.arm.cache_dir`; returns (calibration, True if it came from the cache)."""
+    """``compute()`` once per ``description`` (system options, robot seed) and robofdi's code
+    (:func:`~robofdi.scenarios.arm.code_fingerprint`), pickled in :func:`robofdi.scenarios.arm.cache_dir`;
+    returns (calibration, True if it came from the cache)."""
     import hashlib
     import json
     import pickle
 
-    from robofdi import __version__
-    from robofdi.scenarios.arm import cache_dir
+    from robofdi.scenarios.arm import cache_dir, code_fingerprint
 
-    key = hashlib.sha256(json.dumps({**description, "system": system, "version": __version__}, sort_keys=True,
+    key = hashlib.sha256(json.dumps({**description, "system": system, "code": code_fingerprint()}, sort_keys=True,
                                     default=repr).encode()).hexdigest()[:20]
     path = cache_dir() / f"{system}-calibration-{key}.pkl"
     if path.is_file():

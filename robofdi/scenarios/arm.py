@@ -15,6 +15,7 @@ The steps a scenario runs (each usable on its own):
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
@@ -49,9 +50,6 @@ ACCOMMODATIONS = (None, "compensation")
 #: Random motions added to the derived calibration suite when the consistency scheme runs: the first half
 #: designs it (with the worst-case motions), the second half, never seen by the design, sets its thresholds.
 CONSISTENCY_RANDOM_MOTIONS = 6
-#: Bumped whenever what a cached calibration holds changes (2: the consistency design's step scale;
-#: 3: a reverted experiment; 4, 5: step-row thresholds without the samples that hold a position step).
-CALIBRATION_FORMAT = 5
 #: Schemes whose thresholds are also calibrated in the book's state space (reported next to the book's).
 STATE_SPACE_SCHEMES = ("time_delayed", "recursive")
 
@@ -260,18 +258,28 @@ def cache_dir() -> Path:
     return Path(os.environ.get("ROBOFDI_CACHE") or Path.home() / ".cache" / "robofdi")
 
 
-def _calibration_key(scenario: ArmScenario, sim: ArmSimulator, trajectories: Mapping) -> str:
-    """Everything a calibration depends on: the compiled robot, its seed and harness, rates, schemes, motions."""
-    from robofdi import __version__
+@functools.cache
+def code_fingerprint() -> str:
+    """SHA-256 of robofdi's own source (every .py file of the installed package, by relative path): part of every
+    calibration cache key, so a cached calibration is never reused by code that would compute it differently
+    (a hand-bumped format number was once reused after a revert, and a stale cache went unnoticed)."""
+    root = Path(__file__).resolve().parents[1]
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        digest.update(path.relative_to(root).as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
+    return digest.hexdigest()
 
+
+def _calibration_key(scenario: ArmScenario, sim: ArmSimulator, trajectories: Mapping) -> str:
+    """Everything a calibration depends on: the compiled robot, its seed and harness, rates, schemes, motions and
+    the code (:func:`code_fingerprint`)."""
     description = {
         "robot": hashlib.sha256(mujoco.MjSpec.from_file(str(sim.path)).to_xml().encode()).hexdigest(),
         "joints": list(sim.joint_names), "torque_motors": scenario.torque_motors, "seed": scenario.seed,
         "ripple": scenario.ripple_mode, "sensors": repr(scenario.sensors), "payload": scenario.payload,
         "mismatch": repr(scenario.mismatch), "rates": repr(scenario.loop_rates(sim)), "settings": repr(scenario.settings),
         "schemes": list(scenario.schemes), "margin": scenario.threshold_margin, "blanking": scenario.startup_blanking,
-        "motions": {k: repr(v) for k, v in trajectories.items()}, "version": __version__,
-        "format": CALIBRATION_FORMAT,
+        "motions": {k: repr(v) for k, v in trajectories.items()}, "code": code_fingerprint(),
     }
     return hashlib.sha256(json.dumps(description, sort_keys=True).encode()).hexdigest()[:20]
 
