@@ -125,12 +125,12 @@ class ConsistencyResidual:
         """The current operating-point bound of the dynamic rows [N·m]."""
         return np.maximum(np.einsum("nf,nf->n", self._features, self.design.envelope), 1e-12)
 
-    def velocity_innovation(self, q: np.ndarray, r: np.ndarray) -> np.ndarray:
-        """ν_k = M(q_k)⁻¹ (r_k − r_{k−1}) / K_O [rad/s] (module docstring); 0 at the first sample."""
+    def velocity_innovation(self, mass: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """ν_k = M(q_k)⁻¹ (r_k − r_{k−1}) / K_O [rad/s] (module docstring), given M(q_k); 0 at the first sample."""
         previous, self._r_prev = self._r_prev, r.copy()
         if previous is None:
             return np.zeros(self.n)
-        return np.linalg.solve(self.model.mass_matrix(q), r - previous) / self.design.gain
+        return np.linalg.solve(mass, r - previous) / self.design.gain
 
     def _velocity_steps(self, e: np.ndarray, v: np.ndarray) -> np.ndarray:
         """|ν| / step scale, except where this sample's kinematic increment is more than a velocity step of ν
@@ -150,7 +150,7 @@ class ConsistencyResidual:
         u = check_measurement(u, n, "u")
         r = self._momentum.update(y, u).r
         q, v = y[:n], y[n:]
-        self.innovation = self.velocity_innovation(q, r)
+        self.innovation = self.velocity_innovation(self._momentum.mass, r)   # M(q_k): the observer's, not again
         if self._features is None:      # at rest before the start
             self._features = envelope_features(np.zeros(n), v)
         else:       # the residual's own first-order dynamics: a torque acting over (k−1, k] shows in r_k

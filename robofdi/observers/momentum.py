@@ -43,6 +43,7 @@ class MomentumObserver:
 
     def reset(self) -> None:
         self._prev = None
+        self.mass = None        # M(q_k) of the last sample (None before the first)
 
     def update(self, y: np.ndarray, u: np.ndarray) -> Residual:
         """y = [q; q̇](k), u = ū(k−1)."""
@@ -50,7 +51,8 @@ class MomentumObserver:
         y = check_measurement(y, 2 * n, "y")
         u = check_measurement(u, n, "u")
         q, v = y[:n], y[n:]
-        p = m.mass_matrix(q) @ v
+        self.mass = m.mass_matrix(q)        # M(q_k) of this sample, for users of the momentum (consistency's ν)
+        p = self.mass @ v
         if self._prev is None:
             self._p0, self._integral, self._r = p, np.zeros(n), np.zeros(n)
         else:
