@@ -66,10 +66,11 @@ def _cmd_run(args) -> int:
     print(results_table(summary))
     for check in summary.get("reproduction", []):
         print(f"  [{'pass' if check['pass'] else 'FAIL'}] {check['quantity']}")
-    replay = (run_dir / "replay.html").is_file()
-    print(f"\nrun folder: {run_dir}  (summary.json, record.h5, figures/{', replay.html' if replay else ''})")
-    if replay:
-        print(f"3-D replay: open {run_dir / 'replay.html'} in a browser, or `robofdi view {run_dir / 'record.h5'}`")
+    print(f"\nrun folder: {run_dir}  ({', '.join(sorted(p.name + '/' * p.is_dir() for p in run_dir.iterdir()))})")
+    for replay in sorted(run_dir.glob("replay.html")) + sorted(run_dir.glob("*/replay.html")):   # ch6: per system
+        record = replay.parent / "record.h5"
+        view = f", or `robofdi view {record}`" if record.is_file() else ""
+        print(f"3-D replay: open {replay} in a browser{view}")
     return 0
 
 

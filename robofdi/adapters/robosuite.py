@@ -63,7 +63,7 @@ import mujoco
 
 from robofdi.errors import RobofdiError, all_finite
 from robofdi.faults import Fault, FaultInjector, parse_fault_spec
-from robofdi.models.manipulator import _actuator_kind, _is_motor
+from robofdi.models.manipulator import actuator_kind, is_torque_motor
 from robofdi.protocols import HEALTHY
 from robofdi.record import FaultLabels, Record
 from robofdi.seeding import stream
@@ -178,9 +178,9 @@ class RobotArm:
             if int(m.actuator_trntype[a]) != int(mujoco.mjtTrn.mjTRN_JOINT) or m.jnt_dofadr[joint] != self.dofs[k]:
                 raise RobofdiError(f"actuator {label!r} does not drive arm joint {self.joints[k]!r} through a joint "
                                    "transmission; expected one torque motor per arm joint")
-            if not _is_motor(m, int(a)):
+            if not is_torque_motor(m, int(a)):
                 raise RobofdiError(f"controller {self.controller!r} does not output joint torques to {self.joints[k]!r}: "
-                                   f"its actuator {label!r} is {_actuator_kind(m, int(a))}; expected a torque motor")
+                                   f"its actuator {label!r} is {actuator_kind(m, int(a))}; expected a torque motor")
         gear = m.actuator_gear[self.actuators, 0] * m.actuator_gainprm[self.actuators, 0]
         self.gain = gear.copy()
         self.ctrl_range = m.actuator_ctrlrange[self.actuators].copy()

@@ -28,7 +28,7 @@ from robofdi.seeding import rng
 
 __all__ = [
     "ModelMismatch", "ManipulatorModel", "Drive", "CompiledArm", "compile_arm", "pinocchio_model",
-    "sensor_channel_names", "resolve_asset",
+    "sensor_channel_names", "resolve_asset", "is_torque_motor", "actuator_kind",
 ]
 
 _JOINT_KINDS = {int(mujoco.mjtJoint.mjJNT_HINGE): "hinge", int(mujoco.mjtJoint.mjJNT_SLIDE): "slide",
@@ -109,12 +109,13 @@ def _actuator_label(m: mujoco.MjModel, a: int) -> str:
     return repr(name) if name else f"#{a}"
 
 
-def _is_motor(m: mujoco.MjModel, a: int) -> bool:
+def is_torque_motor(m: mujoco.MjModel, a: int) -> bool:
+    """True when actuator a is a plain torque motor (fixed gain, no bias, no activation dynamics)."""
     return (m.actuator_gaintype[a] == mujoco.mjtGain.mjGAIN_FIXED and m.actuator_biastype[a] == mujoco.mjtBias.mjBIAS_NONE
             and m.actuator_dyntype[a] == mujoco.mjtDyn.mjDYN_NONE)
 
 
-def _actuator_kind(m: mujoco.MjModel, a: int) -> str:
+def actuator_kind(m: mujoco.MjModel, a: int) -> str:
     """A short description of a non-motor actuator, for error messages."""
     dyn, gain, bias = (int(m.actuator_dyntype[a]), int(m.actuator_gaintype[a]), int(m.actuator_biastype[a]))
     if gain == mujoco.mjtGain.mjGAIN_MUSCLE:
@@ -152,10 +153,10 @@ def _select_arm(m: mujoco.MjModel, path: Path, joints: Sequence[str] | None, tor
     names = [_name(m, mujoco.mjtObj.mjOBJ_JOINT, j) for j in range(m.njnt)]
     if joints is None:
         ids = [j for j in range(m.njnt) if _JOINT_KINDS.get(int(m.jnt_type[j])) in ("hinge", "slide")
-               and any(_is_motor(m, a) or torque_motors for a in actuated.get(j, []))]
+               and any(is_torque_motor(m, a) or torque_motors for a in actuated.get(j, []))]
         if not ids:
-            servos = [f"{names[j]!r} ({_actuator_kind(m, a)})" for j, acts in actuated.items() for a in acts
-                      if not _is_motor(m, a)]
+            servos = [f"{names[j]!r} ({actuator_kind(m, a)})" for j, acts in actuated.items() for a in acts
+                      if not is_torque_motor(m, a)]
             hint = (f"; its joint actuators are {', '.join(servos)}: pass torque_motors=True to turn them into motors"
                     if servos else "")
             raise RobofdiError(f"mjcf: no hinge/slide joint of {file} is driven by a motor-type actuator{hint}")
@@ -181,7 +182,7 @@ def _select_arm(m: mujoco.MjModel, path: Path, joints: Sequence[str] | None, tor
             which = ", ".join(_actuator_label(m, a) for a in acts) or "none"
             raise RobofdiError(f"mjcf: arm joint {names[j]!r} of {file} is driven by {len(acts)} joint actuators "
                                f"({which}); expected exactly one")
-        if not _is_motor(m, acts[0]) and not torque_motors:
+        if not is_torque_motor(m, acts[0]) and not torque_motors:
             raise _not_a_motor(m, acts[0], names[j], file)
     arm = set(ids)
     for j in ids:                                        # nothing but arm joints between an arm joint and the world
@@ -190,7 +191,7 @@ def _select_arm(m: mujoco.MjModel, path: Path, joints: Sequence[str] | None, tor
             for k in range(m.body_jntadr[b], m.body_jntadr[b] + m.body_jntnum[b]):
                 if k in arm:
                     continue
-                servos = [a for a in actuated.get(k, []) if not _is_motor(m, a)]
+                servos = [a for a in actuated.get(k, []) if not is_torque_motor(m, a)]
                 if joints is None and servos and _JOINT_KINDS.get(int(m.jnt_type[k])) in ("hinge", "slide"):
                     raise _not_a_motor(m, servos[0], names[k], file)
                 raise RobofdiError(f"joints: arm joint {names[j]!r} of {file} moves with the non-arm joint "
@@ -201,7 +202,7 @@ def _select_arm(m: mujoco.MjModel, path: Path, joints: Sequence[str] | None, tor
 
 def _not_a_motor(m: mujoco.MjModel, a: int, joint: str, file: str) -> RobofdiError:
     return RobofdiError(
-        f"mjcf: actuator {_actuator_label(m, a)} on arm joint {joint!r} of {file} is {_actuator_kind(m, a)}; "
+        f"mjcf: actuator {_actuator_label(m, a)} on arm joint {joint!r} of {file} is {actuator_kind(m, a)}; "
         f"expected a torque motor (<motor>, or <general> with gaintype fixed, biastype none, dyntype none); "
         f"pass torque_motors=True to convert the arm joints' actuators into motors")
 
@@ -235,7 +236,7 @@ def _to_motors(spec: mujoco.MjSpec, m: mujoco.MjModel, ids: list[int], path: Pat
     changed = False
     for j in ids:
         a = actuated[j][0]
-        if _is_motor(m, a):
+        if is_torque_motor(m, a):
             continue
         act = spec.actuators[a]
         if act.name != _name(m, mujoco.mjtObj.mjOBJ_ACTUATOR, a):        # spec order == compiled order

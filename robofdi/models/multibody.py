@@ -15,7 +15,7 @@ import numpy as np
 
 from robofdi.errors import RobofdiError
 from robofdi.models.manipulator import (
-    _JOINT_KINDS, _JOINT_TRANSMISSIONS, ManipulatorModel, ModelMismatch, _actuator_kind, _is_motor, _name, pinocchio_model,
+    _JOINT_KINDS, _JOINT_TRANSMISSIONS, ManipulatorModel, ModelMismatch, actuator_kind, is_torque_motor, _name, pinocchio_model,
 )
 
 __all__ = ["MultibodyModel", "actuation_matrix"]
@@ -33,8 +33,8 @@ def actuation_matrix(m: mujoco.MjModel, joint_ids: list[int], actuators: list[in
         if int(m.actuator_trntype[a]) not in _JOINT_TRANSMISSIONS or int(m.actuator_trnid[a, 0]) not in dof:
             raise RobofdiError(f"model: actuator {label!r} does not drive a hinge/slide joint; expected joint "
                                "transmissions only (tendon and site actuators are not supported)")
-        if not _is_motor(m, a):
-            raise RobofdiError(f"model: actuator {label!r} is {_actuator_kind(m, a)}; expected a torque motor")
+        if not is_torque_motor(m, a):
+            raise RobofdiError(f"model: actuator {label!r} is {actuator_kind(m, a)}; expected a torque motor")
         B[dof[int(m.actuator_trnid[a, 0])], col] = m.actuator_gear[a, 0] * m.actuator_gainprm[a, 0]
     return B
 
