@@ -17,6 +17,12 @@ the design runs):
   than a velocity step of ν can make (twice (T/2 + τ_s)|ν|, plus its fault-free scale) is not counted. Its peak
   is held as long as the longest kinematic window, the time the kinematic row may take to confirm the same fault.
 
+A position step smaller than the windows' scales (a few encoder counts) shows only in the single-sample kinematic
+term, for one sample: such a sample — one whose increment is more than a velocity step of ν can make, the test
+above — is held in ``joint<i>_kin`` for :data:`POSITION_STEP_HOLD`, so that the step persists long enough to be
+isolated. The test is what keeps actuator faults out: an actuator step bends the trajectory within one sample,
+which the trapezoid integrates with an error of the order of T·ν, and the same ν explains it.
+
 Why three row sets: kinematically an encoder drift of rate ρ and a velocity bias of −ρ are identical (both add
 a mean −T b to e_k), so only the dynamics can tell them apart, and only at the onset — a real velocity cannot
 jump by b in one sample without a torque to accelerate it.
@@ -46,11 +52,14 @@ from robofdi.observers.kinematic import (
 from robofdi.observers.momentum import MomentumObserver, identify_friction
 from robofdi.observers.residual import Residual, check_measurement
 
-__all__ = ["ConsistencyDesign", "ConsistencyResidual", "design_consistency", "DEFAULT_GAIN"]
+__all__ = ["ConsistencyDesign", "ConsistencyResidual", "design_consistency", "DEFAULT_GAIN", "POSITION_STEP_HOLD"]
 
 #: Momentum-observer bandwidth K_O [1/s] of the consistency residual: fast enough that an abrupt fault of twice
 #: the smallest detectable size crosses its bound within a few 2 ms samples.
 DEFAULT_GAIN = 150.0
+#: How long [s] a position step seen only by the single-sample kinematic term is held in ``joint<i>_kin``: the
+#: shortest kinematic window, over which larger steps stay in a window sum anyway.
+POSITION_STEP_HOLD = 0.1
 
 
 @dataclass(frozen=True, eq=False)
@@ -102,6 +111,7 @@ class ConsistencyResidual:
         self._a = design.gain * design.T
         self._hold = max(1, int(round(max(design.windows) / design.T)))
         self._single = int(np.argmin(design.windows))       # the single-sample kinematic window
+        self._position_hold = max(1, int(round(POSITION_STEP_HOLD / design.T)))
         names = list(model.joint_names)
         self.inputs = names
         self.measurements = [f"{j}_pos" for j in names] + [f"{j}_vel" for j in names]
@@ -119,6 +129,7 @@ class ConsistencyResidual:
         self._r_prev = None
         self.innovation = np.zeros(self.n)      # ν of the last sample [rad/s]
         self._steps = np.zeros((self._hold, self.n))     # ring buffer of |ν| / scale over the hold
+        self._jumps = np.zeros((self._position_hold, self.n))    # ring buffer of position-step ratios
         self._k = 0
 
     def bound(self) -> np.ndarray:
@@ -132,16 +143,15 @@ class ConsistencyResidual:
             return np.zeros(self.n)
         return np.linalg.solve(mass, r - previous) / self.design.gain
 
-    def _velocity_steps(self, e: np.ndarray, v: np.ndarray) -> np.ndarray:
-        """|ν| / step scale, except where this sample's kinematic increment is more than a velocity step of ν
-        can make: a step b in q̇_k adds −(T/2 + τ_s) b to e_k (:mod:`~robofdi.observers.kinematic`), so
-        |e_k| > 2 (T/2 + |τ_s|) |ν| + its single-sample scale (a factor 2 for ν's own error) holds a position step,
-        which moved M(q) q̇ and so ν, and is no evidence of a velocity-sensor fault."""
+    def _position_steps(self, e: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(mask, |e_k| / single-sample scale) per joint; the mask marks a position step: an increment more than
+        a velocity step of ν can make. A step b in q̇_k adds −(T/2 + τ_s) b to e_k
+        (:mod:`~robofdi.observers.kinematic`), so |e_k| > 2 (T/2 + |τ_s|) |ν| + the single-sample scale (a
+        factor 2 for ν's own error) is a position step."""
         a, b = self.design.window_scales[:, self._single, 0], self.design.window_scales[:, self._single, 1]
-        nu = np.abs(self.innovation)
-        velocity_step_increment = 2 * (self.T / 2 + np.abs(self.design.skew)) * nu
-        position_step = np.abs(e) > velocity_step_increment + a + b * np.abs(v)
-        return np.where(position_step, 0.0, nu / self.design.step_scale)
+        scale = a + b * np.abs(v)
+        velocity_step_increment = 2 * (self.T / 2 + np.abs(self.design.skew)) * np.abs(self.innovation)
+        return np.abs(e) > velocity_step_increment + scale, np.abs(e) / scale
 
     def update(self, y: np.ndarray, u: np.ndarray) -> Residual:
         """y = [q; q̇](k), u = ū(k−1)."""
@@ -157,9 +167,12 @@ class ConsistencyResidual:
             self._features = (1 - self._a) * self._features + self._a * envelope_features(u, self._v_prev)
         self._v_prev = v
         kin, e = self._kinematic.update(q, v)
-        self._steps[self._k % self._hold] = self._velocity_steps(e, v)
+        position_step, single = self._position_steps(e, v)
+        # a position step moved M(q) q̇ and so ν: no evidence of a velocity-sensor fault; it is held instead
+        self._steps[self._k % self._hold] = np.where(position_step, 0.0, np.abs(self.innovation) / self.design.step_scale)
+        self._jumps[self._k % self._position_hold] = np.where(position_step, single, 0.0)
         self._k += 1
-        z = np.concatenate([r / self.bound(), kin, self._steps.max(axis=0)])
+        z = np.concatenate([r / self.bound(), np.maximum(kin, self._jumps.max(axis=0)), self._steps.max(axis=0)])
         estimate = np.concatenate([r, e, -e / self.T])
         return Residual(z, estimate)
 
