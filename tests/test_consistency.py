@@ -9,6 +9,7 @@ from robofdi import RobofdiError
 from robofdi.decision import ThresholdDecision
 from robofdi.loop import Diagnosis, diagnose_record, diagnoser_inputs
 from robofdi.models.friction import JointFriction
+from robofdi.observers.arm_schemes import ArmSchemeSettings
 from robofdi.observers.consistency import ConsistencyDesign, ConsistencyResidual, design_consistency
 from robofdi.observers.kinematic import KinematicConsistency, design_window_scales, kinematic_increments
 from robofdi.scenarios.arm import arm_scenario, calibration, calibration_records, run_scenario
@@ -32,9 +33,11 @@ def designed():
 MARGIN = 2.0   # the bound's margin for motions the design never saw
 
 
-def _trace(record, model, design, rates):
+def _trace(record, model, design, rates, confirm=0):
+    """The scheme with a uniform threshold of MARGIN (and the first alarm isolated at once unless ``confirm``)."""
     d = ConsistencyResidual(model, design)
-    decision = ThresholdDecision(d.components, np.full(len(d.components), MARGIN), d.signatures(), blanking=SKIP)
+    decision = ThresholdDecision(d.components, np.full(len(d.components), MARGIN), d.signatures(), blanking=SKIP,
+                                 confirm=confirm)
     return diagnose_record(record, Diagnosis(d, decision), rates)
 
 
@@ -103,14 +106,18 @@ def test_position_sensor_bias_raises_its_kinematic_row(designed):
 
 @pytest.mark.parametrize("fault, isolated", [("sensor_bias:joint5_vel:0.05@1.0", "joint5_vel"),
                                              ("sensor_drift:joint5_pos:-0.05@1.0", "joint5_pos"),
-                                             ("sensor_bias:joint3_pos:0.05@1.0", "joint3_pos")])
+                                             ("sensor_bias:joint3_pos:0.05@1.0", "joint3_pos"),
+                                             ("sensor_bias:joint6_pos:4e-5@1.0", "joint6_pos")])
 def test_velocity_bias_and_encoder_drift_are_told_apart_by_the_step_row(designed, fault, isolated):
     """Kinematically identical (both add −T·0.05 rad to every e_k); only the velocity step has no torque behind it.
     A 50 mrad encoder step on the moving elbow moves M(q)q̇ at once (ν reaches 2.5× the margin when every sample
-    counts), but its kinematic increment is far more than a velocity step of that ν makes, so it is not counted."""
+    counts), but its kinematic increment is far more than a velocity step of that ν makes, so it is not counted.
+    A 40 µrad (7-count) encoder step shows only in the single-sample kinematic term; that sample is held in the
+    kinematic row, so the step persists into the scheme's confirmation window and is isolated."""
     _, _, model, rates, _, design = designed
     sc = arm_scenario("arm6.xml", faults=[fault], seed=5, schemes=("momentum",))
-    tr = _trace(run_scenario(sc, calibration(sc)[0]), model, design, rates)
+    tr = _trace(run_scenario(sc, calibration(sc)[0]), model, design, rates,
+                confirm=ArmSchemeSettings().consistency_confirm)
     n, t = model.n, tr.time
     j = int(isolated[5]) - 1
     step = np.abs(tr.residual[:, 2 * n + j])
