@@ -14,7 +14,11 @@ Each robot's campaign is resumable (re-running the command continues it). Per di
 - the detection rate of incipient actuator faults (against the momentum baseline's);
 - for encoder drifts: the accumulated offset at detection and the smallest detectable encoder bias of the same
   joint (medians over the drifts; the bias MDF is an upper bound when the smallest bias drawn was detected), and
-  how many of the drifts whose offset reached DRIFT_FACTOR × that bias by the end of the run were detected.
+  how many of the drifts whose offset reached DRIFT_FACTOR × that bias by the end of the run were detected; and
+  how many of the drifts that an oracle could have detected by the end of the run were: the test that knows the
+  onset and the rate d, on the mean of the velocity noise over the t seconds since onset, has z = d·√(t/T)/σ_v;
+  "could" is z ≥ DRIFT_ORACLE_Z. No detector does better: a drift is caught after an offset of about
+  z²σ_v²T/d, more as it slows down (README, "Slow encoder drifts").
 Also the robot's calibration cost (one calibration per robot, computed before the campaign and timed).
 """
 from __future__ import annotations
@@ -33,10 +37,19 @@ except ModuleNotFoundError:        # Python 3.10
 
 from robofdi.campaign import clopper_pearson, detection_curve, run_campaign
 from robofdi.campaign.results import load
+from robofdi.sims.arm import SensorModel
 
 HERE = Path(__file__).resolve().parent
 SAMPLE = 0.002          # diagnosis period of the shipped arms [s]
 DRIFT_FACTOR = 3.0      # a drift "should be detected" once its accumulated offset reaches this × the bias MDF
+DRIFT_ORACLE_Z = 5.0    # the z an oracle test needs (one-sided Gaussian tail 3e-7 per test)
+VELOCITY_NOISE = SensorModel().velocity_noise       # σ_v of the campaign's (default) sensors [rad/s]
+
+
+def drift_oracle_z(rate: float, seconds: float) -> float:
+    """z of the known-onset, known-rate test for an encoder drift of ``rate`` [rad/s] after ``seconds``: its offset
+    over the standard deviation of the integrated velocity noise, σ_v·√(T·t)."""
+    return abs(rate) * np.sqrt(seconds / SAMPLE) / VELOCITY_NOISE
 
 
 def _class(row) -> str:
@@ -77,6 +90,8 @@ def quality(table: pd.DataFrame) -> pd.DataFrame:
         drift = f[f["class"] == "sensor_drift_pos"]
         offsets, biases = [], []      # [rad]: a drift's accumulated offset at detection; the joint's MDF bias
         reached = caught = 0          # drifts whose final offset reached DRIFT_FACTOR × the MDF bias; detected
+        detectable = [bool(r["detected"]) if pd.notna(r["detected"]) else False for _, r in drift.iterrows()
+                      if drift_oracle_z(r["magnitude"], r["duration"] - r["onset"]) >= DRIFT_ORACLE_Z]
         for _, r in drift.iterrows():
             bias = mdf.get(("sensor_bias_pos", r["target"]))
             if not bias:
@@ -99,6 +114,7 @@ def quality(table: pd.DataFrame) -> pd.DataFrame:
             "drift offset at detection / MDF bias [mrad]":
                 f"{1e3 * np.median(offsets):.3f} / {1e3 * np.median(biases):.3f}" if offsets else "-",
             f"drifts reaching {DRIFT_FACTOR:g}×MDF bias detected": f"{caught}/{reached}",
+            f"oracle-detectable drifts (z≥{DRIFT_ORACLE_Z:g}) detected": f"{sum(detectable)}/{len(detectable)}",
         })
     return pd.DataFrame(rows).set_index("diagnoser")
 
