@@ -33,11 +33,14 @@ def designed():
 MARGIN = 2.0   # the bound's margin for motions the design never saw
 
 
-def _trace(record, model, design, rates, confirm=0):
-    """The scheme with a uniform threshold of MARGIN (and the first alarm isolated at once unless ``confirm``)."""
+def _trace(record, model, design, rates, confirm=0, evidence=False):
+    """The scheme with a uniform threshold of MARGIN (and the first alarm isolated at once unless ``confirm``);
+    with ``evidence``, its discriminating rows count as evidence from their design maximum (1), as calibrated."""
     d = ConsistencyResidual(model, design)
-    decision = ThresholdDecision(d.components, np.full(len(d.components), MARGIN), d.signatures(), blanking=SKIP,
-                                 confirm=confirm)
+    threshold = np.full(len(d.components), MARGIN)
+    levels = np.where(np.isin(d.components, d.discriminating), 1.0, MARGIN) if evidence else None
+    decision = ThresholdDecision(d.components, threshold, d.signatures(), blanking=SKIP, confirm=confirm,
+                                 evidence=levels)
     return diagnose_record(record, Diagnosis(d, decision), rates)
 
 
@@ -117,7 +120,7 @@ def test_velocity_bias_and_encoder_drift_are_told_apart_by_the_step_row(designed
     _, _, model, rates, _, design = designed
     sc = arm_scenario("arm6.xml", faults=[fault], seed=5, schemes=("momentum",))
     tr = _trace(run_scenario(sc, calibration(sc)[0]), model, design, rates,
-                confirm=ArmSchemeSettings().consistency_confirm)
+                confirm=ArmSchemeSettings().consistency_confirm, evidence=True)
     n, t = model.n, tr.time
     j = int(isolated[5]) - 1
     step = np.abs(tr.residual[:, 2 * n + j])
@@ -128,6 +131,25 @@ def test_velocity_bias_and_encoder_drift_are_told_apart_by_the_step_row(designed
         assert step[t >= 1.0].max() < 2.0
     time, got = _first_isolation(tr)
     assert got == isolated and time - 1.0 < 0.1
+
+
+def test_a_velocity_step_below_the_step_alarm_is_isolated_from_its_evidence(designed):
+    """A velocity bias of 1.5× the joint's largest fault-free ν: its step row stays below the alarm threshold (2),
+    so without evidence levels only the kinematic row speaks and it is called an encoder drift; counted as
+    evidence from the fault-free maximum (1) once the kinematic row has alarmed, it is the velocity sensor."""
+    _, _, model, rates, _, design = designed
+    b = 1.5 * design.step_scale[4]
+    sc = arm_scenario("arm6.xml", faults=[f"sensor_bias:joint5_vel:{b}@1.0"], seed=5, schemes=("momentum",))
+    rec = run_scenario(sc, calibration(sc)[0])
+    confirm = ArmSchemeSettings().consistency_confirm
+    graded, plain = (_trace(rec, model, design, rates, confirm, evidence) for evidence in (True, False))
+    n, t = model.n, graded.time
+    step = np.abs(graded.residual[:, 2 * n + 4])
+    assert 1.0 < step[(t >= 1.0) & (t < 1.01)].max() < MARGIN
+    assert _first_isolation(plain)[1] == "joint5_pos"
+    time, got = _first_isolation(graded)
+    assert got == "joint5_vel" and time - 1.0 < 0.02
+    assert graded.isolated[-1] == "joint5_vel"       # the encoder hypothesis is not added once ν has decayed
 
 
 def test_kinematic_stepping_matches_the_offline_sums():

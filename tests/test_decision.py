@@ -197,3 +197,27 @@ def test_confirmation_ignores_a_single_crossing_and_reports_unknown():
     d.reset()
     out = [d.update(r) for r in ([0.2, 1.5], [0.2, 0.2], [0.2, 0.2], [0.2, 0.2], [0.2, 0.2])]
     assert all(a.isolated == () for a in out) and out[0].alarm.any()
+
+
+def _encoder_or_velocity(evidence):
+    """The kinematic row alarms for good; the step row stays at 0.6 of its alarm threshold (a velocity jump the
+    false-alarm threshold does not reach) and decays after four samples."""
+    sigs = [Signature("j_pos", {"j_kin"}), Signature("j_vel", {"j_kin", "j_step"})]
+    d = ThresholdDecision(["j_kin", "j_step"], np.ones(2), sigs, confirm=3, evidence=evidence)
+    return [d.update(r) for r in ([0.1, 0.1], [3.0, 0.6], [3.0, 0.6], [3.0, 0.6], [3.0, 0.1], [3.0, 0.1])]
+
+
+def test_evidence_threshold_tells_hypotheses_apart_without_raising_alarms():
+    plain, graded = _encoder_or_velocity(None), _encoder_or_velocity([1.0, 0.5])
+    assert plain[4].isolated == ("j_pos",)
+    assert [a.alarm.tolist() for a in graded] == [a.alarm.tolist() for a in plain]    # alarms unchanged
+    assert graded[4].isolated == ("j_vel",)
+    # latched and confirmed: the kinematic row alone later does not add the encoder fault it would suggest
+    assert graded[5].isolated == ("j_vel",) and graded[5].new == ()
+
+
+@pytest.mark.parametrize("evidence", [[1.0], [1.0, 0.0], [1.0, 1.5], [1.0, np.nan]])
+def test_evidence_is_validated(evidence):
+    sigs = [Signature("j_pos", {"j_kin"})]
+    with pytest.raises(RobofdiError, match="evidence"):
+        ThresholdDecision(["j_kin", "j_step"], np.ones(2), sigs, evidence=evidence)

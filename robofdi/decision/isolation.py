@@ -84,7 +84,14 @@ class ThresholdDecision:
     that window (one isolated crossing is evidence of nothing) and their peak ratios — so isolation does not
     depend on which residual crossed first (a velocity-sensor fault raising its kinematic row one sample after
     its dynamic row). When nothing persisted, nothing is isolated ("unknown") and the next alarm opens a new
-    window. Alarms are not delayed.
+    window. Alarms are not delayed. With ``latch``, a confirmed fault keeps explaining its components: later alarms
+    add a fault only for components it cannot raise (a velocity fault isolated from its step row is not joined
+    by the encoder fault its kinematic row alone would suggest, once the step row has decayed).
+
+    Evidence thresholds: inside a confirmation window a component counts as evidence when |r_j| exceeds
+    ``evidence_j`` (default: its alarm threshold; at most that). A lower evidence level suits a component that
+    only tells hypotheses apart: it need not carry the false-alarm rate on its own, because it is read only
+    once another component has alarmed (the two-threshold scheme: detection, then isolation).
 
     Start-up blanking: the first ``blanking`` samples after :meth:`reset` raise no alarm — the observer's
     start-up transient. Calibration ignores the same samples (``calibrate_thresholds(skip=blanking)``), so the
@@ -98,6 +105,7 @@ class ThresholdDecision:
     latch: bool = True
     blanking: int = 0
     confirm: int = 0
+    evidence: np.ndarray | None = None
     _isolated: list[str] = field(default_factory=list, init=False, repr=False)
 
     def __post_init__(self):
@@ -117,6 +125,17 @@ class ThresholdDecision:
             raise RobofdiError(
                 f"threshold: expected finite values > 0, got {self.threshold[j]} for component {self.components[j]!r}"
             )
+        if self.evidence is None:
+            self.evidence = self.threshold.copy()
+        self.evidence = np.array(self.evidence, dtype=float)
+        if self.evidence.shape != (m,):
+            raise RobofdiError(f"evidence: expected shape ({m},) for {m} components, got {self.evidence.shape}")
+        bad = np.flatnonzero(~np.isfinite(self.evidence) | (self.evidence <= 0) | (self.evidence > self.threshold))
+        if bad.size:
+            j = bad[0]
+            raise RobofdiError(f"evidence: expected values in (0, threshold], got {self.evidence[j]} for component "
+                               f"{self.components[j]!r} (threshold {self.threshold[j]})")
+        self._evidence_ratio = self.evidence / self.threshold
         self.signatures = tuple(self.signatures)
         names = [s.fault for s in self.signatures]
         for sig in self.signatures:
@@ -159,12 +178,13 @@ class ThresholdDecision:
             return Alarms(alarm=np.zeros(m, dtype=bool), isolated=tuple(self._isolated))
         alarm = ratio > 1.0
         if self.confirm and not self._isolated:
+            evident = ratio > self._evidence_ratio
             if self._window is None and alarm.any():
-                self._window = [self.confirm, ratio.copy(), alarm.astype(int)]
+                self._window = [self.confirm, ratio.copy(), evident.astype(int)]
             elif self._window is not None:
                 self._window[0] -= 1
                 np.maximum(self._window[1], ratio, out=self._window[1])
-                self._window[2] += alarm
+                self._window[2] += evident
             if self._window is None or self._window[0] > 0:
                 return Alarms(alarm=alarm, isolated=())
             ratio, persisted = self._window[1], self._window[2] >= 2
@@ -172,7 +192,11 @@ class ThresholdDecision:
             picks = self._isolate(ratio, persisted)
             self._isolated = list(picks)
             return Alarms(alarm=alarm, isolated=tuple(self._isolated), new=tuple(self._isolated))
-        picks = self._isolate(ratio, alarm)
+        if self.confirm and self.latch and self._isolated:      # a confirmed fault keeps explaining its components
+            alarm_new = alarm & ~np.isin(self.components, list(self._explained()))
+            picks = self._isolate(ratio, alarm_new)
+        else:
+            picks = self._isolate(ratio, alarm)
         previous = list(self._isolated)
         if self.latch:
             self._isolated = previous + [f for f in picks if f not in previous]
@@ -180,6 +204,10 @@ class ThresholdDecision:
             self._isolated = picks
         new = tuple(f for f in self._isolated if f not in previous)
         return Alarms(alarm=alarm, isolated=tuple(self._isolated), new=new)
+
+    def _explained(self) -> frozenset[str]:
+        by_name = {s.fault: s for s in self.signatures}
+        return frozenset().union(*(by_name[f].explains for f in self._isolated))
 
     def _isolate(self, ratio: np.ndarray, alarm: np.ndarray) -> list[str]:
         alarmed = {c for c, a in zip(self.components, alarm) if a}

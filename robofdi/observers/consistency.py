@@ -13,13 +13,16 @@ the design runs):
   measured velocity change the dynamics cannot explain (the momentum observer's one-step prediction error,
   r_k − r_{k−1} = K_O (p_k − p_{k−1} − T (ū − β − r_{k−1}))). A velocity-sensor step of b gives ν = b on its own
   joint only (M⁻¹ undoes the inertial coupling); a drifting or offset encoder gives none (the true velocity is
-  untouched), except that a large encoder step moves M(q) q̇ at once: a sample whose kinematic increment is more
-  than a velocity step of ν can make (twice (T/2 + τ_s)|ν|, plus its fault-free scale) is not counted. Its peak
-  is held as long as the longest kinematic window, the time the kinematic row may take to confirm the same fault.
+  untouched), except that a large encoder step moves M(q) q̇ at once, and the observer and the controller answer
+  it over the next samples (a 30 mrad step changes the gravity torque): from a sample whose kinematic increment
+  is more than a velocity step of ν can make (twice (T/2 + τ_s)|ν|, plus its fault-free scale), ν is not counted
+  for :data:`STEP_HOLD`. A velocity-sensor step passes the test at its onset (ν = b explains e_k), and the
+  held peak keeps that sample: the row is the peak of |ν| over :data:`STEP_HOLD`, over its largest fault-free
+  value (the step scale).
 
 A position step smaller than the windows' scales (a few encoder counts) shows only in the single-sample kinematic
 term, for one sample: such a sample — one whose increment is more than a velocity step of ν can make, the test
-above — is held in ``joint<i>_kin`` for :data:`POSITION_STEP_HOLD`, so that the step persists long enough to be
+above — is held in ``joint<i>_kin`` for :data:`STEP_HOLD`, so that the step persists long enough to be
 isolated. The test is what keeps actuator faults out: an actuator step bends the trajectory within one sample,
 which the trapezoid integrates with an error of the order of T·ν, and the same ν explains it.
 
@@ -31,6 +34,11 @@ Signatures (the hypotheses): actuator fault on joint i raises ``joint<i>`` (the 
 M⁻¹); a position-sensor fault raises ``joint<i>_kin`` (the dynamic rows may follow through gravity); a
 velocity-sensor fault raises ``joint<i>_kin`` and ``joint<i>_step`` (the dynamic rows may follow: the measured
 velocity enters the momentum M(q) q̇).
+
+The step rows' alarm threshold carries the false-alarm rate, so it sits 2–3× above the largest fault-free |ν| of
+the calibration; a velocity bias of 0.02–0.05 rad/s then left its step row below it and was isolated as an
+encoder drift. As evidence, once a kinematic row has alarmed, a step row counts from its largest fault-free value
+(``discriminating``; :class:`~robofdi.decision.ThresholdDecision`'s ``evidence``).
 
 Everything it needs from fault-free data is one :class:`ConsistencyDesign`, computed once per robot by
 :func:`design_consistency` from a motion suite.
@@ -52,14 +60,16 @@ from robofdi.observers.kinematic import (
 from robofdi.observers.momentum import MomentumObserver, identify_friction
 from robofdi.observers.residual import Residual, check_measurement
 
-__all__ = ["ConsistencyDesign", "ConsistencyResidual", "design_consistency", "DEFAULT_GAIN", "POSITION_STEP_HOLD"]
+__all__ = ["ConsistencyDesign", "ConsistencyResidual", "design_consistency", "DEFAULT_GAIN", "STEP_HOLD"]
 
 #: Momentum-observer bandwidth K_O [1/s] of the consistency residual: fast enough that an abrupt fault of twice
 #: the smallest detectable size crosses its bound within a few 2 ms samples.
 DEFAULT_GAIN = 150.0
-#: How long [s] a position step seen only by the single-sample kinematic term is held in ``joint<i>_kin``: the
-#: shortest kinematic window, over which larger steps stay in a window sum anyway.
-POSITION_STEP_HOLD = 0.1
+#: How long [s] a one-sample step is held: a position step seen only by the single-sample kinematic term in
+#: ``joint<i>_kin`` (the shortest kinematic window, over which larger steps stay in a window sum anyway), and the
+#: velocity innovation in ``joint<i>_step`` (a velocity step the step row sees is large enough for the kinematic
+#: row to alarm within a few samples: the hold only has to reach into the confirmation window).
+STEP_HOLD = 0.1
 
 
 @dataclass(frozen=True, eq=False)
@@ -109,15 +119,17 @@ class ConsistencyResidual:
         self._momentum = MomentumObserver(model, design.T, design.gain, design.friction)
         self._kinematic = KinematicConsistency(design.T, design.skew, design.window_scales, design.windows)
         self._a = design.gain * design.T
-        self._hold = max(1, int(round(max(design.windows) / design.T)))
+        self._hold = max(1, int(round(STEP_HOLD / design.T)))
         self._single = int(np.argmin(design.windows))       # the single-sample kinematic window
-        self._position_hold = max(1, int(round(POSITION_STEP_HOLD / design.T)))
         names = list(model.joint_names)
         self.inputs = names
         self.measurements = [f"{j}_pos" for j in names] + [f"{j}_vel" for j in names]
         self.components = names + [f"{j}_kin" for j in names] + [f"{j}_step" for j in names]
         self.estimate_components = names + [f"{j}_pos" for j in names] + [f"{j}_vel" for j in names]
         self.estimate_modes = ["level"] * n + ["increment"] * n + ["level"] * n
+        #: The rows that tell hypotheses apart (velocity sensor or encoder) once another row has alarmed: their
+        #: evidence level is their largest fault-free value, not their false-alarm threshold (ThresholdDecision).
+        self.discriminating = [f"{j}_step" for j in names]
         self.units = {"residual": ["1"] * (3 * n), "estimate": ["N·m"] * n + ["rad"] * n + ["rad/s"] * n}
         self.reset()
 
@@ -129,7 +141,7 @@ class ConsistencyResidual:
         self._r_prev = None
         self.innovation = np.zeros(self.n)      # ν of the last sample [rad/s]
         self._steps = np.zeros((self._hold, self.n))     # ring buffer of |ν| / scale over the hold
-        self._jumps = np.zeros((self._position_hold, self.n))    # ring buffer of position-step ratios
+        self._jumps = np.zeros((self._hold, self.n))    # ring buffer of position-step ratios
         self._k = 0
 
     def bound(self) -> np.ndarray:
@@ -168,9 +180,11 @@ class ConsistencyResidual:
         self._v_prev = v
         kin, e = self._kinematic.update(q, v)
         position_step, single = self._position_steps(e, v)
-        # a position step moved M(q) q̇ and so ν: no evidence of a velocity-sensor fault; it is held instead
-        self._steps[self._k % self._hold] = np.where(position_step, 0.0, np.abs(self.innovation) / self.design.step_scale)
-        self._jumps[self._k % self._position_hold] = np.where(position_step, single, 0.0)
+        # a position step moved M(q) q̇ and so ν, and the observer and the controller answer it for a while: no
+        # evidence of a velocity-sensor fault until it has left the hold; the step itself is held instead
+        self._jumps[self._k % self._hold] = np.where(position_step, single, 0.0)
+        after_step = self._jumps.max(axis=0) > 0
+        self._steps[self._k % self._hold] = np.where(after_step, 0.0, np.abs(self.innovation) / self.design.step_scale)
         self._k += 1
         z = np.concatenate([r / self.bound(), np.maximum(kin, self._jumps.max(axis=0)), self._steps.max(axis=0)])
         estimate = np.concatenate([r, e, -e / self.T])

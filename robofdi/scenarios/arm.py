@@ -198,13 +198,15 @@ def calibration_records(scenario: ArmScenario, progress: Callable[[int], None] |
 @dataclass
 class Calibration:
     """Calibrated thresholds per scheme (residual space of the scheme), the adaptive model's θ₀, the start-up
-    blanking [samples] used for both, and the consistency scheme's design (None when it does not run)."""
+    blanking [samples] used for both, the consistency scheme's design (None when it does not run) and evidence
+    levels per scheme (:class:`~robofdi.decision.ThresholdDecision`; absent: the thresholds)."""
 
     thresholds: dict[str, np.ndarray]
     theta0: np.ndarray
     blanking: int
     state_thresholds: dict[str, np.ndarray] = field(default_factory=dict)
     consistency: ConsistencyDesign | None = None
+    evidence: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 def calibrate(scenario: ArmScenario, records: dict[str, Record],
@@ -228,22 +230,28 @@ def calibrate(scenario: ArmScenario, records: dict[str, Record],
         design = design_consistency(model, [diagnoser_inputs(records[k], rates) for k in designing], T,
                                     settings.consistency_gain, skip, settings.consistency_windows)
 
+    evidence = {}
+
     def thresholds(scheme_settings, names):
         out = {}
         for name in names:
             runs = [records[k] for k in (consistency_split(records)[1] or records)] if name == "consistency" \
                 else records.values()
-            residuals = [diagnose_record(rec, Diagnosis(arm_schemes(model, scheme_settings, theta0, [name], design)[name]),
-                                         rates, progress).residual for rec in runs]
+            diagnoser = arm_schemes(model, scheme_settings, theta0, [name], design)[name]
+            residuals = [diagnose_record(rec, Diagnosis(diagnoser), rates, progress).residual for rec in runs]
             if name == "consistency":       # on motions the design never saw, for a false-alarm rate per hour
                 out[name] = extreme_value_thresholds(residuals, T, settings.consistency_false_alarm_rate, skip=skip)
+                # discriminating rows: evidence from their largest fault-free value, designed (1) or held out
+                largest = np.maximum(calibrate_thresholds(residuals, 1.0, skip), 1.0)
+                chosen = np.isin(diagnoser.components, diagnoser.discriminating)
+                evidence[name] = np.where(chosen, np.minimum(largest, out[name]), out[name])
             else:
                 out[name] = calibrate_thresholds(residuals, scenario.threshold_margin, skip)
         return out
 
     state_schemes = [s for s in STATE_SPACE_SCHEMES if s in scenario.schemes]
     return Calibration(thresholds(settings, scenario.schemes), theta0, skip,
-                       thresholds(replace(settings, residual_space="state"), state_schemes), design)
+                       thresholds(replace(settings, residual_space="state"), state_schemes), design, evidence)
 
 
 def calibration_steps(scenario: ArmScenario, records_duration: float, rates: Rates) -> int:
@@ -296,7 +304,8 @@ def calibration(scenario: ArmScenario, progress: Callable[[int], None] | None = 
             design = {k[3:]: data[k] for k in data.files if k.startswith("cs_")}
             cal = Calibration({k[3:]: data[k] for k in data.files if k.startswith("th_")}, data["theta0"],
                               int(data["blanking"]), {k[3:]: data[k] for k in data.files if k.startswith("st_")},
-                              ConsistencyDesign.from_arrays(design) if design else None)
+                              ConsistencyDesign.from_arrays(design) if design else None,
+                              {k[3:]: data[k] for k in data.files if k.startswith("ev_")})
         if set(cal.thresholds) == set(scenario.schemes):
             return cal, True
     cal = calibrate(scenario, calibration_records(replace(scenario, calibration=trajectories), progress), progress)
@@ -307,7 +316,7 @@ def calibration(scenario: ArmScenario, progress: Callable[[int], None] | None = 
             design = cal.consistency.arrays() if cal.consistency is not None else {}
             np.savez(tmp, theta0=cal.theta0, blanking=cal.blanking, **{f"th_{k}": v for k, v in cal.thresholds.items()},
                      **{f"st_{k}": v for k, v in cal.state_thresholds.items()},
-                     **{f"cs_{k}": v for k, v in design.items()})
+                     **{f"cs_{k}": v for k, v in design.items()}, **{f"ev_{k}": v for k, v in cal.evidence.items()})
             tmp.replace(path)
         except OSError:
             pass  # a read-only cache only costs the next run its calibration
@@ -319,7 +328,7 @@ def _diagnoses(scenario: ArmScenario, model: ManipulatorModel, cal: Calibration,
     for name, diagnoser in arm_schemes(model, settings, cal.theta0, scenario.schemes, cal.consistency).items():
         confirm = settings.consistency_confirm if name == "consistency" else 0
         decision = ThresholdDecision(diagnoser.components, cal.thresholds[name], diagnoser.signatures(),
-                                     blanking=cal.blanking, confirm=confirm)
+                                     blanking=cal.blanking, confirm=confirm, evidence=cal.evidence.get(name))
         diagnoses[name] = Diagnosis(diagnoser, decision)
     return diagnoses
 
