@@ -28,7 +28,7 @@ from robofdi.errors import RobofdiError
 __all__ = ["KinematicConsistency", "kinematic_increments", "identify_skew", "design_window_scales", "WINDOWS"]
 
 #: Window lengths [s] of the accumulated inconsistency (0 = the single sample).
-WINDOWS = (0.0, 0.1, 0.5, 2.0)
+WINDOWS = (0.0, 0.1, 0.5, 2.0, 4.0)
 #: The longest window whose scale is learnt from the calibration suite alone. A 2 s scale learnt from the suite's
 #: few 2 s windows was measured to underestimate the random walk of the integrated velocity noise (false alarms on
 #: unseen motions: arm campaign, run 1 of seed 10); longer windows get at least this window's scale grown as a
