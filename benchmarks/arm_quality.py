@@ -19,11 +19,13 @@ Each robot's campaign is resumable (re-running the command continues it). Per di
   onset and the rate d, on the mean of the velocity noise over the t seconds since onset, has z = d·√(t/T)/σ_v;
   "could" is z ≥ DRIFT_ORACLE_Z. No detector does better: a drift is caught after an offset of about
   z²σ_v²T/d, more as it slows down (README, "Slow encoder drifts").
-Also the robot's calibration cost (one calibration per robot, computed before the campaign and timed).
+Also the robot's calibration cost (one calibration per robot, computed before the campaign and timed; a cached
+one costs the time to load it: empty ROBOFDI_CACHE to measure it).
 """
 from __future__ import annotations
 
 import argparse
+import json
 import time
 from pathlib import Path
 
@@ -152,6 +154,10 @@ def main() -> None:
         run_campaign(spec, out, workers=args.workers, resume=resume, runs=args.runs, progress=True)
         table = load(out).table
         print(f"\n## {robot}: {table['index'].nunique()} runs, {time.perf_counter() - t0:.0f} s wall this session")
+        calibration = (json.loads((out / "campaign.json").read_text()).get("execution") or {}).get("calibration")
+        for key, info in ((calibration or {}).get("per_key") or {}).items():
+            how = "from the cache" if info["cached"] else "computed"
+            print(f"calibration (robot seed {key}): {info['seconds']:.1f} s, {how}")
         print(quality(table).to_string())
         if "consistency" in spec["diagnosers"]:
             print("\nconsistency by fault class:")
