@@ -181,7 +181,13 @@ class ConsistencyResidual:
         kin, e = self._kinematic.update(q, v)
         position_step, single = self._position_steps(e, v)
         # a position step moved M(q) q̇ and so ν, and the observer and the controller answer it for a while: no
-        # evidence of a velocity-sensor fault until it has left the hold; the step itself is held instead
+        # evidence of a velocity-sensor fault until it has left the hold; the step itself is held instead. Nor is
+        # any ν held from before the step, but the previous sample's: the change is at this sample or, for a
+        # velocity step flagged one sample late (e = −T b against ν = −K_O T b), at the previous one
+        if position_step.any():
+            previous = self._steps[(self._k - 1) % self._hold, position_step].copy()
+            self._steps[:, position_step] = 0.0
+            self._steps[(self._k - 1) % self._hold, position_step] = previous
         self._jumps[self._k % self._hold] = np.where(position_step, single, 0.0)
         after_step = self._jumps.max(axis=0) > 0
         self._steps[self._k % self._hold] = np.where(after_step, 0.0, np.abs(self.innovation) / self.design.step_scale)
