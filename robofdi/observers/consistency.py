@@ -35,7 +35,7 @@ M⁻¹); a position-sensor fault raises ``joint<i>_kin`` (the dynamic rows may f
 velocity-sensor fault raises ``joint<i>_kin`` and ``joint<i>_step`` (the dynamic rows may follow: the measured
 velocity enters the momentum M(q) q̇).
 
-The step rows' alarm threshold carries the false-alarm rate, so it sits 2–3× above the largest fault-free |ν| of
+The step rows' alarm threshold carries the false-alarm rate, so it sits 1.4–3.5× above the largest fault-free |ν| of
 the calibration; a velocity bias of 0.02–0.05 rad/s then left its step row below it and was isolated as an
 encoder drift. As evidence, once a kinematic row has alarmed, a step row counts from its largest fault-free value
 (``discriminating``; :class:`~robofdi.decision.ThresholdDecision`'s ``evidence``).
