@@ -154,6 +154,7 @@ class ThresholdDecision:
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
                 raise RobofdiError(f"{name}: expected an integer number of samples >= 0, got {value!r}")
         self._index = {c: j for j, c in enumerate(self.components)}
+        self._by_fault = {s.fault: s for s in self.signatures}
         self.reset()
 
     def reset(self) -> None:
@@ -206,8 +207,8 @@ class ThresholdDecision:
         return Alarms(alarm=alarm, isolated=tuple(self._isolated), new=new)
 
     def _explained(self) -> frozenset[str]:
-        by_name = {s.fault: s for s in self.signatures}
-        return frozenset().union(*(by_name[f].explains for f in self._isolated))
+        """Every component the faults isolated so far can account for."""
+        return frozenset().union(*(self._by_fault[f].explains for f in self._isolated))
 
     def _isolate(self, ratio: np.ndarray, alarm: np.ndarray) -> list[str]:
         alarmed = {c for c, a in zip(self.components, alarm) if a}
