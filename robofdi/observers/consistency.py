@@ -189,10 +189,10 @@ class ConsistencyResidual:
             self._steps[:, position_step] = 0.0
             self._steps[(self._k - 1) % self._hold, position_step] = previous
         self._jumps[self._k % self._hold] = np.where(position_step, single, 0.0)
-        after_step = self._jumps.max(axis=0) > 0
-        self._steps[self._k % self._hold] = np.where(after_step, 0.0, np.abs(self.innovation) / self.design.step_scale)
+        jumps = self._jumps.max(axis=0)
+        self._steps[self._k % self._hold] = np.where(jumps > 0, 0.0, np.abs(self.innovation) / self.design.step_scale)
         self._k += 1
-        z = np.concatenate([r / self.bound(), np.maximum(kin, self._jumps.max(axis=0)), self._steps.max(axis=0)])
+        z = np.concatenate([r / self.bound(), np.maximum(kin, jumps), self._steps.max(axis=0)])
         estimate = np.concatenate([r, e, -e / self.T])
         return Residual(z, estimate)
 
