@@ -61,7 +61,7 @@ from robofdi.loop import ClosedLoop, Diagnosis, DiagnosisRunner, Rates, diagnose
 from robofdi.observers import DiagnosticObserver
 from robofdi.observers.arm_schemes import BOOK_SCHEMES as SCHEMES, arm_schemes
 from robofdi.observers.spectral import ripple_initial_parameters
-from robofdi.scenarios.arm import ArmScenario
+from robofdi.systems.arm import ArmScenario
 from robofdi.sims import ArmSimulator, SensorModel, StribeckFriction, TorqueRipple
 
 # The book's motion (experiments/ch3_industrial_robot.py): q0 → q0 + Δq in 4 s.

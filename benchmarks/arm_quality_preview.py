@@ -21,7 +21,7 @@ from robofdi.control import MotionLimits, random_point_to_point
 from robofdi.evaluate import summarize
 from robofdi.faults import Fault
 from robofdi.faults.profiles import ExponentialRise
-from robofdi.scenarios.arm import arm_scenario, calibration, run_scenario
+from robofdi.systems.arm import arm_scenario, calibration, run_scenario
 
 
 def draw_fault(g: np.random.Generator, names, torque_limit, end: float) -> tuple[str, Fault]:

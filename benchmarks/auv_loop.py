@@ -42,7 +42,7 @@ def main() -> None:
     from robofdi.control.auv import TaskSpaceAuvControl
     from robofdi.ftc.allocation import column_deletion_allocation, constrained_allocation, pseudo_inverse_allocation
     from robofdi.loop import Diagnosis, diagnose_record
-    from robofdi.scenarios.auv import AuvScenario, build_loop, calibrate, odin_mission
+    from robofdi.systems.auv import AuvScenario, build_loop, calibrate, odin_mission
 
     sc = AuvScenario(duration=60.0, calibration_runs=1, calibration_duration=60.0)
     sim = sc.simulator()

@@ -1,5 +1,5 @@
 """Cross-use comparison on one scenario (README, "Linear-system fault estimation"): arm6 holding q₀, a 20 N·m step on
-joint 2 at 1.5 s. The linearised adaptive fault estimator (robofdi.scenarios.arm_linearized) against the native arm
+joint 2 at 1.5 s. The linearised adaptive fault estimator (robofdi.systems.arm_linearized) against the native arm
 schemes, both calibrated on fault-free runs of the same hold (native: margin 1.2, their own calibration machinery).
 
     python benchmarks/cross_use_hold.py
@@ -15,8 +15,8 @@ import numpy as np
 
 from robofdi.control import Quintic
 from robofdi.evaluate import summarize
-from robofdi.scenarios.arm import calibration, run_scenario
-from robofdi.scenarios.arm_linearized import run_linearized
+from robofdi.systems.arm import calibration, run_scenario
+from robofdi.systems.arm_linearized import run_linearized
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from test_cross_use import Q0, hold_scenario  # noqa: E402

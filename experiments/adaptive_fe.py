@@ -18,7 +18,7 @@ from robofdi.evaluate.figures import save_figure
 from robofdi.evaluate.reproduction import reproduction_check as check
 from robofdi.evaluate.run_folder import prepare_run_dir, write_run_folder
 from robofdi.observers.adaptive import is_spd
-from robofdi.scenarios.f16 import F16Scenario, build_loop, calibrate, fault_estimates
+from robofdi.systems.f16 import F16Scenario, build_loop, calibrate, fault_estimates
 
 EXPERIMENTS = {"adaptive-fe": "Seed 004 (reconstructed): adaptive fault-estimation observer, constant + ramp faults, "
                               "vertical-plane aircraft"}

@@ -6,7 +6,7 @@ the first fault-tolerant control — compensation of the identified actuator fau
 
 SPEC = KIND:TARGET:MAGNITUDE@ONSET[-END][~PROFILE][;NAME=VALUE] (see :mod:`robofdi.faults.spec`), e.g.
 ``actuator_additive:joint2:20@1.0``. Without ``--fault``: a step of 25 % of the motor torque limit on a seeded
-random joint, at 40 % of the motion (:func:`robofdi.scenarios.arm.arm_scenario`). The robot's calibration
+random joint, at 40 % of the motion (:func:`robofdi.systems.arm.arm_scenario`). The robot's calibration
 (thresholds, ripple initialisation) is computed once per robot and seed on motions derived from its joint ranges
 and torque limits, and cached; the motion under test is drawn from the seed and plays no part in it.
 
@@ -25,7 +25,7 @@ from robofdi.evaluate import summarize
 from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, write_run_folder
 from robofdi.loop import ORACLE
 from robofdi.record import Record
-from robofdi.scenarios.arm import arm_scenario, calibration, calibration_steps, calibration_trajectories, run_scenario
+from robofdi.systems.arm import arm_scenario, calibration, calibration_steps, calibration_trajectories, run_scenario
 
 EXPERIMENTS = {"arm": "Any MJCF arm (--robot, --fault SPEC): seeded motion, all arm diagnosers online, fault compensation"}
 HEALTH_SOURCE = "consistency"

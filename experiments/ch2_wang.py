@@ -21,7 +21,7 @@ from robofdi.evaluate.reproduction import reproduction_check as check
 from robofdi.evaluate.run_folder import prepare_run_dir, write_run_folder
 from robofdi.models.linear_examples import CHIP_REFINER, chip_refiner
 from robofdi.observers.gain import GainFaultObserver
-from robofdi.scenarios.refiner import F_H, PAPER_FAULTS, run_refiner, true_gain
+from robofdi.systems.refiner import F_H, PAPER_FAULTS, run_refiner, true_gain
 
 EXPERIMENTS = {"ch2-wang": "Book ch. 2 (Wang): gain-fault detection, recursive diagnosis and FTC on the TMP chip refiner"}
 SEEDS = 20

@@ -27,7 +27,7 @@ from robofdi.evaluate import results_table, summarize
 from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, write_run_folder
 from robofdi.faults import ExponentialRise, Fault
 from robofdi.loop import Rates
-from robofdi.scenarios.arm import ArmScenario, calibration, calibration_steps, check_scenario, run_scenario
+from robofdi.systems.arm import ArmScenario, calibration, calibration_steps, check_scenario, run_scenario
 
 Q0 = (np.pi / 2, -2 * np.pi / 3, np.pi / 6, -np.pi / 2, np.pi / 2, 0.0)
 DQ = (np.pi / 4, np.pi / 4, -np.pi / 4, 0.0, -np.pi / 2, np.pi / 2)

@@ -27,14 +27,12 @@ goes on (summary.json["depth_switch"]).
 """
 from __future__ import annotations
 
-import hashlib
-import json
-import pickle
 from dataclasses import asdict, replace
 from pathlib import Path
 
 import numpy as np
 
+from robofdi.calibration import is_cached
 from robofdi.errors import RobofdiError
 from robofdi.evaluate.figures import save_figure
 from robofdi.evaluate import summarize
@@ -42,9 +40,9 @@ from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, write_run
 from robofdi.faults import Fault
 from robofdi.ftc.allocation import capability
 from robofdi.record import Record
-from robofdi.scenarios.auv import (
-    AuvCalibration, AuvScenario, calibrate, check_scenario, current_map_regions, depth_switch_time, run_scenario,
-    tracking_rms,
+from robofdi.systems.auv import (
+    AuvScenario, calibration, calibration_description, check_scenario, current_map_regions, depth_switch_time,
+    run_scenario, tracking_rms,
 )
 
 EXPERIMENTS = {
@@ -92,37 +90,6 @@ def ch4_roby2_scenario(seed: int = 0, duration: float = 120.0, onset: float = 60
 
 SCENARIOS = {"ch4-auv": ch4_auv_scenario, "ch4-flooded": ch4_flooded_scenario, "ch4-depth-sensor": ch4_depth_sensor_scenario,
              "ch4-roby2": ch4_roby2_scenario}
-
-
-def _cache_path(scenario: AuvScenario) -> Path:
-    from robofdi import __version__
-    from robofdi.scenarios.arm import cache_dir
-
-    base = replace(scenario, name="calibration", faults=(), variant="no_ftc", duration=1.0)
-    key = hashlib.sha256(json.dumps({"scenario": repr(base), "version": __version__}).encode()).hexdigest()[:20]
-    return cache_dir() / f"auv-calibration-{key}.pkl"
-
-
-def calibration(scenario: AuvScenario, progress=None, cache: bool = True) -> tuple[AuvCalibration, bool]:
-    """:func:`robofdi.scenarios.auv.calibrate`, cached per configuration (faults, variant, mission play no part)."""
-    path = _cache_path(scenario)
-    if cache and path.is_file():
-        try:
-            cal = pickle.loads(path.read_bytes())
-            if isinstance(cal, AuvCalibration) and set(cal.thresholds) == set(scenario.diagnosers):
-                return cal, True
-        except (OSError, pickle.UnpicklingError, EOFError, AttributeError):
-            pass
-    cal = calibrate(scenario, progress)
-    if cache:
-        try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            tmp = path.with_suffix(".tmp")
-            tmp.write_bytes(pickle.dumps(cal))
-            tmp.replace(path)
-        except OSError:
-            pass
-    return cal, False
 
 
 def _steps(scenario: AuvScenario, runs: int, cached: bool) -> int:
@@ -397,7 +364,7 @@ def run(name: str = "ch4-auv", out: str | Path = "runs", seed: int = 0, progress
     if name not in EXPERIMENTS:
         raise RobofdiError(f"unknown experiment {name!r}; expected one of {', '.join(EXPERIMENTS)}")
     sc = SCENARIOS[name](seed)
-    cached = _cache_path(sc).is_file()
+    cached = is_cached("auv", calibration_description(sc))
     runs = {"ch4-auv": 4, "ch4-roby2": 1 + FAULT_FREE_CHECK / sc.duration}.get(name, 1)
     run_dir = prepare_run_dir(out, name, seed)
     runner = {"ch4-auv": _run_ch4_auv, "ch4-flooded": _run_ch4_flooded, "ch4-depth-sensor": _run_ch4_depth_sensor,

@@ -16,9 +16,6 @@ Thresholds are calibrated once per seed on fault-free runs over random operating
 """
 from __future__ import annotations
 
-import hashlib
-import json
-import pickle
 from dataclasses import asdict, replace
 from pathlib import Path
 
@@ -30,9 +27,8 @@ from robofdi.evaluate import summarize
 from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir
 from robofdi.evaluate.summary import write_summary
 from robofdi.models.hydraulic import CATALOGUE, flow_gains
-from robofdi.scenarios.arm import cache_dir
-from robofdi.scenarios.hydraulic import (
-    TABLE1, HydraulicScenario, calibrate, fault_free_rms, leak_flow_share, operating_profile, run_scenario,
+from robofdi.systems.hydraulic import (
+    TABLE1, HydraulicScenario, calibration, fault_free_rms, leak_flow_share, operating_profile, run_scenario,
     table1_fault,
 )
 
@@ -41,22 +37,6 @@ EXPERIMENTS = {"ch6-hydraulic": "Book ch. 6, hydraulic wheel actuator (Rosie rig
 SCENARIOS = ("baseline", *TABLE1)
 NLAR_TESTS = ("R1", "R2", "R4", "R5")
 LEAK_SIZES = (0.002, 0.004, 0.008, 0.016, 0.032, 0.064, 0.128)        # mm²
-
-
-def _calibration(base: HydraulicScenario, seed: int, runs: int, progress):
-    key = hashlib.sha256(json.dumps({"base": repr(base), "seed": seed, "runs": runs}, sort_keys=True).encode())
-    path = cache_dir() / f"hydraulic-calibration-{key.hexdigest()[:20]}.pkl"
-    if path.is_file():
-        with path.open("rb") as fh:
-            return pickle.load(fh), True
-    cal = calibrate(base, runs=runs, seed=1000 + 100 * seed, progress=progress)
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with path.open("wb") as fh:
-            pickle.dump(cal, fh)
-    except OSError:
-        pass
-    return cal, False
 
 
 def _merged_summary(summaries: dict, seed: int, duration: float) -> dict:
@@ -150,7 +130,7 @@ def run(name: str = "ch6-hydraulic", out: str | Path = "runs", seed: int = 0, pr
              + len(LEAK_SIZES) * int((onset + 2) * 1000))
     bar = tqdm(total=total, desc=f"{name}: calibrate", unit="step", disable=not progress, leave=False)
     with bar, keep_partial(run_dir):
-        cal, cached = _calibration(base, seed, calibration_runs, bar.update)
+        cal, cached = calibration(base, calibration_runs, 1000 + 100 * seed, bar.update)
         if cached:
             bar.update(calibration_runs * ticks)
         records, summaries = {}, {}
@@ -269,7 +249,7 @@ def plot_linearisation_error(path: Path) -> None:
     """Fig. 5 analogue: servovalve flow, nonlinear law vs its linearisation at the nominal operating point."""
     import matplotlib.pyplot as plt
 
-    from robofdi.scenarios.hydraulic import nominal_operating_point
+    from robofdi.systems.hydraulic import nominal_operating_point
 
     P = CATALOGUE
     u0, p0 = nominal_operating_point()

@@ -20,7 +20,7 @@ from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, write_run
 from robofdi.models.linear_examples import aircraft_lateral
 from robofdi.models.linear import discretize
 from robofdi.observers.uio import uio_design
-from robofdi.scenarios.aircraft import (
+from robofdi.systems.aircraft import (
     SIGMA, AircraftScenario, build_loop, calibrate, residual_vectors, switching_index,
 )
 

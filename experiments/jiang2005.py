@@ -24,7 +24,7 @@ from robofdi.evaluate.reproduction import reproduction_check as check
 from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, write_run_folder
 from robofdi.models.linear_examples import helicopter
 from robofdi.observers.kalman import reduced_order_design
-from robofdi.scenarios.helicopter import (
+from robofdi.systems.helicopter import (
     FAULT_OUTPUTS, UNKNOWN_INPUT_FAULTS, HelicopterScenario, build_loop, calibrate, fault_estimates,
 )
 

@@ -4,14 +4,16 @@ The simulator is the truth (MuJoCo), the nominal model is the belief (Pinocchio,
 only nominal models, commands and measurements. The main objects, importable from here::
 
     import robofdi as fdi
-    scenario = fdi.arm_scenario("my_arm.xml", faults=["actuator_additive:joint2:30@1.5"], seed=1)
-    cal, _ = fdi.calibration(scenario)          # thresholds per robot and seed (cached)
+    from robofdi.systems import arm
+    scenario = fdi.arm_scenario(fdi.ASSETS / "arm6.xml", faults=["actuator_additive:joint2:30@1.5"], seed=1)
+    cal, _ = arm.calibration(scenario)           # thresholds per robot and seed (cached: robofdi.calibration)
     record = fdi.run_scenario(scenario, cal)     # the closed-loop run, every arm diagnoser online
     summary = fdi.summarize(record, "my-test")   # detection delay, isolation, false alarms, estimate error
 
 Rooms: ``faults`` (what fails), ``sims`` (plants), ``models`` (beliefs), ``control``, ``observers`` (residual
 generators), ``decision`` (thresholds, isolation), ``ftc`` (accommodation), ``loop`` (ClosedLoop), ``record``,
-``evaluate`` (metrics, summary.json, figures), ``scenarios`` (configuration → calibrated loop), ``campaign``
+``evaluate`` (metrics, summary.json, figures), ``systems`` (one module per plant family: configuration →
+calibrated loop, campaign face; a registry), ``calibration`` (the one calibration cache), ``campaign``
 (many seeded runs, local pool or Dask, campaign metrics), ``viz``
 (Meshcat), ``experiments`` (one script per book chapter / paper).
 """
@@ -35,8 +37,8 @@ _API = {
     "diagnose_record": "robofdi.loop",
     "Record": "robofdi.record", "load": "robofdi.record",
     "summarize": "robofdi.evaluate", "write_summary": "robofdi.evaluate", "results_table": "robofdi.evaluate",
-    "ArmScenario": "robofdi.scenarios.arm", "arm_scenario": "robofdi.scenarios.arm",
-    "calibration": "robofdi.scenarios.arm", "run_scenario": "robofdi.scenarios.arm",
+    "ArmScenario": "robofdi.systems.arm", "arm_scenario": "robofdi.systems.arm",
+    "run_scenario": "robofdi.systems.arm",
     "Health": "robofdi.protocols",
     "LinearModel": "robofdi.models", "LinearPlant": "robofdi.sims", "ObserverResidual": "robofdi.observers",
     "StateFeedback": "robofdi.control",
@@ -46,7 +48,7 @@ _API = {
     "GainFaultObserver": "robofdi.observers.gain", "SwitchingIndexDecision": "robofdi.decision",
     "WindowedTTest": "robofdi.decision", "EkfBank": "robofdi.observers.ekf_bank", "NisBankDecision": "robofdi.decision",
     "ControlAffineModel": "robofdi.redundancy", "derive_nlar": "robofdi.redundancy",
-    "HydraulicScenario": "robofdi.scenarios.hydraulic",
+    "HydraulicScenario": "robofdi.systems.hydraulic",
     "run_campaign": "robofdi.campaign", "load_spec": "robofdi.campaign",
 }
 __all__ = ["ASSETS", "RobofdiError", "__version__", "assets_dir", *_API]

@@ -1,4 +1,8 @@
-"""`robofdi list | run NAME | demo | view RUN | campaign SPEC` — the command line.
+"""`robofdi list | run NAME | demo | view RUN | campaign SPEC | cache` — the command line.
+
+``run NAME``: an experiment (:func:`robofdi.experiments.experiments`: the shipped ones and those of installed
+plug-ins), else a registered system (:mod:`robofdi.systems`, or ``package.module:attribute``) run once with the
+given faults (:mod:`robofdi.experiments.system_run`).
 
 Errors print one line ``robofdi: error: …`` and exit with code 2 (bad input, including a file or folder that
 cannot be read or written) or 1 (a run that failed; what it had recorded is saved as ``partial.h5`` in the run
@@ -7,35 +11,41 @@ folder; also any unexpected failure, whose traceback ``ROBOFDI_TRACEBACK=1`` sho
 from __future__ import annotations
 
 import argparse
-import importlib
 import os
 import sys
 from pathlib import Path
 
 from robofdi import RobofdiError, __version__
 
-# experiment name → module of robofdi.experiments (the repository's experiments/); each module has
-# EXPERIMENTS {name: description} and run().
-MODULES = ("robofdi.experiments.ch3_industrial_robot", "robofdi.experiments.arm", "robofdi.experiments.ch4_auv",
-           "robofdi.experiments.ch6_hydraulic", "robofdi.experiments.jiang2005", "robofdi.experiments.guo2008",
-           "robofdi.experiments.ch2_wang", "robofdi.experiments.adaptive_fe", "robofdi.experiments.robosuite_lift")
 # options of `robofdi run` that only some experiments take (module attribute OPTIONS lists them)
 EXPERIMENT_OPTIONS = {"robot": "--robot", "faults": "--fault", "joints": "--joints", "torque_motors": "--torque-motors"}
 
 
 def _experiments() -> dict[str, tuple[str, object]]:
-    found = {}
-    for mod_name in MODULES:
-        mod = importlib.import_module(mod_name)
-        for name, description in mod.EXPERIMENTS.items():
-            found[name] = (description, mod)
-    return found
+    from robofdi.experiments import experiments
+
+    return experiments()
 
 
 def _cmd_list(args) -> int:
-    for name, (description, _) in _experiments().items():
+    from robofdi.systems import SYSTEMS, system_names
+
+    found = _experiments()
+    for name, (description, _) in found.items():
         print(f"{name:16s} {description}")
+    others = [n for n in system_names() if n not in found]
+    if others:
+        print("\nsystems (robofdi run SYSTEM --fault SPEC; robofdi campaign SPEC):")
+        for name in others:
+            doc = " ".join((type(SYSTEMS[name]).__doc__ or "").split("\n\n")[0].split())
+            print(f"{name:16s} {doc if len(doc) <= 110 else doc[:109] + '…'}")
     return 0
+
+
+def _is_system(name: str) -> bool:
+    from robofdi.systems import system_names
+
+    return ":" in name or name in system_names()
 
 
 def _cmd_run(args) -> int:
@@ -43,11 +53,15 @@ def _cmd_run(args) -> int:
     from robofdi.loop import RunAborted
 
     experiments = _experiments()
-    if args.name not in experiments:
-        raise RobofdiError(f"unknown experiment {args.name!r}; expected one of {', '.join(experiments)} (see `robofdi list`)")
     if args.seed < 0:
         raise RobofdiError(f"--seed must be an integer >= 0, got {args.seed}")
-    _, mod = experiments[args.name]
+    if args.name in experiments:
+        _, mod = experiments[args.name]
+    elif _is_system(args.name):
+        from robofdi.experiments import system_run as mod
+    else:
+        raise RobofdiError(f"unknown experiment or system {args.name!r}; expected one of {', '.join(experiments)}, "
+                           "a system of `robofdi list` or 'package.module:attribute'")
     accepted = getattr(mod, "OPTIONS", ())
     options = {k: getattr(args, k) for k in EXPERIMENT_OPTIONS if getattr(args, k) not in (None, False, [])}
     refused = sorted(set(options) - set(accepted))
@@ -71,6 +85,20 @@ def _cmd_run(args) -> int:
         record = replay.parent / "record.h5"
         view = f", or `robofdi view {record}`" if record.is_file() else ""
         print(f"3-D replay: open {replay} in a browser{view}")
+    return 0
+
+
+def _cmd_cache(args) -> int:
+    from robofdi import calibration
+
+    if args.action == "clear":
+        print(f"removed {calibration.clear()} cached calibrations from {calibration.cache_dir()}")
+        return 0
+    files = calibration.entries()
+    size = sum(p.stat().st_size for p in files)
+    print(f"{len(files)} cached calibrations, {size / 1e6:.1f} MB, in {calibration.cache_dir()} (ROBOFDI_CACHE)")
+    for path in files:
+        print(f"  {path.name}")
     return 0
 
 
@@ -117,12 +145,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=f"robofdi {__version__}")
     sub = p.add_subparsers(dest="command", required=True)
     sub.add_parser("list", help="list the experiments").set_defaults(func=_cmd_list)
-    run = sub.add_parser("run", help="run one experiment")
-    run.add_argument("name")
+    run = sub.add_parser("run", help="run one experiment, or one run of a system")
+    run.add_argument("name", help="an experiment or a system of `robofdi list`, or 'package.module:attribute'")
     run.add_argument("--out", default="runs", help="parent folder of the run folder (default: ./runs)")
     run.add_argument("--seed", type=int, default=0)
     run.add_argument("--quiet", action="store_true", help="no progress bar")
-    arm = run.add_argument_group("options of `run arm` (--fault also of `run robosuite-lift`)")
+    arm = run.add_argument_group("options of `run arm` (--fault also of `run robosuite-lift` and of systems)")
     arm.add_argument("--robot", help="the arm's MJCF file (default: the shipped arm6.xml)")
     arm.add_argument("--fault", dest="faults", action="append", metavar="SPEC",
                      help="KIND:TARGET:MAGNITUDE@ONSET[-END][~PROFILE][;NAME=VALUE], repeatable, "
@@ -136,6 +164,9 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--seed", type=int, default=0)
     demo.add_argument("--quiet", action="store_true")
     demo.set_defaults(func=_cmd_run, name="ch3-actuator", **dict.fromkeys(EXPERIMENT_OPTIONS))
+    cache = sub.add_parser("cache", help="the calibration cache: list it, or clear it")
+    cache.add_argument("action", nargs="?", choices=("list", "clear"), default="list")
+    cache.set_defaults(func=_cmd_cache)
     view = sub.add_parser("view", help="open a recorded run in the live Meshcat viewer")
     view.add_argument("run", help="a record .h5 file or a run folder")
     view.add_argument("--diagnoser", default=None, help="whose detections light up the joints (default: adaptive)")

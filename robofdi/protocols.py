@@ -21,7 +21,8 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-__all__ = ["Simulator", "Controller", "Reference", "Accommodation", "Diagnoser", "Decision", "Health"]
+__all__ = ["Simulator", "Controller", "Reference", "Accommodation", "Diagnoser", "Decision", "Health", "System",
+           "TargetLimit", "Mission"]
 
 
 @runtime_checkable
@@ -121,3 +122,53 @@ class Decision(Protocol):
     def reset(self) -> None: ...
 
     def update(self, residual: np.ndarray) -> Any: ...                  # -> robofdi.decision.Alarms
+
+
+@dataclass(frozen=True)
+class TargetLimit:
+    """A fault target's limit in its own unit: the motor torque limit of an actuator, the range of a sensor
+    channel, the mass of a link. Magnitudes "as a fraction of the limit" multiply it."""
+
+    limit: float
+    unit: str
+
+
+@dataclass(frozen=True)
+class Mission:
+    """One drawn mission: its run duration [s] and the system's own description of it (a trajectory, setpoints)."""
+
+    duration: float
+    plan: Any
+    description: dict = field(default_factory=dict)
+
+
+@runtime_checkable
+class System(Protocol):
+    """A plant family as experiments, campaigns and the command line use it (:mod:`robofdi.systems`).
+
+    ``options_type``: the system's configuration, a validated frozen dataclass (a campaign spec's ``[system]``
+    table). Every function is deterministic in its arguments: a run's result depends only on (options,
+    calibration, calibration key, mission, faults, run seed), so the same seed gives the same record wherever it
+    runs. Truth stays inside ``run``: the diagnosers it builds get nominal models, commands and measurements.
+    """
+
+    name: str
+    options_type: type
+
+    def diagnosers(self, options) -> Sequence[str]:
+        """Every diagnoser this system can run, best (or the one driving the accommodation) first."""
+
+    def targets(self, options) -> dict[str, dict[str, TargetLimit]]:
+        """Fault targets and their limits: {"actuator": {name: limit}, "sensor": {...}, "component_<kind>": {...}}."""
+
+    def calibration_keys(self, options) -> list:
+        """One calibration per key (a robot instance's seed); runs cycle through the keys."""
+
+    def calibrate(self, options, key, diagnosers) -> tuple[Any, bool]:
+        """(calibration of ``diagnosers`` for robot ``key``, True if it came from :mod:`robofdi.calibration`'s cache)."""
+
+    def mission(self, options, key, generator: np.random.Generator) -> Mission:
+        """A mission drawn from ``generator`` (the campaign face)."""
+
+    def run(self, options, calibration, key, mission: Mission, faults, seed: int, diagnosers) -> Any:
+        """One closed-loop run of ``mission`` with ``faults``, every named diagnoser online → a Record."""

@@ -20,7 +20,7 @@ def _calibration_cache(tmp_path_factory):
 def ch3():
     """The ch3-actuator scenario (shorter low-velocity calibration runs, to keep the suite fast) and its calibration."""
     from robofdi.experiments.ch3_industrial_robot import scenario
-    from robofdi.scenarios.arm import calibrate, calibration_records
+    from robofdi.systems.arm import calibrate, calibration_records
 
     sc = scenario("ch3-actuator", seed=0, calibration_low_velocity_time=8.0)
     cal = calibrate(sc, calibration_records(sc))
@@ -31,7 +31,7 @@ def ch3():
 def ch3_runs(ch3):
     """Fault-free, actuator-fault and sensor-fault runs of the book trajectory with every scheme in the loop."""
     from robofdi.experiments.ch3_industrial_robot import FAULTS
-    from robofdi.scenarios.arm import run_scenario
+    from robofdi.systems.arm import run_scenario
 
     sc, cal = ch3
     return {

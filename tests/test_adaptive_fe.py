@@ -12,7 +12,7 @@ from robofdi.observers.adaptive import (
     AdaptiveFaultEstimator, adaptive_fe_gains, augmented_error_matrix, is_spd, lyapunov_certificate,
 )
 from robofdi.observers.linear import observer_gain_poles
-from robofdi.scenarios.f16 import F16Scenario, build_loop, calibrate, run_f16
+from robofdi.systems.f16 import F16Scenario, build_loop, calibrate, run_f16
 
 
 def test_printed_learning_rate_is_spd_and_the_typo_is_the_only_asymmetry():

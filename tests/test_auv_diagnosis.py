@@ -9,7 +9,7 @@ from robofdi.errors import RobofdiError
 from robofdi.faults import Fault
 from robofdi.models.auv import AuvModel
 from robofdi.observers.auv import VoltageResidual, effectiveness_identifiability
-from robofdi.scenarios.auv import (
+from robofdi.systems.auv import (
     ALL_DIAGNOSERS, AuvScenario, calibrate, check_scenario, current_map_regions, depth_switch_time, fault_targets,
     run_scenario, tracking_rms,
 )

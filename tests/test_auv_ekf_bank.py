@@ -11,7 +11,7 @@ from robofdi.experiments.ch4_auv import ch4_roby2_scenario, ekf_bank_isolation
 from robofdi.faults import Fault
 from robofdi.models.auv import AuvModel
 from robofdi.observers.ekf_bank import EkfBank, horizontal_thrusters, nis_bound
-from robofdi.scenarios.auv import AuvScenario, calibrate, run_scenario
+from robofdi.systems.auv import AuvScenario, calibrate, run_scenario
 
 pytestmark = pytest.mark.slow
 

@@ -1,7 +1,7 @@
 """The chapter-4 experiment definitions (the runs themselves are measured in the README, ~1 min each)."""
 from robofdi.cli import _experiments
 from robofdi.experiments.ch4_auv import ODIN_ONSETS, ch4_auv_scenario, ch4_depth_sensor_scenario, ch4_flooded_scenario
-from robofdi.scenarios.auv import check_scenario
+from robofdi.systems.auv import check_scenario
 
 
 def test_the_chapter_4_experiments_are_listed():

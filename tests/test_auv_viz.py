@@ -2,7 +2,7 @@
 import numpy as np
 
 from robofdi.faults import Fault
-from robofdi.scenarios.auv import AuvCalibration, AuvScenario, build_loop
+from robofdi.systems.auv import AuvCalibration, AuvScenario, build_loop
 
 
 def test_auv_replay_marks_the_isolated_thruster_and_the_onset(tmp_path):

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from robofdi.experiments.ch4_auv import ch4_depth_sensor_scenario
-from robofdi.scenarios.auv import calibrate, run_scenario
+from robofdi.systems.auv import calibrate, run_scenario
 from robofdi.sims.auv import AuvSimulator
 
 pytestmark = pytest.mark.slow

@@ -19,7 +19,7 @@ from robofdi.campaign import (
     clopper_pearson, detection_curve, load, load_spec, register_system, run_campaign, run_seed, shipped_specs,
 )
 from robofdi.campaign.backends import DaskCluster
-from robofdi.campaign.systems import LinearCampaign
+from robofdi.systems.linear import LinearCampaign
 
 ARM = """
 seed = 3
@@ -366,23 +366,3 @@ def test_helicopter_campaign_detects_loss_of_effectiveness_with_two_beliefs(tmp_
     assert (faulty["target"] == "collective").all() and faulty["size"].between(0.5, 0.6).all()
     assert faulty["detected"].all() and faulty["correct"].all()
     assert (t[~t["faulty"]]["false_alarms"] == 0).all()
-
-
-def test_a_cached_calibration_is_not_reused_by_other_code(monkeypatch):
-    """The cache key holds a hash of robofdi's source: the same options under changed code recompute."""
-    from robofdi.campaign import systems
-    from robofdi.scenarios import arm
-
-    assert len(arm.code_fingerprint()) == 64 and arm.code_fingerprint() == arm.code_fingerprint()
-    calls = []
-
-    def compute():
-        calls.append(1)
-        return {"calibration": len(calls)}
-
-    first, cached_first = systems._cached_calibration("probe", {"option": 1}, compute)
-    again, cached_again = systems._cached_calibration("probe", {"option": 1}, compute)
-    assert (cached_first, cached_again) == (False, True) and again == first
-    monkeypatch.setattr(arm, "code_fingerprint", lambda: "0" * 64)
-    other, cached_other = systems._cached_calibration("probe", {"option": 1}, compute)
-    assert not cached_other and other == {"calibration": 2}

@@ -41,7 +41,7 @@ def test_literal_denominator_raises_false_alarms():
 
 
 def test_same_seed_gives_a_byte_identical_record(tmp_path):
-    from robofdi.scenarios.refiner import run_refiner
+    from robofdi.systems.refiner import run_refiner
 
     a, _ = run_refiner(seed=5, sigma=0.1)
     b, _ = run_refiner(seed=5, sigma=0.1)

@@ -12,7 +12,7 @@ from robofdi.models.friction import JointFriction
 from robofdi.observers.arm_schemes import ArmSchemeSettings
 from robofdi.observers.consistency import ConsistencyDesign, ConsistencyResidual, design_consistency
 from robofdi.observers.kinematic import KinematicConsistency, design_window_scales, kinematic_increments
-from robofdi.scenarios.arm import arm_scenario, calibration, calibration_records, run_scenario
+from robofdi.systems.arm import arm_scenario, calibration, calibration_records, run_scenario
 
 SKIP = 5
 

@@ -15,8 +15,8 @@ from robofdi.evaluate import summarize
 from robofdi.faults import Fault
 from robofdi.loop import Rates
 from robofdi.models.linearization import linearize_manipulator
-from robofdi.scenarios.arm import ArmScenario
-from robofdi.scenarios.arm_linearized import run_linearized
+from robofdi.systems.arm import ArmScenario
+from robofdi.systems.arm_linearized import run_linearized
 
 Q0 = (np.pi / 2, -2 * np.pi / 3, np.pi / 6, -np.pi / 2, np.pi / 2, 0.0)
 

@@ -12,7 +12,7 @@ from robofdi.decision import SwitchingIndexDecision
 from robofdi.models.linear_examples import aircraft_lateral
 from robofdi.models.linear import LinearModel, discretize
 from robofdi.observers.uio import LockInPlaceBank, UnknownInputObserver, uio_design
-from robofdi.scenarios.aircraft import (
+from robofdi.systems.aircraft import (
     AircraftScenario, build_loop, calibrate, residual_vectors, run_aircraft, switching_index,
 )
 

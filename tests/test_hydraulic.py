@@ -15,7 +15,7 @@ from robofdi.faults import Fault
 from robofdi.loop import ClosedLoop
 from robofdi.models.hydraulic import CATALOGUE
 from robofdi.redundancy.baselines import plar_classes, smoothstep_weights
-from robofdi.scenarios.hydraulic import (
+from robofdi.systems.hydraulic import (
     HydraulicScenario, calibrate, controller, operating_profile, run_scenario, table1_fault,
 )
 from robofdi.sims.hydraulic import HydraulicRig

@@ -15,7 +15,7 @@ from robofdi.models.linear import LinearModel
 from robofdi.observers.kalman import (
     KalmanFaultEstimator, reduced_order_covariances, reduced_order_design, steady_state_gain,
 )
-from robofdi.scenarios.helicopter import (
+from robofdi.systems.helicopter import (
     FAULT_OUTPUTS, UNKNOWN_INPUT_FAULTS, HelicopterScenario, build_loop, calibrate, fault_estimates, run_helicopter,
 )
 

@@ -22,7 +22,7 @@ from robofdi.loop import ORACLE, ClosedLoop, Diagnosis, Rates, RunAborted, diagn
 from robofdi.observers import MomentumObserver
 from robofdi.observers.arm_schemes import arm_schemes
 from robofdi.record import load
-from robofdi.scenarios.arm import run_scenario
+from robofdi.systems.arm import run_scenario
 from robofdi.sims import ArmSimulator
 
 

@@ -9,7 +9,7 @@ import pytest
 from robofdi.experiments.ch3_industrial_robot import FAULTS
 from robofdi.evaluate import evaluate_diagnoser, summarize
 from robofdi.observers.arm_schemes import BOOK_SCHEMES as SCHEMES
-from robofdi.scenarios.arm import run_scenario
+from robofdi.systems.arm import run_scenario
 
 
 def _detection(record, diagnoser, fault_name, faults):

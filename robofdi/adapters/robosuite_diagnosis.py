@@ -337,24 +337,21 @@ def calibrate_lift(env_factory=make_lift, seeds=CALIBRATION_SEEDS, belief: Model
 
 def lift_calibration(seeds=CALIBRATION_SEEDS, belief: ModelMismatch = BELIEF, steps: int = EPISODE_STEPS,
                      progress=None, cache: bool = True) -> tuple[LiftCalibration, bool]:
-    """:func:`calibrate_lift`, computed once per (seeds, belief, steps, robofdi and robosuite versions) and pickled
-    in :func:`robofdi.scenarios.arm.cache_dir` (the campaigns' calibration cache); returns (calibration, True if it
-    came from the cache)."""
+    """:func:`calibrate_lift`, computed once per (seeds, belief, steps, robofdi's code and robosuite's version) through
+    :mod:`robofdi.calibration`, the one calibration cache; returns (calibration, True if it came from the cache)."""
     import robosuite
 
-    from robofdi.campaign.systems import _cached_calibration
+    from robofdi.calibration import cached
 
     seeds = tuple(int(s) for s in seeds)
 
     def compute():
         return calibrate_lift(seeds=seeds, belief=belief, steps=steps, progress=progress)
 
-    if not cache:
-        return compute(), False
     description = {"seeds": seeds, "belief": repr(belief), "steps": steps, "robosuite": robosuite.__version__,
                    "env": "make_lift(0)", "observer_gain": OBSERVER_GAIN, "margin": MARGIN, "blanking": BLANKING,
                    "confirm": CONFIRM}
-    return _cached_calibration("robosuite-lift", description, compute)
+    return cached("robosuite-lift", description, compute, cache=cache)
 
 
 def run_lift(calibration: LiftCalibration, faults=(), seed: int = 0, accommodation: bool = False,

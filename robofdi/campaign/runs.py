@@ -122,7 +122,7 @@ def execute_run(spec: CampaignSpec, index: int, calibrations: dict, out: str | N
         error += f" ({Path(frame.filename).name}:{frame.lineno})"
         record = None
     if mission is None:
-        from robofdi.campaign.systems import Mission
+        from robofdi.protocols import Mission
 
         mission = Mission(float("nan"), None)
     rows = _rows(spec, index, seed, key, fault, info, record, mission)

@@ -39,7 +39,8 @@ try:
 except ModuleNotFoundError:          # Python 3.10
     import tomli as tomllib
 
-from robofdi.campaign.systems import CampaignSystem, fault_limit, get_system
+from robofdi.protocols import System
+from robofdi.systems import fault_limit, get_system
 from robofdi.errors import RobofdiError
 from robofdi.faults import FAULT_KINDS, Fault
 from robofdi.faults.profiles import profile_from_dict
@@ -94,7 +95,7 @@ class FaultDistribution:
     limits: dict = field(default_factory=dict, compare=False)       # target -> (limit, unit), filled by resolve()
 
     @classmethod
-    def resolve(cls, where: str, table: dict, system: CampaignSystem, options) -> FaultDistribution:
+    def resolve(cls, where: str, table: dict, system: System, options) -> FaultDistribution:
         _known_keys(where, table, cls)
         if "limits" in table:
             raise RobofdiError(f"{where}: unknown field 'limits'; the limits come from the system")
@@ -191,7 +192,7 @@ class CampaignSpec:
         return self.fault_free_runs + self.faulty_runs
 
     @property
-    def campaign_system(self) -> CampaignSystem:
+    def campaign_system(self) -> System:
         return get_system(self.system)
 
     def to_dict(self) -> dict:
@@ -267,7 +268,7 @@ def parse_spec(data: dict, source: str = "spec") -> CampaignSpec:
                         counts["faulty_runs"], tuple(diagnosers), records, float(level), options, faults, source)
 
 
-def _options(where: str, system: CampaignSystem, table: dict):
+def _options(where: str, system: System, table: dict):
     cls = system.options_type
     _known_keys(where, table, cls)
     kwargs = {k: (tuple(v) if isinstance(v, list) else v) for k, v in table.items()}

@@ -23,12 +23,15 @@ from functools import lru_cache
 
 import numpy as np
 
+from robofdi.calibration import cached
+from robofdi.checks import check_fields, check_robot_seeds, is_int, is_positive
 from robofdi.control.speed import RPM, SpeedPID, SpeedRamp
 from robofdi.decision import Signature, ThresholdDecision, calibrate_thresholds
 from robofdi.errors import RobofdiError
 from robofdi.faults import Fault, FaultInjector
 from robofdi.loop import ClosedLoop, Diagnosis, Rates, diagnose_record
 from robofdi.models.hydraulic import CATALOGUE, HydraulicParameters, hydraulic_domain, hydraulic_model, with_variants
+from robofdi.protocols import Mission, TargetLimit
 from robofdi.record import Record
 from robofdi.redundancy.baselines import NNARResidual, linear_ar_residual, plar_residual, train_nnar
 from robofdi.redundancy.derivatives import SavitzkyGolay, estimate_derivatives
@@ -36,8 +39,9 @@ from robofdi.redundancy.nlar import derive_nlar
 from robofdi.redundancy.residuals import nlar_residual
 from robofdi.seeding import rng
 from robofdi.sims.hydraulic import HydraulicRig, RigParameters, RigSensors
+from robofdi.systems import register_system
 
-__all__ = ["HydraulicScenario", "HydraulicCalibration", "operating_profile", "FAULT_TARGETS", "DIAGNOSERS",
+__all__ = ["HydraulicScenario", "HydraulicCalibration", "calibration", "operating_profile", "FAULT_TARGETS", "DIAGNOSERS",
            "calibrate", "run_scenario", "build_loop", "nominal_operating_point", "fit_pressure_parameters", "TABLE1",
            "table1_fault", "fault_free_rms", "leak_flow_share"]
 
@@ -221,6 +225,14 @@ def fit_pressure_parameters(records: Sequence[Record], flt: SavitzkyGolay,
             "K_f": float(a[2] * params.v_t / (4 * beta))}
 
 
+def calibration(base: HydraulicScenario, runs: int, seed: int, progress: Callable[[int], None] | None = None,
+                cache: bool = True) -> tuple[HydraulicCalibration, bool]:
+    """:func:`calibrate`, cached per (base scenario, runs, seed) by :mod:`robofdi.calibration`; returns
+    (calibration, True if it came from the cache)."""
+    return cached("hydraulic", {"base": repr(base), "runs": runs, "seed": seed},
+                  lambda: calibrate(base, runs=runs, seed=seed, progress=progress), cache=cache)
+
+
 def calibrate(base: HydraulicScenario | None = None, runs: int = 8, seed: int = 1000,
               progress: Callable[[int], None] | None = None) -> HydraulicCalibration:
     """Fault-free runs on ``runs`` random operating profiles (seeds seed, seed+1, …): the first half trains the NNAR
@@ -279,3 +291,68 @@ def leak_flow_share(area_mm2: float, rpm: float = 5.0, rig: RigParameters | None
     rig = rig or RigParameters()
     q_leak = area_mm2 * 1e-6 * np.sqrt((rig.supply_pressure + load_pressure) / rig.rho)
     return float(q_leak / (rig.d_m * rpm * RPM))
+
+
+# ---------------------------------------------------------------------------------------------------- the campaign face
+@dataclass(frozen=True)
+class HydraulicOptions:
+    """The ``[system]`` table of a hydraulic-rig campaign (:mod:`robofdi.systems.hydraulic`).
+
+    robot_seeds: one calibration each (fault-free runs on the random operating profiles of seeds
+    1000·(1 + robot seed) + i); duration [s] of every run; calibration_runs (>= 2: half train the NNAR and fit the
+    better model, all set thresholds); margin: threshold margin >= 1."""
+
+    robot_seeds: tuple = (0,)
+    duration: float = 8.0
+    calibration_runs: int = 8
+    margin: float = 1.3
+
+    def __post_init__(self):
+        check_robot_seeds(self)
+        check_fields("system", self, [
+            ("duration", is_positive(self.duration, 600) and self.duration >= 3, "a time in [3, 600] s"),
+            ("calibration_runs", is_int(self.calibration_runs, 2), "an integer >= 2"),
+            ("margin", is_positive(self.margin) and self.margin >= 1, "a number >= 1"),
+        ])
+
+    def scenario(self, **kw):
+
+        return HydraulicScenario(name="campaign-hydraulic", duration=float(self.duration), margin=float(self.margin), **kw)
+
+
+@register_system
+class HydraulicCampaign:
+    """The hydraulic wheel-actuator rig: random operating profiles (target speed, ramp, load throttle), valve,
+    leak and tachometer faults, the nlar residuals and their baselines online (:mod:`robofdi.systems.hydraulic`)."""
+
+    name = "hydraulic"
+    options_type = HydraulicOptions
+
+    def diagnosers(self, options):
+
+        return DIAGNOSERS
+
+    def targets(self, options):
+
+        limits = {"shaft_speed": (2.0, "rad/s"), "load_pressure": (2e7, "Pa"), "pump_pressure": (2e7, "Pa"),
+                  "supply_pressure": (2e7, "Pa")}                     # sensor ranges (tachometer, 200 bar gauges)
+        comps = {kind: {t: TargetLimit(hi, "mm^2" if kind == "component_leak" else "1") for t, (_, hi) in tg.items()}
+                 for kind, tg in FAULT_TARGETS["component"].items()}
+        return {"actuator": {"servovalve": TargetLimit(1.0, "1 (valve stroke)")},
+                "sensor": {c: TargetLimit(*v) for c, v in limits.items()}, **comps}
+
+    def calibration_keys(self, options):
+        return list(options.robot_seeds)
+
+    def calibrate(self, options, key, diagnosers):
+        return calibration(options.scenario(), options.calibration_runs, 1000 * (1 + int(key)))
+
+    def mission(self, options, key, generator):
+
+        profile = operating_profile(int(generator.integers(2**31)))
+        return Mission(float(options.duration), profile, dict(profile))
+
+    def run(self, options, calibration, key, mission, faults, seed, diagnosers):
+
+        sc = options.scenario(faults=tuple(faults), seed=int(seed), diagnosers=tuple(diagnosers), **mission.plan)
+        return run_scenario(sc, calibration, run_key="campaign")

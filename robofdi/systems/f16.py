@@ -19,8 +19,8 @@ from robofdi.errors import RobofdiError
 from robofdi.evaluate import summarize
 from robofdi.faults import Fault
 from robofdi.loop import ClosedLoop, Diagnosis
-from robofdi.models.linear_examples import f16_vertical
 from robofdi.models.linear import LinearMismatch, discretize, perturbed
+from robofdi.models.linear_examples import f16_vertical
 from robofdi.observers.adaptive import AdaptiveFaultEstimator, adaptive_fe_gains
 from robofdi.observers.linear import observer_gain_kalman
 from robofdi.record import Record

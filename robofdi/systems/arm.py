@@ -17,18 +17,23 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import json
-import os
 from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 import mujoco
 import numpy as np
 
+from robofdi.calibration import cached
+from robofdi.checks import check_fields, is_int
 from robofdi.control import ComputedTorque, MotionLimits, calibration_motions, random_point_to_point
 from robofdi.decision import (
-    STARTUP_BLANKING, ThresholdDecision, calibrate_thresholds, extreme_value_thresholds, startup_samples,
+    STARTUP_BLANKING,
+    ThresholdDecision,
+    calibrate_thresholds,
+    extreme_value_thresholds,
+    startup_samples,
 )
 from robofdi.errors import RobofdiError
 from robofdi.faults import Fault, FaultInjector, parse_fault_specs
@@ -39,12 +44,14 @@ from robofdi.observers import DiagnosticObserver
 from robofdi.observers.arm_schemes import BOOK_SCHEMES, SCHEMES, ArmSchemeSettings, arm_schemes
 from robofdi.observers.consistency import ConsistencyDesign, design_consistency
 from robofdi.observers.spectral import ripple_initial_parameters
+from robofdi.protocols import Mission, TargetLimit
 from robofdi.record import Record
 from robofdi.seeding import rng
 from robofdi.sims import ArmSimulator, SensorModel, TorqueRipple
+from robofdi.systems import register_system
 
 __all__ = ["ArmScenario", "arm_scenario", "Calibration", "calibration_trajectories", "calibration_records", "calibrate",
-           "calibration", "run_scenario", "build_loop", "check_scenario", "cache_dir"]
+           "calibration", "run_scenario", "build_loop", "check_scenario"]
 
 ACCOMMODATIONS = (None, "compensation")
 #: Random motions added to the derived calibration suite when the consistency scheme runs: the first half
@@ -261,66 +268,30 @@ def calibration_steps(scenario: ArmScenario, records_duration: float, rates: Rat
     return ticks * (1 + replays)
 
 
-def cache_dir() -> Path:
-    """Where calibrations are cached: $ROBOFDI_CACHE, else ~/.cache/robofdi."""
-    return Path(os.environ.get("ROBOFDI_CACHE") or Path.home() / ".cache" / "robofdi")
-
-
-@functools.cache
-def code_fingerprint() -> str:
-    """SHA-256 of robofdi's own source (every .py file of the installed package, by relative path): part of every
-    calibration cache key, so a cached calibration is never reused by code that would compute it differently
-    (a hand-bumped format number was once reused after a revert, and a stale cache went unnoticed)."""
-    root = Path(__file__).resolve().parents[1]
-    digest = hashlib.sha256()
-    for path in sorted(root.rglob("*.py")):
-        digest.update(path.relative_to(root).as_posix().encode() + b"\0" + path.read_bytes() + b"\0")
-    return digest.hexdigest()
-
-
-def _calibration_key(scenario: ArmScenario, sim: ArmSimulator, trajectories: Mapping) -> str:
-    """Everything a calibration depends on: the compiled robot, its seed and harness, rates, schemes, motions and
-    the code (:func:`code_fingerprint`)."""
-    description = {
+def _calibration_description(scenario: ArmScenario, sim: ArmSimulator, trajectories: Mapping) -> dict:
+    """Everything a calibration depends on: the compiled robot, its seed and harness, rates, schemes and motions
+    (:mod:`robofdi.calibration` adds the code)."""
+    return {
         "robot": hashlib.sha256(mujoco.MjSpec.from_file(str(sim.path)).to_xml().encode()).hexdigest(),
         "joints": list(sim.joint_names), "torque_motors": scenario.torque_motors, "seed": scenario.seed,
         "ripple": scenario.ripple_mode, "sensors": repr(scenario.sensors), "payload": scenario.payload,
         "mismatch": repr(scenario.mismatch), "rates": repr(scenario.loop_rates(sim)), "settings": repr(scenario.settings),
         "schemes": list(scenario.schemes), "margin": scenario.threshold_margin, "blanking": scenario.startup_blanking,
-        "motions": {k: repr(v) for k, v in trajectories.items()}, "code": code_fingerprint(),
+        "motions": {k: repr(v) for k, v in trajectories.items()},
     }
-    return hashlib.sha256(json.dumps(description, sort_keys=True).encode()).hexdigest()[:20]
 
 
 def calibration(scenario: ArmScenario, progress: Callable[[int], None] | None = None,
                 cache: bool = True) -> tuple[Calibration, bool]:
-    """The scenario's calibration, computed once per robot, seed and settings and cached (:func:`cache_dir`).
+    """The scenario's calibration, computed once per robot, seed and settings and cached (:mod:`robofdi.calibration`).
     Returns (calibration, True if it came from the cache). The motion under test plays no part in it."""
     sim = scenario.simulator()
     trajectories = calibration_trajectories(scenario, sim)
-    path = cache_dir() / f"calibration-{_calibration_key(scenario, sim, trajectories)}.npz"
-    if cache and path.is_file():
-        with np.load(path) as data:
-            design = {k[3:]: data[k] for k in data.files if k.startswith("cs_")}
-            cal = Calibration({k[3:]: data[k] for k in data.files if k.startswith("th_")}, data["theta0"],
-                              int(data["blanking"]), {k[3:]: data[k] for k in data.files if k.startswith("st_")},
-                              ConsistencyDesign.from_arrays(design) if design else None,
-                              {k[3:]: data[k] for k in data.files if k.startswith("ev_")})
-        if set(cal.thresholds) == set(scenario.schemes):
-            return cal, True
-    cal = calibrate(scenario, calibration_records(replace(scenario, calibration=trajectories), progress), progress)
-    if cache:
-        try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            tmp = path.with_suffix(".tmp.npz")
-            design = cal.consistency.arrays() if cal.consistency is not None else {}
-            np.savez(tmp, theta0=cal.theta0, blanking=cal.blanking, **{f"th_{k}": v for k, v in cal.thresholds.items()},
-                     **{f"st_{k}": v for k, v in cal.state_thresholds.items()},
-                     **{f"cs_{k}": v for k, v in design.items()}, **{f"ev_{k}": v for k, v in cal.evidence.items()})
-            tmp.replace(path)
-        except OSError:
-            pass  # a read-only cache only costs the next run its calibration
-    return cal, False
+
+    def compute() -> Calibration:
+        return calibrate(scenario, calibration_records(replace(scenario, calibration=trajectories), progress), progress)
+
+    return cached("arm", _calibration_description(scenario, sim, trajectories), compute, cache=cache)
 
 
 def _diagnoses(scenario: ArmScenario, model: ManipulatorModel, cal: Calibration, settings: ArmSchemeSettings) -> dict:
@@ -408,3 +379,116 @@ def arm_scenario(robot: str | Path = "arm6.xml", faults=(), seed: int = 0, joint
                      torque_motors=torque_motors, seed=seed, **overrides)
     check_scenario(sc)
     return sc
+
+
+# ---------------------------------------------------------------------------------------------------- the campaign face
+@dataclass(frozen=True)
+class ArmOptions:
+    """The ``[system]`` table of an arm campaign.
+
+    robot: MJCF file (default the shipped arm6.xml); joints / torque_motors: as :class:`ArmScenario`;
+    robot_seeds: one robot instance per seed (ripple phases, nominal-model errors), one calibration each, runs
+    cycle through them; speed: "fast" | "normal" | "slow" or a factor >= 1 (:data:`robofdi.control.SPEEDS`);
+    segments: point-to-point segments per motion; tail: time after the motion's end [s]; injection: "online" |
+    "offline"."""
+
+    robot: str = "arm6.xml"
+    joints: tuple | None = None
+    torque_motors: bool = False
+    robot_seeds: tuple = (0,)
+    speed: Any = "normal"
+    segments: int = 1
+    tail: float = 1.0
+    injection: str = "online"
+
+    def __post_init__(self):
+        from robofdi.control import SPEEDS
+
+        object.__setattr__(self, "robot_seeds", tuple(self.robot_seeds))
+        if self.joints is not None:
+            object.__setattr__(self, "joints", tuple(self.joints))
+        check_fields("system", self, [
+            ("robot", isinstance(self.robot, str) and self.robot, "an MJCF file name or path"),
+            ("robot_seeds", self.robot_seeds and all(is_int(s) for s in self.robot_seeds), "a non-empty list of integers >= 0"),
+            ("speed", self.speed in SPEEDS or (isinstance(self.speed, (int, float)) and not isinstance(self.speed, bool)
+                                                and self.speed >= 1), f"one of {sorted(SPEEDS)} or a number >= 1"),
+            ("segments", is_int(self.segments, 1), "an integer >= 1"),
+            ("tail", isinstance(self.tail, (int, float)) and 0 <= self.tail < 60, "a time in [0, 60) s"),
+            ("injection", self.injection in ("online", "offline"), "'online' or 'offline'"),
+            ("torque_motors", isinstance(self.torque_motors, bool), "true or false"),
+        ])
+
+
+@functools.lru_cache(maxsize=8)
+def _arm(robot: str, joints, torque_motors: bool):
+    """(simulator, catalogue model, motion limits) of a robot, once per process (the catalogue model plans motions)."""
+    from robofdi.control import MotionLimits
+    from robofdi.sims import ArmSimulator
+
+    sim = ArmSimulator(robot, joints=joints, torque_motors=torque_motors)
+    model = sim.nominal_model()
+    return sim, model, MotionLimits.from_ranges(sim.joint_range[:, 0], sim.joint_range[:, 1], model.torque_limit)
+
+
+@register_system
+class ArmCampaign:
+    """Any MJCF arm: seeded point-to-point motions from random start poses, faults injected online, the book's
+    schemes and the momentum observer in the loop (:mod:`robofdi.systems.arm`)."""
+
+    name = "arm"
+    options_type = ArmOptions
+
+    def _base(self, options: ArmOptions):
+        try:
+            return _arm(options.robot, options.joints, options.torque_motors)
+        except RobofdiError as exc:
+            raise RobofdiError(f"system.robot: {exc}") from None
+
+    def diagnosers(self, options):
+        from robofdi.observers.arm_schemes import SCHEMES
+
+        return SCHEMES
+
+    def targets(self, options):
+        sim, model, _ = self._base(options)
+        n = sim.n
+        width = sim.joint_range[:, 1] - sim.joint_range[:, 0]
+        sensors = {ch: TargetLimit(float(width[i % n]), "rad" if i < n else "rad/s")
+                   for i, ch in enumerate(sim.sensor_channels)}          # velocity channels: one range per second
+        masses = {b: TargetLimit(float(sim.model.body_mass[i]), "kg") for b, (i, _) in sim._mass_points.items()}
+        masses["payload"] = TargetLimit(max(v.limit for k, v in masses.items() if k != "payload"), "kg")
+        return {"actuator": {a: TargetLimit(float(model.torque_limit[i]), "N·m") for i, a in enumerate(sim.actuators)},
+                "sensor": sensors,
+                "component_friction": {j: TargetLimit(1.0, "1") for j in sim.component_kinds["component_friction"]},
+                "component_mass": {b: masses[b] for b in sim.component_kinds["component_mass"]}}
+
+    def calibration_keys(self, options):
+        return list(options.robot_seeds)
+
+    def _scenario(self, options, key, diagnosers, motion=None, duration=None, faults=()):
+
+        sim, model, limits = self._base(options)
+        if motion is None:
+            motion = self.mission(options, key, rng(key, "campaign", "calibration-placeholder")).plan
+        return ArmScenario("campaign-arm", motion=motion, duration=duration, faults=tuple(faults),
+                           injection=options.injection, mjcf=options.robot, joints=tuple(sim.joint_names),
+                           torque_motors=options.torque_motors, seed=int(key), schemes=tuple(diagnosers))
+
+    def calibrate(self, options, key, diagnosers):
+
+        return calibration(self._scenario(options, key, diagnosers))
+
+    def mission(self, options, key, generator):
+        from robofdi.control import random_point_to_point
+
+        _, model, limits = self._base(options)
+        motion = random_point_to_point(model, limits, generator, options.segments, speed=options.speed)
+        start = np.asarray(motion(0.0)[0], dtype=float)
+        return Mission(float(motion.end) + float(options.tail), motion,
+                       {"start_pose": [round(float(v), 6) for v in start], "motion_end": float(motion.end)})
+
+    def run(self, options, calibration, key, mission, faults, seed, diagnosers):
+
+        sc = self._scenario(options, key, diagnosers, mission.plan, mission.duration, faults)
+        return build_loop(sc, calibration).run(sc.run_duration, sc.start_pose, seed=seed, run_key="campaign",
+                                               scenario=sc.name, meta={"robot_seed": int(key)})

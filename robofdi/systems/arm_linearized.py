@@ -20,7 +20,7 @@ from robofdi.models.linear import discretize
 from robofdi.models.linearization import linearize_manipulator
 from robofdi.observers.adaptive import AdaptiveFaultEstimator, adaptive_fe_gains
 from robofdi.record import Record
-from robofdi.scenarios.arm import ArmScenario
+from robofdi.systems.arm import ArmScenario
 
 __all__ = ["linearized_estimator_loop", "run_linearized"]
 

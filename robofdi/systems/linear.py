@@ -14,27 +14,28 @@ parameter errors (:class:`robofdi.models.linear.LinearMismatch`, seed = the robo
 Kalman predictor on the belief) tracks wheel-speed setpoints mean + amplitude · sin(ω t + φ) drawn per mission.
 
 Steps: :func:`linear_calibration` — fault-free runs on missions of their own (run keys ``calibration/<i>``),
-thresholds = margin × max |r| after the observer's start-up (cached per robot seed and settings in
-:func:`robofdi.scenarios.arm.cache_dir`); :func:`run_linear` — one mission with faults, the observer in the loop.
+thresholds = margin × max |r| after the observer's start-up (cached per robot seed and settings by
+:mod:`robofdi.calibration`); :func:`run_linear` — one mission with faults, the observer in the loop.
 """
 from __future__ import annotations
 
-import hashlib
-import json
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 
 import numpy as np
 
+from robofdi.calibration import cached
+from robofdi.checks import check_fields, is_int
 from robofdi.control.linear import StateFeedback, lqr_gain
 from robofdi.decision import ThresholdDecision, calibrate_thresholds
 from robofdi.errors import RobofdiError
 from robofdi.loop import ClosedLoop, Diagnosis, Rates
 from robofdi.models.linear import LinearMismatch, LinearModel, discretize
 from robofdi.observers.linear import ObserverResidual, observer_gain_kalman
+from robofdi.protocols import Mission, TargetLimit
 from robofdi.record import Record
-from robofdi.scenarios.arm import cache_dir
 from robofdi.seeding import rng
 from robofdi.sims.linear import LinearPlant
+from robofdi.systems import register_system
 
 __all__ = ["WheelSpeedMission", "LinearSettings", "wheel_speed_model", "wheel_speed_plant", "draw_mission",
            "linear_calibration", "run_linear", "SENSOR_RANGE", "TORQUE_LIMIT", "DIAGNOSER"]
@@ -130,28 +131,17 @@ def linear_calibration(robot_seed: int, settings: LinearSettings = LinearSetting
                        ) -> tuple[np.ndarray, bool]:
     """Thresholds [rad/s] per output from fault-free runs — Caccavale & Villani Sec. 6 (margin × max |r|), cached.
     Returns (thresholds, True if from the cache)."""
-    key = hashlib.sha256(json.dumps({"system": "diff-drive", "seed": robot_seed, **asdict(settings)},
-                                    sort_keys=True).encode()).hexdigest()[:20]
-    path = cache_dir() / f"linear-calibration-{key}.npy"
-    if cache and path.is_file():
-        return np.load(path), True
-    plant, belief, L, controller = _parts(robot_seed, settings)
-    residuals = []
-    for i in range(settings.calibration_runs):
-        mission = draw_mission(rng(robot_seed, "calibration", str(i), "mission"))
-        record = _loop(plant, controller, ObserverResidual(belief, L), mission).run(
-            settings.duration, seed=robot_seed, run_key=f"calibration/{i}")
-        residuals.append(record.diagnosers[DIAGNOSER].residual)
-    thresholds = calibrate_thresholds(residuals, settings.margin, settings.blanking_samples)
-    if cache:
-        try:
-            path.parent.mkdir(parents=True, exist_ok=True)
-            tmp = path.with_name(path.stem + ".tmp.npy")
-            np.save(tmp, thresholds)
-            tmp.replace(path)
-        except OSError:
-            pass
-    return thresholds, False
+    def compute() -> np.ndarray:
+        plant, belief, L, controller = _parts(robot_seed, settings)
+        residuals = []
+        for i in range(settings.calibration_runs):
+            mission = draw_mission(rng(robot_seed, "calibration", str(i), "mission"))
+            record = _loop(plant, controller, ObserverResidual(belief, L), mission).run(
+                settings.duration, seed=robot_seed, run_key=f"calibration/{i}")
+            residuals.append(record.diagnosers[DIAGNOSER].residual)
+        return calibrate_thresholds(residuals, settings.margin, settings.blanking_samples)
+
+    return cached("linear", {"plant": "diff-drive", "seed": robot_seed, **asdict(settings)}, compute, cache=cache)
 
 
 def run_linear(mission: WheelSpeedMission, faults, thresholds: np.ndarray, robot_seed: int, seed: int,
@@ -164,3 +154,66 @@ def run_linear(mission: WheelSpeedMission, faults, thresholds: np.ndarray, robot
                                  blanking=settings.blanking_samples)
     return _loop(plant, controller, observer, mission, faults, decision).run(settings.duration, seed=seed,
                                                                             run_key=run_key, scenario="diff-drive")
+
+
+# ---------------------------------------------------------------------------------------------------- the campaign face
+def _linear_settings():
+
+    return LinearSettings
+
+
+@dataclass(frozen=True)
+class LinearOptions(_linear_settings()):
+    """The ``[system]`` table of a linear-plant campaign (the wheel-speed plant of :mod:`robofdi.systems.linear`):
+    robot_seeds: one belief (seeded parameter errors) per seed, one calibration each; mismatch, margin,
+    calibration_runs, duration [s], blanking [s]: those of :class:`robofdi.systems.linear.LinearSettings`."""
+
+    robot_seeds: tuple = (0,)
+
+    def __post_init__(self):
+        object.__setattr__(self, "robot_seeds", tuple(self.robot_seeds))
+        check_fields("system", self, [("robot_seeds", self.robot_seeds and all(is_int(s) for s in self.robot_seeds),
+                                        "a non-empty list of integers >= 0")])
+        try:
+            super().__post_init__()
+        except RobofdiError as exc:
+            raise RobofdiError(f"system: {exc}") from None
+
+    @property
+    def settings(self):
+        """The scenario's settings alone (what a calibration depends on; the robot seed is its key)."""
+        base = _linear_settings()
+        return base(**{f.name: getattr(self, f.name) for f in fields(base)})
+
+
+@register_system
+class LinearCampaign:
+    """The differential-drive wheel-speed plant with its observer residual (:mod:`robofdi.systems.linear`)."""
+
+    name = "linear"
+    options_type = LinearOptions
+
+    def diagnosers(self, options):
+
+        return (DIAGNOSER,)
+
+    def targets(self, options):
+
+        return {"actuator": {a: TargetLimit(TORQUE_LIMIT, "N*m") for a in ("tau_L", "tau_R")},
+                "sensor": {s: TargetLimit(v, "rad/s") for s, v in SENSOR_RANGE.items()}}
+
+    def calibration_keys(self, options):
+        return list(options.robot_seeds)
+
+    def calibrate(self, options, key, diagnosers):
+
+        return linear_calibration(int(key), options.settings)
+
+    def mission(self, options, key, generator):
+
+        mission = draw_mission(generator)
+        return Mission(float(options.duration), mission, {k: list(v) for k, v in mission.__dict__.items()})
+
+    def run(self, options, calibration, key, mission, faults, seed, diagnosers):
+
+        return run_linear(mission.plan, faults, calibration, int(key), seed, options.settings, run_key="campaign")

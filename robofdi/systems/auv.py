@@ -16,9 +16,12 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
+from robofdi.calibration import cached
+from robofdi.checks import check_fields, check_robot_seeds, is_int, is_positive
 from robofdi.control.auv import POSE_NAMES, MissionLimits, TaskSpaceAuvControl, random_mission
 from robofdi.control.trajectory import Sequence as Mission
 from robofdi.decision import NisBankDecision, ThresholdDecision, calibrate_thresholds, startup_samples
@@ -29,15 +32,26 @@ from robofdi.ftc.allocation import ALLOCATORS, ThrustReallocation
 from robofdi.loop import ORACLE, ClosedLoop, Diagnosis, diagnose_record, diagnoser_inputs
 from robofdi.models.auv import AuvModel, AuvModelMismatch
 from robofdi.observers.auv import (
-    CurrentMap, DepthSwitchingControl, DepthVote, ForceObserver, VoltageResidual, identify_current_characteristic,
-    identify_depth_arx, identify_supply_resistance, vertical_force,
+    CurrentMap,
+    DepthSwitchingControl,
+    DepthVote,
+    ForceObserver,
+    VoltageResidual,
+    identify_current_characteristic,
+    identify_depth_arx,
+    identify_supply_resistance,
+    vertical_force,
 )
 from robofdi.observers.ekf_bank import EkfBank, calibrate_process_noise
+from robofdi.protocols import Mission as CampaignMission
+from robofdi.protocols import TargetLimit
 from robofdi.record import Record
 from robofdi.seeding import rng
 from robofdi.sims.auv import AuvSensors, AuvSimulator
+from robofdi.systems import register_system
 
-__all__ = ["AuvScenario", "AuvCalibration", "DIAGNOSERS", "VARIANTS", "FAULT_TARGETS", "fault_targets", "draw_mission",
+__all__ = ["AuvScenario", "AuvCalibration", "calibration", "calibration_description",
+           "DIAGNOSERS", "VARIANTS", "FAULT_TARGETS", "fault_targets", "draw_mission",
            "odin_mission", "roby2_mission", "calibrate", "build_loop", "run_scenario", "tracking_rms", "thruster_names",
            "current_map_regions", "check_scenario", "depth_switch_time", "ALL_DIAGNOSERS"]
 
@@ -131,6 +145,7 @@ class AuvScenario:
     map's filters (a flooded thruster's mismatch is persistent; 0.5 s as the digest's persistence); ekf_window [s]:
     the EKF bank's NIS window W; ekf_margin ≥ 1: its process noise is calibrated so that the fault-free nominal NIS
     peaks at bound/ekf_margin. mission "roby2": :func:`roby2_mission` (for a vehicle without sway thrust).
+    plan: a given reference (a campaign's drawn mission) flown instead of ``mission``.
     """
 
     name: str = "ch4-auv"
@@ -158,6 +173,7 @@ class AuvScenario:
     floor_depth: float = 20.0
     ekf_window: float = 2.0
     ekf_margin: float = 1.1
+    plan: Any = None
 
     def __post_init__(self):
         object.__setattr__(self, "faults", tuple(self.faults))
@@ -192,6 +208,8 @@ class AuvScenario:
         return sim.nominal_model(self.mismatch)
 
     def reference(self) -> Mission:
+        if self.plan is not None:                   # a given mission (a campaign's draw)
+            return self.plan
         if self.mission == "odin":
             return odin_mission(self.duration, self.start_depth)
         if self.mission == "roby2":
@@ -275,6 +293,19 @@ def calibration_records(scenario: AuvScenario, progress: Callable[[int], None] |
         records.append(loop.run(scenario.calibration_duration, scenario.start_pose, seed=scenario.seed,
                                 run_key=f"calibration{k}", scenario=f"calibration:{k}", progress=progress))
     return records
+
+
+def calibration_description(scenario: AuvScenario) -> dict:
+    """What an AUV calibration depends on: the scenario without what only a run has (name, faults, variant,
+    duration, a given mission)."""
+    return {"scenario": repr(replace(scenario, name="calibration", faults=(), variant="no_ftc", duration=1.0, plan=None))}
+
+
+def calibration(scenario: AuvScenario, progress: Callable[[int], None] | None = None,
+                cache: bool = True) -> tuple[AuvCalibration, bool]:
+    """:func:`calibrate`, cached per configuration by :mod:`robofdi.calibration` (faults, variant and the mission
+    flown play no part); returns (calibration, True if it came from the cache)."""
+    return cached("auv", calibration_description(scenario), lambda: calibrate(scenario, progress), cache=cache)
 
 
 def calibrate(scenario: AuvScenario, progress: Callable[[int], None] | None = None,
@@ -414,3 +445,93 @@ def run_scenario(scenario: AuvScenario, cal: AuvCalibration, progress: Callable[
 
 def with_variant(scenario: AuvScenario, variant: str) -> AuvScenario:
     return replace(scenario, variant=variant)
+
+
+# ---------------------------------------------------------------------------------------------------- the campaign face
+@dataclass(frozen=True)
+class AuvOptions:
+    """The ``[system]`` table of an AUV campaign (:mod:`robofdi.systems.auv`, the 8-thruster ODIN-like vehicle).
+
+    robot_seeds: one calibration each (its fault-free calibration missions and noise; the vehicle and its
+    nominal-model errors are those of :class:`~robofdi.models.auv.AuvModelMismatch`); duration [s]: each random
+    mission; calibration_runs × calibration_duration [s]: the fault-free calibration missions; variant /
+    allocation / health_source / current [m/s] / threshold_margin: those of :class:`~robofdi.systems.auv.AuvScenario`."""
+
+    robot_seeds: tuple = (0,)
+    duration: float = 60.0
+    calibration_runs: int = 3
+    calibration_duration: float = 240.0
+    variant: str = "diagnosed"
+    allocation: str = "constrained"
+    health_source: str = "voltage_residual"
+    current: tuple = (0.10, 0.05, 0.0)
+    threshold_margin: float = 2.0
+
+    def __post_init__(self):
+        check_robot_seeds(self)
+        object.__setattr__(self, "current", tuple(self.current))
+        check_fields("system", self, [
+            ("duration", is_positive(self.duration, 3600), "a time in (0, 3600] s"),
+            ("calibration_runs", is_int(self.calibration_runs, 1), "an integer >= 1"),
+            ("calibration_duration", is_positive(self.calibration_duration, 3600), "a time in (0, 3600] s"),
+        ])
+        try:
+            self.scenario(0)                        # the scenario validates the rest (variant, allocation, …)
+        except RobofdiError as exc:
+            raise RobofdiError(f"system: {exc}") from None
+
+    def scenario(self, seed: int, diagnosers=None, plan=None, faults=()):
+        """The :class:`~robofdi.systems.auv.AuvScenario` of these options (every diagnoser unless named)."""
+
+        names = tuple(ALL_DIAGNOSERS if diagnosers is None else diagnosers)
+        if self.variant == "diagnosed" and self.health_source not in names:
+            names += (self.health_source,)          # the health the accommodation uses must be diagnosed
+        return AuvScenario(name="campaign-auv", mission="random", duration=float(self.duration), seed=int(seed),
+                                   faults=tuple(faults), current=self.current, diagnosers=names,
+                                   allocation=self.allocation, variant=self.variant, health_source=self.health_source,
+                                   calibration_runs=self.calibration_runs,
+                                   calibration_duration=float(self.calibration_duration),
+                                   threshold_margin=float(self.threshold_margin), plan=plan)
+
+
+
+@register_system
+class AuvCampaign:
+    """The AUV: seeded random waypoint missions, thruster and navigation-sensor faults, the thruster diagnosers and
+    the depth vote online, accommodation per ``variant`` (:mod:`robofdi.systems.auv`)."""
+
+    name = "auv"
+    options_type = AuvOptions
+
+    def diagnosers(self, options):
+
+        return ALL_DIAGNOSERS
+
+    def targets(self, options):
+        from robofdi.sims.auv import NAVIGATION_CHANNELS
+
+        sc = options.scenario(0)
+        sim = sc.simulator()
+        ranges = {"m": 2 * sc.floor_depth, "rad": np.pi, "m/s": 2.0, "rad/s": 1.0}   # sensor ranges of the vehicle
+        thrusters = sim.actuators
+        navigation = [(c, u) for c, u in zip(sim.sensor_channels, sim.units["y"]) if c in NAVIGATION_CHANNELS]
+        return {"actuator": {t: TargetLimit(sc.thrust_limit, "N") for t in thrusters},
+                "sensor": {c: TargetLimit(ranges[u], u) for c, u in navigation},
+                "component_thruster_blocking": {t: TargetLimit(1.0, "1") for t in thrusters},
+                "component_thruster_flooding": {t: TargetLimit(1.0, "1") for t in thrusters}}
+
+    def calibration_keys(self, options):
+        return list(options.robot_seeds)
+
+    def calibrate(self, options, key, diagnosers):
+        return calibration(options.scenario(int(key)))
+
+    def mission(self, options, key, generator):
+
+        seed = int(generator.integers(2**31))
+        return CampaignMission(float(options.duration), draw_mission(seed, float(options.duration)), {"mission_seed": seed})
+
+    def run(self, options, calibration, key, mission, faults, seed, diagnosers):
+
+        sc = options.scenario(seed, diagnosers, mission.plan, faults)
+        return run_scenario(sc, calibration, run_key="campaign")[0]

@@ -18,8 +18,8 @@ from robofdi.errors import RobofdiError
 from robofdi.evaluate import summarize
 from robofdi.faults import Fault
 from robofdi.loop import ClosedLoop, Diagnosis
-from robofdi.models.linear_examples import aircraft_lateral
 from robofdi.models.linear import LinearMismatch, discretize, perturbed
+from robofdi.models.linear_examples import aircraft_lateral
 from robofdi.observers.uio import LockInPlaceBank
 from robofdi.record import Record
 from robofdi.sims.linear import LinearPlant

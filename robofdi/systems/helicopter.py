@@ -19,6 +19,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from robofdi.calibration import cached
+from robofdi.checks import check_fields, check_robot_seeds, is_int, is_positive
 from robofdi.control.linear import StateFeedback, lqr_gain
 from robofdi.decision import Alarms, ThresholdDecision, calibrate_thresholds
 from robofdi.errors import RobofdiError
@@ -26,11 +28,13 @@ from robofdi.evaluate import summarize
 from robofdi.faults import Fault, Oscillation
 from robofdi.ftc import EffectivenessCompensation
 from robofdi.loop import ClosedLoop, Diagnosis
-from robofdi.models.linear_examples import HELICOPTER_NOISE, helicopter
 from robofdi.models.linear import LinearMismatch, perturbed
+from robofdi.models.linear_examples import HELICOPTER_NOISE, helicopter
 from robofdi.observers.kalman import COVARIANCE_MODES, KalmanFaultEstimator
+from robofdi.protocols import Mission, TargetLimit
 from robofdi.record import Record
 from robofdi.sims.linear import LinearPlant
+from robofdi.systems import register_system
 
 __all__ = ["HelicopterScenario", "HARNESSES", "PAPER_FAULTS", "UNKNOWN_INPUT_FAULTS", "UNKNOWN_INPUT_D", "build_loop",
            "calibrate", "run_helicopter", "fault_estimates"]
@@ -180,3 +184,72 @@ def fault_estimates(record: Record, sc: HelicopterScenario) -> tuple[np.ndarray,
         f.append(fe.fault_estimate.copy())
         z.append(fe.unknown_input_estimate)
     return np.array(f), np.array(z)
+
+
+# ---------------------------------------------------------------------------------------------------- the campaign face
+@dataclass(frozen=True)
+class HelicopterOptions:
+    """The ``[system]`` table of a helicopter campaign (Jiang & Chowdhury 2005 Sec. V, :mod:`robofdi.systems.helicopter`):
+    robot_seeds: one belief (seeded relative parameter errors of size ``mismatch``) and calibration each;
+    duration [s]; noise: the paper's process and sensor noise; accommodation: u = (I − R̂)⁻¹u fed by the diagnosis;
+    calibration_runs: fault-free runs setting the thresholds."""
+
+    robot_seeds: tuple = (0,)
+    duration: float = 10.0
+    mismatch: float = 0.05
+    noise: bool = True
+    accommodation: bool = True
+    calibration_runs: int = 3
+
+    def __post_init__(self):
+        check_robot_seeds(self)
+        check_fields("system", self, [
+            ("duration", is_positive(self.duration, 600), "a time in (0, 600] s"),
+            ("mismatch", isinstance(self.mismatch, (int, float)) and 0 <= self.mismatch < 0.5, "a fraction in [0, 0.5)"),
+            ("noise", isinstance(self.noise, bool), "true or false"),
+            ("accommodation", isinstance(self.accommodation, bool), "true or false"),
+            ("calibration_runs", is_int(self.calibration_runs, 1), "an integer >= 1"),
+        ])
+
+    def scenario(self, key: int, faults=()):
+        """The scenario of belief ``key`` (its seed seeds the belief's errors; run noise comes from the run seed)."""
+
+        return HelicopterScenario(faults=tuple(faults), seed=int(key), duration=float(self.duration), noise=self.noise,
+                                  accommodation=self.accommodation, mismatch=float(self.mismatch),
+                                  calibration_runs=self.calibration_runs)
+
+
+@register_system
+class HelicopterCampaign:
+    """The linearised helicopter of Jiang & Chowdhury (2005): the paper's LQR + excitation harness, actuator
+    effectiveness faults estimated by the Kalman fault estimator and accommodated (the mission is the paper's fixed
+    excitation; runs differ by their fault and noise)."""
+
+    name = "helicopter"
+    options_type = HelicopterOptions
+
+    def diagnosers(self, options):
+        return ("kalman_fe",)
+
+    def targets(self, options):
+        from robofdi.models.linear_examples import helicopter
+
+        # limit of an input: the excitation's amplitude (1 input unit)
+        return {"actuator": {a: TargetLimit(1.0, "input") for a in helicopter().input_names}}
+
+    def calibration_keys(self, options):
+        return list(options.robot_seeds)
+
+    def calibrate(self, options, key, diagnosers):
+
+        sc = options.scenario(key)
+        return cached("helicopter", {"scenario": repr(sc)}, lambda: calibrate(sc))
+
+    def mission(self, options, key, generator):
+        return Mission(float(options.duration), None, {"excitation": "sin(pi t), cos(0.6 pi t)"})
+
+    def run(self, options, calibration, key, mission, faults, seed, diagnosers):
+
+        sc = options.scenario(key, faults)
+        return build_loop(sc, calibration).run(sc.duration, seed=seed, run_key="campaign", scenario="campaign-helicopter",
+                                               meta={"noise": sc.noise, "robot_seed": int(key)})

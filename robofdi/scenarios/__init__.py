@@ -1,1 +1,0 @@
-"""Scenario assembly: a validated configuration turned into a calibrated closed loop, per system."""

@@ -1,0 +1,85 @@
+"""The one calibration cache (robofdi.calibration): key, format (no pickle), atomic files, clearing."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from robofdi import calibration
+from robofdi.decision import Signature
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("ROBOFDI_CACHE", str(tmp_path / "cache"))
+    calibration._memory.clear()
+    yield tmp_path / "cache"
+    calibration._memory.clear()
+
+
+def test_a_cached_calibration_is_not_reused_by_other_code(cache, monkeypatch):
+    """The cache key holds a hash of robofdi's source: the same options under changed code recompute."""
+    assert len(calibration.code_fingerprint()) == 64
+    calls = []
+
+    def compute():
+        calls.append(1)
+        return {"calibration": len(calls)}
+
+    first, cached_first = calibration.cached("probe", {"option": 1}, compute)
+    again, cached_again = calibration.cached("probe", {"option": 1}, compute)
+    assert (cached_first, cached_again) == (False, True) and again == first
+    other_options, cached_other_options = calibration.cached("probe", {"option": 2}, compute)
+    assert not cached_other_options and other_options == {"calibration": 2}
+    monkeypatch.setattr(calibration, "code_fingerprint", lambda: "0" * 64)
+    other, cached_other = calibration.cached("probe", {"option": 1}, compute)
+    assert not cached_other and other == {"calibration": 3}
+    assert len(calibration.entries()) == 3
+
+
+def test_the_format_round_trips_data_and_library_objects_exactly():
+    rng = np.random.default_rng(4)
+    value = {"thresholds": {"momentum": rng.normal(size=6), ("a", 1): np.arange(3, dtype=np.int32)},
+             "theta0": rng.normal(size=(2, 3)), "blanking": 12, "margin": 1.2, "inf": float("inf"),
+             "names": ("joint1", "joint2"), "list": [1, "x", None, True], "scalar": np.float64(0.1 + 0.2),
+             "signature": Signature("tau1", frozenset({"r1", "r2"})), "empty": np.zeros((0, 4))}
+    back = calibration.loads(calibration.dumps(value))
+    assert back["blanking"] == 12 and back["margin"] == 1.2 and back["inf"] == float("inf")
+    assert back["names"] == ("joint1", "joint2") and back["list"] == [1, "x", None, True]
+    np.testing.assert_array_equal(back["thresholds"]["momentum"], value["thresholds"]["momentum"])
+    assert back["thresholds"][("a", 1)].dtype == np.int32
+    assert back["scalar"] == value["scalar"] and isinstance(back["scalar"], np.float64)
+    assert back["signature"] == value["signature"] and back["empty"].shape == (0, 4)
+
+
+def test_the_format_refuses_what_it_would_have_to_pickle():
+    class Local:
+        pass
+
+    for bad in (lambda: 0, Local(), np.array([object()]), {"f": print}):
+        with pytest.raises(TypeError, match="calibration cache"):
+            calibration.dumps(bad)
+
+
+def test_an_untrusted_class_in_a_file_is_refused_not_imported(cache):
+    data = calibration.dumps({"x": Signature("tau1", frozenset({"r1"}))})
+    forged = data.replace(b"robofdi.decision", b"os.pathxxxxxxxxx")     # same length: the zip stays valid
+    with pytest.raises((ValueError, Exception)):
+        calibration.loads(forged)
+
+
+def test_a_torn_file_is_recomputed_and_an_unstorable_value_kept_in_memory(cache):
+    calibration.cached("probe", {"n": 1}, lambda: {"v": np.ones(3)})
+    (path,) = calibration.entries()
+    path.write_bytes(path.read_bytes()[:40])                            # torn
+    value, from_cache = calibration.cached("probe", {"n": 1}, lambda: {"v": np.zeros(3)})
+    assert not from_cache and value["v"].sum() == 0
+    closure = calibration.cached("probe", {"n": 2}, lambda: (lambda: 7))
+    assert closure[1] is False and calibration.cached("probe", {"n": 2}, lambda: None)[0]() == 7
+    assert calibration.is_cached("probe", {"n": 1}) and not calibration.is_cached("probe", {"n": 3})
+
+
+def test_clear_empties_the_cache(cache):
+    for n in range(3):
+        calibration.cached("probe", {"n": n}, lambda: n)
+    assert calibration.clear() == 3 and calibration.entries() == []
+    assert not calibration.cached("probe", {"n": 0}, lambda: 0)[1]
