@@ -47,7 +47,7 @@ _API = {
     "LockInPlaceBank": "robofdi.observers.uio", "AdaptiveFaultEstimator": "robofdi.observers.adaptive",
     "GainFaultObserver": "robofdi.observers.gain", "SwitchingIndexDecision": "robofdi.decision",
     "WindowedTTest": "robofdi.decision", "EkfBank": "robofdi.observers.ekf_bank", "NisBankDecision": "robofdi.decision",
-    "ControlAffineModel": "robofdi.redundancy", "derive_nlar": "robofdi.redundancy",
+    "ControlAffineModel": "robofdi.models", "derive_nlar": "robofdi.redundancy",
     "HydraulicScenario": "robofdi.systems.hydraulic",
     "run_campaign": "robofdi.campaign", "load_spec": "robofdi.campaign",
 }

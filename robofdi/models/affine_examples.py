@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import sympy as sp
 
-from robofdi.redundancy.model import ControlAffineModel
+from robofdi.models.control_affine import ControlAffineModel
 
 __all__ = ["pendulum_model", "two_tank_model", "PENDULUM_CATALOGUE", "TWO_TANK_CATALOGUE", "two_tank_domain"]
 

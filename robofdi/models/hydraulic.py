@@ -20,7 +20,7 @@ import numpy as np
 import sympy as sp
 
 from robofdi.errors import RobofdiError
-from robofdi.redundancy.model import ControlAffineModel
+from robofdi.models.control_affine import ControlAffineModel
 
 __all__ = ["HydraulicParameters", "CATALOGUE", "PSI", "hydraulic_model", "hydraulic_domain", "linearised_model", "flow_gains",
            "LOAD_MODELS", "VARIANTS", "printed_tests", "with_variants"]

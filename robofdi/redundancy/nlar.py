@@ -25,7 +25,7 @@ import numpy as np
 import sympy as sp
 
 from robofdi.errors import RobofdiError
-from robofdi.redundancy.model import ControlAffineModel
+from robofdi.models.control_affine import ControlAffineModel
 
 __all__ = ["NLARDesign", "derive_nlar", "derivative_symbol", "generic_rank"]
 
