@@ -19,7 +19,7 @@ from robofdi.campaign import (
     clopper_pearson, detection_curve, load, load_spec, register_system, run_campaign, run_seed, shipped_specs,
 )
 from robofdi.campaign.backends import DaskCluster
-from robofdi.systems.linear import LinearCampaign
+from robofdi.systems.linear import LinearSystem
 
 ARM = """
 seed = 3
@@ -151,7 +151,7 @@ def test_runs_prefix_is_a_prefix_of_the_full_campaign(tmp_path):
     assert active[0] == pytest.approx(row["onset"], abs=0.01)
 
 
-class FlakyLinear(LinearCampaign):
+class FlakyLinear(LinearSystem):
     """The linear plant, but a run raises when the drawn mission asks for a left-wheel mean speed above 7.5 rad/s."""
 
     name = "flaky-linear"

@@ -554,6 +554,11 @@ class ArmSimulator:
         return np.concatenate([q, v])
 
     # ----------------------------------------------------------------------------------------- components
+    @property
+    def link_masses(self) -> dict[str, float]:
+        """Nominal mass [kg] of every link body a ``component_mass`` fault may change (the payload point excluded)."""
+        return {b: float(self._body0[i][0]) for b, (i, _) in self._mass_points.items() if b != "payload"}
+
     def apply_component_fault(self, kind: str, target: str, value: float) -> None:
         """Set component ``target`` to ``value`` away from nominal (0 restores it exactly).
 

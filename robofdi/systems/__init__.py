@@ -36,7 +36,7 @@ from robofdi.errors import RobofdiError
 from robofdi.faults import FAULT_KINDS
 from robofdi.protocols import Mission, System, TargetLimit
 
-__all__ = ["SYSTEMS", "register_system", "get_system", "system_names", "fault_limit", "TargetLimit", "Mission",
+__all__ = ["SYSTEMS", "RobotInstances", "register_system", "get_system", "system_names", "fault_limit", "TargetLimit", "Mission",
            "System", "ENTRY_POINT_GROUP"]
 
 #: The entry-point group through which an installed package adds systems.
@@ -45,6 +45,14 @@ ENTRY_POINT_GROUP = "robofdi.systems"
 #: name -> system instance, for every system registered so far.
 SYSTEMS: dict[str, System] = {}
 _discovered = False
+
+
+class RobotInstances:
+    """Base of a system whose options have ``robot_seeds``: one robot instance (its seeded plant effects and
+    nominal-model errors) and one calibration per seed; a campaign's runs cycle through them."""
+
+    def calibration_keys(self, options) -> list:
+        return list(options.robot_seeds)
 
 
 def register_system(system):

@@ -48,7 +48,7 @@ from robofdi.protocols import Mission, TargetLimit
 from robofdi.record import Record
 from robofdi.seeding import rng
 from robofdi.sims import ArmSimulator, SensorModel, TorqueRipple
-from robofdi.systems import register_system
+from robofdi.systems import RobotInstances, register_system
 
 __all__ = ["ArmScenario", "arm_scenario", "Calibration", "calibration_trajectories", "calibration_records", "calibrate",
            "calibration", "run_scenario", "build_loop", "check_scenario"]
@@ -381,7 +381,7 @@ def arm_scenario(robot: str | Path = "arm6.xml", faults=(), seed: int = 0, joint
     return sc
 
 
-# ---------------------------------------------------------------------------------------------------- the campaign face
+# ---------------------------------------------------------------------------------------------------- the system
 @dataclass(frozen=True)
 class ArmOptions:
     """The ``[system]`` table of an arm campaign.
@@ -431,7 +431,7 @@ def _arm(robot: str, joints, torque_motors: bool):
 
 
 @register_system
-class ArmCampaign:
+class ArmSystem(RobotInstances):
     """Any MJCF arm: seeded point-to-point motions from random start poses, faults injected online, the book's
     schemes and the momentum observer in the loop (:mod:`robofdi.systems.arm`)."""
 
@@ -455,15 +455,12 @@ class ArmCampaign:
         width = sim.joint_range[:, 1] - sim.joint_range[:, 0]
         sensors = {ch: TargetLimit(float(width[i % n]), "rad" if i < n else "rad/s")
                    for i, ch in enumerate(sim.sensor_channels)}          # velocity channels: one range per second
-        masses = {b: TargetLimit(float(sim.model.body_mass[i]), "kg") for b, (i, _) in sim._mass_points.items()}
-        masses["payload"] = TargetLimit(max(v.limit for k, v in masses.items() if k != "payload"), "kg")
+        masses = {b: TargetLimit(m, "kg") for b, m in sim.link_masses.items()}
+        masses["payload"] = TargetLimit(max(v.limit for v in masses.values()), "kg")
         return {"actuator": {a: TargetLimit(float(model.torque_limit[i]), "N·m") for i, a in enumerate(sim.actuators)},
                 "sensor": sensors,
                 "component_friction": {j: TargetLimit(1.0, "1") for j in sim.component_kinds["component_friction"]},
                 "component_mass": {b: masses[b] for b in sim.component_kinds["component_mass"]}}
-
-    def calibration_keys(self, options):
-        return list(options.robot_seeds)
 
     def _scenario(self, options, key, diagnosers, motion=None, duration=None, faults=()):
 

@@ -48,7 +48,7 @@ from robofdi.protocols import TargetLimit
 from robofdi.record import Record
 from robofdi.seeding import rng
 from robofdi.sims.auv import AuvSensors, AuvSimulator
-from robofdi.systems import register_system
+from robofdi.systems import RobotInstances, register_system
 
 __all__ = ["AuvScenario", "AuvCalibration", "calibration", "calibration_description",
            "DIAGNOSERS", "VARIANTS", "FAULT_TARGETS", "fault_targets", "draw_mission",
@@ -447,7 +447,7 @@ def with_variant(scenario: AuvScenario, variant: str) -> AuvScenario:
     return replace(scenario, variant=variant)
 
 
-# ---------------------------------------------------------------------------------------------------- the campaign face
+# ---------------------------------------------------------------------------------------------------- the system
 @dataclass(frozen=True)
 class AuvOptions:
     """The ``[system]`` table of an AUV campaign (:mod:`robofdi.systems.auv`, the 8-thruster ODIN-like vehicle).
@@ -496,7 +496,7 @@ class AuvOptions:
 
 
 @register_system
-class AuvCampaign:
+class AuvSystem(RobotInstances):
     """The AUV: seeded random waypoint missions, thruster and navigation-sensor faults, the thruster diagnosers and
     the depth vote online, accommodation per ``variant`` (:mod:`robofdi.systems.auv`)."""
 
@@ -519,9 +519,6 @@ class AuvCampaign:
                 "sensor": {c: TargetLimit(ranges[u], u) for c, u in navigation},
                 "component_thruster_blocking": {t: TargetLimit(1.0, "1") for t in thrusters},
                 "component_thruster_flooding": {t: TargetLimit(1.0, "1") for t in thrusters}}
-
-    def calibration_keys(self, options):
-        return list(options.robot_seeds)
 
     def calibrate(self, options, key, diagnosers):
         return calibration(options.scenario(int(key)))

@@ -8,7 +8,7 @@ from robofdi.adapters import adapter
 from robofdi.calibration import cached
 from robofdi.checks import check_fields, check_robot_seeds, is_int
 from robofdi.protocols import Mission, TargetLimit
-from robofdi.systems import register_system
+from robofdi.systems import RobotInstances, register_system
 
 __all__ = []
 
@@ -37,7 +37,7 @@ class CartpoleOptions:
 
 
 @register_system
-class CartpoleCampaign:
+class CartpoleSystem(RobotInstances):
     """dm_control's cartpole (swingup) under a seeded excitation policy (the mission), faults through
     :class:`~robofdi.adapters.dm_control.FaultyEnvironment`, the momentum residual with calibrated thresholds."""
 
@@ -60,9 +60,6 @@ class CartpoleCampaign:
         ranges = {"position[0]": 3.6, "position[1]": 2.0, "position[2]": 2.0, "velocity[0]": 5.0, "velocity[1]": 20.0}
         return {"actuator": {a: TargetLimit(1.0, "1 (action)") for a in env.actuators},
                 "sensor": {c: TargetLimit(ranges[c], "observation unit") for c in env.sensors if c in ranges}}
-
-    def calibration_keys(self, options):
-        return list(options.robot_seeds)
 
     def calibrate(self, options, key, diagnosers):
         dc, diagnoser = self._diagnoser(options, key)

@@ -34,7 +34,7 @@ from robofdi.observers.kalman import COVARIANCE_MODES, KalmanFaultEstimator
 from robofdi.protocols import Mission, TargetLimit
 from robofdi.record import Record
 from robofdi.sims.linear import LinearPlant
-from robofdi.systems import register_system
+from robofdi.systems import RobotInstances, register_system
 
 __all__ = ["HelicopterScenario", "HARNESSES", "PAPER_FAULTS", "UNKNOWN_INPUT_FAULTS", "UNKNOWN_INPUT_D", "build_loop",
            "calibrate", "run_helicopter", "fault_estimates"]
@@ -186,7 +186,7 @@ def fault_estimates(record: Record, sc: HelicopterScenario) -> tuple[np.ndarray,
     return np.array(f), np.array(z)
 
 
-# ---------------------------------------------------------------------------------------------------- the campaign face
+# ---------------------------------------------------------------------------------------------------- the system
 @dataclass(frozen=True)
 class HelicopterOptions:
     """The ``[system]`` table of a helicopter campaign (Jiang & Chowdhury 2005 Sec. V, :mod:`robofdi.systems.helicopter`):
@@ -220,7 +220,7 @@ class HelicopterOptions:
 
 
 @register_system
-class HelicopterCampaign:
+class HelicopterSystem(RobotInstances):
     """The linearised helicopter of Jiang & Chowdhury (2005): the paper's LQR + excitation harness, actuator
     effectiveness faults estimated by the Kalman fault estimator and accommodated (the mission is the paper's fixed
     excitation; runs differ by their fault and noise)."""
@@ -236,9 +236,6 @@ class HelicopterCampaign:
 
         # limit of an input: the excitation's amplitude (1 input unit)
         return {"actuator": {a: TargetLimit(1.0, "input") for a in helicopter().input_names}}
-
-    def calibration_keys(self, options):
-        return list(options.robot_seeds)
 
     def calibrate(self, options, key, diagnosers):
 

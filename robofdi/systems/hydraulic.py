@@ -39,7 +39,7 @@ from robofdi.redundancy.nlar import derive_nlar
 from robofdi.redundancy.residuals import nlar_residual
 from robofdi.seeding import rng
 from robofdi.sims.hydraulic import HydraulicRig, RigParameters, RigSensors
-from robofdi.systems import register_system
+from robofdi.systems import RobotInstances, register_system
 
 __all__ = ["HydraulicScenario", "HydraulicCalibration", "calibration", "operating_profile", "FAULT_TARGETS", "DIAGNOSERS",
            "calibrate", "run_scenario", "build_loop", "nominal_operating_point", "fit_pressure_parameters", "TABLE1",
@@ -293,7 +293,7 @@ def leak_flow_share(area_mm2: float, rpm: float = 5.0, rig: RigParameters | None
     return float(q_leak / (rig.d_m * rpm * RPM))
 
 
-# ---------------------------------------------------------------------------------------------------- the campaign face
+# ---------------------------------------------------------------------------------------------------- the system
 @dataclass(frozen=True)
 class HydraulicOptions:
     """The ``[system]`` table of a hydraulic-rig campaign (:mod:`robofdi.systems.hydraulic`).
@@ -321,7 +321,7 @@ class HydraulicOptions:
 
 
 @register_system
-class HydraulicCampaign:
+class HydraulicSystem(RobotInstances):
     """The hydraulic wheel-actuator rig: random operating profiles (target speed, ramp, load throttle), valve,
     leak and tachometer faults, the nlar residuals and their baselines online (:mod:`robofdi.systems.hydraulic`)."""
 
@@ -340,9 +340,6 @@ class HydraulicCampaign:
                  for kind, tg in FAULT_TARGETS["component"].items()}
         return {"actuator": {"servovalve": TargetLimit(1.0, "1 (valve stroke)")},
                 "sensor": {c: TargetLimit(*v) for c, v in limits.items()}, **comps}
-
-    def calibration_keys(self, options):
-        return list(options.robot_seeds)
 
     def calibrate(self, options, key, diagnosers):
         return calibration(options.scenario(), options.calibration_runs, 1000 * (1 + int(key)))

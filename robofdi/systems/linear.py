@@ -35,7 +35,7 @@ from robofdi.protocols import Mission, TargetLimit
 from robofdi.record import Record
 from robofdi.seeding import rng
 from robofdi.sims.linear import LinearPlant
-from robofdi.systems import register_system
+from robofdi.systems import RobotInstances, register_system
 
 __all__ = ["WheelSpeedMission", "LinearSettings", "wheel_speed_model", "wheel_speed_plant", "draw_mission",
            "linear_calibration", "run_linear", "SENSOR_RANGE", "TORQUE_LIMIT", "DIAGNOSER"]
@@ -156,14 +156,9 @@ def run_linear(mission: WheelSpeedMission, faults, thresholds: np.ndarray, robot
                                                                             run_key=run_key, scenario="diff-drive")
 
 
-# ---------------------------------------------------------------------------------------------------- the campaign face
-def _linear_settings():
-
-    return LinearSettings
-
-
+# ---------------------------------------------------------------------------------------------------- the system
 @dataclass(frozen=True)
-class LinearOptions(_linear_settings()):
+class LinearOptions(LinearSettings):
     """The ``[system]`` table of a linear-plant campaign (the wheel-speed plant of :mod:`robofdi.systems.linear`):
     robot_seeds: one belief (seeded parameter errors) per seed, one calibration each; mismatch, margin,
     calibration_runs, duration [s], blanking [s]: those of :class:`robofdi.systems.linear.LinearSettings`."""
@@ -182,12 +177,11 @@ class LinearOptions(_linear_settings()):
     @property
     def settings(self):
         """The scenario's settings alone (what a calibration depends on; the robot seed is its key)."""
-        base = _linear_settings()
-        return base(**{f.name: getattr(self, f.name) for f in fields(base)})
+        return LinearSettings(**{f.name: getattr(self, f.name) for f in fields(LinearSettings)})
 
 
 @register_system
-class LinearCampaign:
+class LinearSystem(RobotInstances):
     """The differential-drive wheel-speed plant with its observer residual (:mod:`robofdi.systems.linear`)."""
 
     name = "linear"
@@ -201,9 +195,6 @@ class LinearCampaign:
 
         return {"actuator": {a: TargetLimit(TORQUE_LIMIT, "N*m") for a in ("tau_L", "tau_R")},
                 "sensor": {s: TargetLimit(v, "rad/s") for s, v in SENSOR_RANGE.items()}}
-
-    def calibration_keys(self, options):
-        return list(options.robot_seeds)
 
     def calibrate(self, options, key, diagnosers):
 

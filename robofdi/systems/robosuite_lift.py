@@ -10,7 +10,7 @@ import numpy as np
 from robofdi.adapters import adapter
 from robofdi.checks import check_fields, check_robot_seeds, is_int
 from robofdi.protocols import Mission, TargetLimit
-from robofdi.systems import register_system
+from robofdi.systems import RobotInstances, register_system
 
 __all__ = []
 
@@ -48,7 +48,7 @@ def _lift_env():
 
 
 @register_system
-class RobosuiteLiftCampaign:
+class RobosuiteLiftSystem(RobotInstances):
     """robosuite's Lift with the Panda (OSC_POSE, scripted grasp; the script's variations are the mission), arm
     faults through :class:`~robofdi.adapters.robosuite.FaultyRobosuiteEnv`, the momentum diagnosers online."""
 
@@ -69,9 +69,6 @@ class RobosuiteLiftCampaign:
                 "sensor": sensors,
                 "component_friction": {j: TargetLimit(1.0, "1") for j in arm.joints},
                 "component_mass": {"payload": TargetLimit(3.0, "kg")}}      # the Panda's rated payload
-
-    def calibration_keys(self, options):
-        return list(options.robot_seeds)
 
     def calibrate(self, options, key, diagnosers):
         rd = adapter("robofdi.adapters.robosuite_diagnosis", "robosuite")
