@@ -170,10 +170,11 @@ def _run_ch4_auv(name, run_dir, seed, bar, replay):
     cal, cached = calibration(sc, progress=bar.update)
     records, summaries = {}, {}
     bar.set_description(f"{name}: fault-free")
-    records["fault_free"], _ = run_scenario(replace(sc, faults=(), variant="no_ftc"), cal, progress=bar.update)
+    records["fault_free"] = run_scenario(replace(sc, faults=(), variant="no_ftc"), cal, progress=bar.update)
     for variant in ("no_ftc", "oracle", "diagnosed"):
         bar.set_description(f"{name}: {variant}")
-        records[variant], summaries[variant] = run_scenario(replace(sc, variant=variant), cal, progress=bar.update)
+        records[variant] = run_scenario(replace(sc, variant=variant), cal, progress=bar.update)
+        summaries[variant] = summarize(records[variant], sc.name)
     since = max(f.onset for f in sc.faults)
     rms = {k: tracking_rms(r, since) for k, r in records.items()}
     base = rms["fault_free"]
@@ -217,8 +218,8 @@ def _single_run(name: str, sc: AuvScenario, bar) -> tuple[Record, dict, bool]:
     check_scenario(sc)
     cal, cached = calibration(sc, progress=bar.update)
     bar.set_description(f"{name}: run")
-    record, summary = run_scenario(sc, cal, progress=bar.update)
-    return record, summary, cached
+    record = run_scenario(sc, cal, progress=bar.update)
+    return record, summarize(record, sc.name), cached
 
 
 def _run_ch4_flooded(name, run_dir, seed, bar, replay):
@@ -304,7 +305,7 @@ def _run_ch4_roby2(name, run_dir, seed, bar, replay):
     summary["ekf_bank"]["process_noise"] = cal.ekf_process_noise
     summary["ekf_bank"]["units"]["process_noise"] = "N²"
     bar.set_description(f"{name}: fault-free {FAULT_FREE_CHECK:g} s")
-    free, _ = run_scenario(replace(sc, faults=(), duration=FAULT_FREE_CHECK), cal, progress=bar.update,
+    free = run_scenario(replace(sc, faults=(), duration=FAULT_FREE_CHECK), cal, progress=bar.update,
                            run_key="fault_free")
     tr = free.diagnosers["ekf_bank"]
     summary["ekf_bank"]["fault_free"] = {

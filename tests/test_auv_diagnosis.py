@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from robofdi.errors import RobofdiError
+from robofdi.evaluate import summarize
 from robofdi.faults import Fault
 from robofdi.models.auv import AuvModel
 from robofdi.observers.auv import VoltageResidual, effectiveness_identifiability
@@ -40,7 +41,8 @@ def test_calibration_is_picklable_and_the_characteristic_is_physical(cal):
 
 def test_fault_free_random_mission_in_a_current_raises_no_alarm(cal):
     sc = replace(BASE, mission="random", seed=3, duration=90.0, variant="diagnosed")
-    record, summary = run_scenario(sc, cal)
+    record = run_scenario(sc, cal)
+    summary = summarize(record, record.scenario)
     for name, metrics in summary["diagnosers"].items():
         assert metrics["false_alarms"] == 0, name
     assert tracking_rms(record, 5.0) < 0.15
@@ -51,7 +53,8 @@ def test_fault_free_random_mission_in_a_current_raises_no_alarm(cal):
 def test_rotor_failure_is_isolated_within_half_a_second_by_the_telemetry_schemes(cal, target, onset):
     sc = replace(BASE, variant="no_ftc", duration=onset + 5.0,
                  faults=(Fault(f"{target}_off", "actuator_float", target, onset=onset),))
-    record, summary = run_scenario(sc, cal)
+    record = run_scenario(sc, cal)
+    summary = summarize(record, record.scenario)
     i = record.columns["signals/u"].index(target)
     k = (record.time >= onset) & (record.time < onset + 0.5)
     # precondition: the failed thruster is commanded (the Hall residual cannot see a zeroed drive otherwise)
@@ -69,7 +72,7 @@ def test_flooding_and_blocking_are_told_apart_from_rotor_failure_by_the_current_
     faults = (Fault("t3_flooded", "component_thruster_flooding", "thruster3", onset=10.0, magnitude=0.3),
               Fault("t5_blocked", "component_thruster_blocking", "thruster5", onset=20.0, magnitude=1.0),
               Fault("t1_off", "actuator_float", "thruster1", onset=30.0))
-    record, summary = run_scenario(replace(BASE, variant="no_ftc", duration=36.0, faults=faults), cal)
+    record = run_scenario(replace(BASE, variant="no_ftc", duration=36.0, faults=faults), cal)
     regions = current_map_regions(record, faults)
     assert regions["t3_flooded"]["region"] == "flooding"
     assert regions["t5_blocked"]["region"] == "blocking"
@@ -84,14 +87,14 @@ def test_diagnosed_health_allocation_keeps_tracking_after_two_failures(cal):
     sc = replace(BASE, duration=60.0, faults=faults)
     rms = {}
     for variant in ("oracle", "diagnosed"):
-        record, summary = run_scenario(replace(sc, variant=variant), cal)
+        record = run_scenario(replace(sc, variant=variant), cal)
         rms[variant] = tracking_rms(record, 30.0)
         assert np.all(np.abs(record.u_applied) <= sc.thrust_limit + 1e-9)
         if variant == "diagnosed":
             assert record.meta["health_source"] == "voltage_residual"
             after = record.time > 31.0         # health one sample late; then the failed drives get no demand
             assert np.abs(record.signals["u"][after][:, [1, 5]]).max() < 1e-9
-    free, _ = run_scenario(replace(sc, faults=(), variant="no_ftc"), cal)
+    free = run_scenario(replace(sc, faults=(), variant="no_ftc"), cal)
     rms["fault_free"] = tracking_rms(free, 30.0)
     assert rms["diagnosed"] <= 2.0 * rms["fault_free"], rms
     assert rms["diagnosed"] <= 1.2 * rms["oracle"], rms
@@ -100,7 +103,8 @@ def test_diagnosed_health_allocation_keeps_tracking_after_two_failures(cal):
 def test_zeroed_depth_sensor_is_switched_out_after_one_second_and_depth_control_goes_on(cal):
     sc = replace(BASE, variant="no_ftc", duration=30.0, depth_redundancy=True,
                  faults=(Fault("depth_zero", "sensor_dropout", "depth", onset=15.0),))
-    record, summary = run_scenario(sc, cal)
+    record = run_scenario(sc, cal)
+    summary = summarize(record, record.scenario)
     detection = summary["diagnosers"]["depth_vote"]["detections"][0]
     assert detection["isolated"] == "depth" and detection["delay"] <= 0.1
     r = record.diagnosers["depth_vote"]
@@ -115,11 +119,11 @@ def test_zeroed_depth_sensor_is_switched_out_after_one_second_and_depth_control_
 
 def test_same_seed_same_record(cal):
     sc = replace(BASE, duration=3.0)
-    a, _ = run_scenario(sc, cal)
-    b, _ = run_scenario(sc, cal)
+    a = run_scenario(sc, cal)
+    b = run_scenario(sc, cal)
     np.testing.assert_array_equal(a.signals["y_meas"], b.signals["y_meas"])
     np.testing.assert_array_equal(a.truth_state, b.truth_state)
-    c, _ = run_scenario(replace(sc, seed=1), cal)
+    c = run_scenario(replace(sc, seed=1), cal)
     assert not np.array_equal(a.signals["y_meas"], c.signals["y_meas"])
 
 

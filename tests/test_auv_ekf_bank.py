@@ -49,9 +49,9 @@ def test_roby2_bank_isolates_the_failed_horizontal_thruster():
                  diagnosers=("ekf_bank",))
     cal = calibrate(sc)
     assert 1e-3 < cal.ekf_process_noise < 1e4
-    _check(run_scenario(sc, cal)[0], sc)
+    _check(run_scenario(sc, cal), sc)
     right = replace(sc, faults=(Fault("thruster_right_off", "actuator_float", "thruster_right", onset=28.0),))
-    _check(run_scenario(right, cal)[0], right)
+    _check(run_scenario(right, cal), right)
 
 
 def test_odin_bank_isolates_a_horizontal_thruster_without_accommodation():
@@ -59,4 +59,4 @@ def test_odin_bank_isolates_a_horizontal_thruster_without_accommodation():
                      calibration_duration=120.0,
                      faults=(Fault("thruster2_off", "actuator_float", "thruster2", onset=34.0),))
     cal = calibrate(sc)
-    _check(run_scenario(sc, cal)[0], sc)
+    _check(run_scenario(sc, cal), sc)

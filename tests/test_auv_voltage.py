@@ -18,7 +18,7 @@ def test_the_depth_sensor_dive_raises_no_false_thruster_isolation():
     cal = calibrate(sc)
     # the identified supply resistance is the plant's (a few per cent: the drive map differs from the plant's)
     assert cal.supply_resistance == pytest.approx(AuvSimulator().supply_resistance, rel=0.25)
-    record, _ = run_scenario(sc, cal)
+    record = run_scenario(sc, cal)
     current = record.signals["y_meas"][:, 21:29]
     after = record.time >= 30.0
     assert np.abs(current[after]).max() > 30.0              # the hard dive happened: tens of amperes drawn

@@ -26,7 +26,6 @@ from robofdi.control.auv import POSE_NAMES, MissionLimits, TaskSpaceAuvControl, 
 from robofdi.control.trajectory import Sequence as Mission
 from robofdi.decision import NisBankDecision, ThresholdDecision, calibrate_thresholds, startup_samples
 from robofdi.errors import RobofdiError
-from robofdi.evaluate import summarize
 from robofdi.faults import Fault, FaultInjector
 from robofdi.ftc.allocation import ALLOCATORS, ThrustReallocation
 from robofdi.loop import ORACLE, ClosedLoop, Diagnosis, diagnose_record, diagnoser_inputs
@@ -432,15 +431,15 @@ def depth_switch_time(record: Record, diagnoser: str = "depth_vote") -> float | 
 
 
 def run_scenario(scenario: AuvScenario, cal: AuvCalibration, progress: Callable[[int], None] | None = None,
-                 run_key: str = "run") -> tuple[Record, dict]:
-    """One run → (record, summary.json contents). The same seed and run_key give the same noise whatever the
-    variant, so variants differ only by their accommodation."""
+                 run_key: str = "run") -> Record:
+    """One run → its record (:func:`robofdi.evaluate.summarize` gives its summary). The same seed and run_key give
+    the same noise whatever the variant, so variants differ only by their accommodation."""
     loop = build_loop(scenario, cal)
     meta = {"mjcf": scenario.mjcf, "variant": scenario.variant, "allocation": scenario.allocation,
             "current": list(scenario.current), "mission": scenario.mission, "thrust_limit": scenario.thrust_limit}
     record = loop.run(scenario.duration, scenario.start_pose, seed=scenario.seed, run_key=run_key,
                       scenario=scenario.name, meta=meta, progress=progress)
-    return record, summarize(record, scenario.name)
+    return record
 
 
 def with_variant(scenario: AuvScenario, variant: str) -> AuvScenario:
@@ -531,4 +530,4 @@ class AuvSystem(RobotInstances):
     def run(self, options, calibration, key, mission, faults, seed, diagnosers):
 
         sc = options.scenario(seed, diagnosers, mission.plan, faults)
-        return run_scenario(sc, calibration, run_key="campaign")[0]
+        return run_scenario(sc, calibration, run_key="campaign")
