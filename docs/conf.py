@@ -10,6 +10,7 @@ the ``robofdi`` package), so a module that is added, renamed or removed changes 
 from __future__ import annotations
 
 import importlib.util
+import re
 import os
 from pathlib import Path
 
@@ -64,3 +65,33 @@ html_theme = "furo"
 html_title = f"robofdi {release}"
 html_static_path: list[str] = []
 html_show_sourcelink = False
+
+
+# The docstrings write maths in Unicode, where |x| is an absolute value and a name such as coefs_ is an attribute;
+# reStructuredText would read |x| as a substitution and coefs_ as a link. Escape both in the docstrings' prose
+# (inline ``literals`` and ``::`` literal blocks are left as they are), so the source stays plain and readable.
+_BARS = re.compile(r"\|([^|\s](?:[^|]*?[^|\s])?)\|")
+_LINK_LIKE = re.compile(r"(?<![\w`])(\w*[^\W_])_(?=[\s,.;:)\]]|$)")
+_INLINE_LITERAL = re.compile(r"(``.*?``)")
+
+
+def _escape_prose(line: str) -> str:
+    parts = _INLINE_LITERAL.split(line)
+    return "".join(p if p.startswith("``") else _LINK_LIKE.sub(r"\1\\_", _BARS.sub(r"\\|\1\\|", p)) for p in parts)
+
+
+def _escape_docstring(app, what, name, obj, options, lines):
+    literal_indent = None
+    for i, line in enumerate(lines):
+        indent = len(line) - len(line.lstrip())
+        if literal_indent is not None:
+            if not line.strip() or indent > literal_indent:
+                continue
+            literal_indent = None
+        lines[i] = _escape_prose(line)
+        if line.rstrip().endswith("::"):
+            literal_indent = indent
+
+
+def setup(app):
+    app.connect("autodoc-process-docstring", _escape_docstring)
