@@ -41,3 +41,17 @@ def test_readme_quick_start_is_two_lines_in_a_venv():
     # .ci/run greps this line and runs it in its own fresh venv
     assert block[1] == ". .venv/bin/activate && pip install -e '.[test]' && pytest"
     assert len(README.splitlines()) <= 200
+
+
+def test_readme_and_docs_links_resolve_and_stay_inside_the_repository():
+    """Every relative link of the README and the docs pages names a file of the repository (no ../shared/)."""
+    pages = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
+    pages = [p for p in pages if "_build" not in p.parts and "_autosummary" not in p.parts]
+    for page in pages:
+        for target in re.findall(r"\]\(([^)\s]+)\)", page.read_text(encoding="utf-8")):
+            if target.startswith(("http://", "https://", "mailto:", "#")):
+                continue
+            path = (page.parent / target.split("#", 1)[0]).resolve()
+            assert path.is_relative_to(ROOT), f"{page.name}: link {target} leaves the repository"
+            assert path.exists(), f"{page.name}: link {target} names no file"
+        assert "../shared" not in page.read_text(encoding="utf-8"), page
