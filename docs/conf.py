@@ -11,10 +11,13 @@ from __future__ import annotations
 
 import importlib.util
 import re
+import warnings
 import os
 from pathlib import Path
 
 os.environ.setdefault("MPLBACKEND", "Agg")
+# robosuite imports glfw, which warns on a headless machine; the reference needs no window.
+warnings.filterwarnings("ignore", message=r".*DISPLAY environment variable is missing")
 ROOT = Path(__file__).resolve().parents[1]
 
 project = "robofdi"
