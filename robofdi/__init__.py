@@ -4,7 +4,7 @@ The simulator is the truth (MuJoCo), the nominal model is the belief (Pinocchio,
 only nominal models, commands and measurements. The main objects, importable from here::
 
     import robofdi as fdi
-    scenario = fdi.arm_scenario("my_arm.xml", faults=["actuator_additive:joint2:30@1.5"], seed=1)
+    scenario = fdi.arm_scenario(fdi.ASSETS / "arm6.xml", faults=["actuator_additive:joint2:100@1.0"], seed=1)
     cal, _ = fdi.calibration(scenario)          # thresholds per robot and seed (cached)
     record = fdi.run_scenario(scenario, cal)     # the closed-loop run, every arm diagnoser online
     summary = fdi.summarize(record, "my-test")   # detection delay, isolation, false alarms, estimate error
