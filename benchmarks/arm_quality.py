@@ -18,7 +18,7 @@ Each robot's campaign is resumable (re-running the command continues it). Per di
   how many of the drifts that an oracle could have detected by the end of the run were: the test that knows the
   onset and the rate d, on the mean of the velocity noise over the t seconds since onset, has z = d·√(t/T)/σ_v;
   "could" is z ≥ DRIFT_ORACLE_Z. No detector does better: a drift is caught after an offset of about
-  z²σ_v²T/d, more as it slows down (README, "Slow encoder drifts").
+  z²σ_v²T/d, more as it slows down (docs/systems/arm.md, "Slow encoder drifts").
 Also the robot's calibration cost (one calibration per robot, computed before the campaign and timed; a cached
 one costs the time to load it: empty ROBOFDI_CACHE to measure it).
 """

@@ -1,4 +1,4 @@
-"""Cross-use comparison on one scenario (README, "Linear-system fault estimation"): arm6 holding q₀, a 20 N·m step on
+"""Cross-use comparison on one scenario (docs/systems/linear.md, "Cross-use on the arm"): arm6 holding q₀, a 20 N·m step on
 joint 2 at 1.5 s. The linearised adaptive fault estimator (robofdi.systems.arm_linearized) against the native arm
 schemes, both calibrated on fault-free runs of the same hold (native: margin 1.2, their own calibration machinery).
 

@@ -1,5 +1,5 @@
 """robosuite Lift (Panda, OSC_POSE, scripted grasp): false alarms, what contacts do to the residuals, detection and
-task success without vs with compensation — the README's robosuite figures.
+task success without vs with compensation — the robosuite figures of docs/systems/robosuite.md.
 
     python benchmarks/robosuite_lift.py [--fault-free 50] [--faulty 20] [--out runs/robosuite-lift-benchmark.json]
 

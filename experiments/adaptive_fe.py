@@ -1,4 +1,4 @@
-"""Seed 004 — "adaptive fault estimation observer for discrete-time linear systems" (F-16 vertical dynamics
+"""The adaptive-FE paper — "adaptive fault estimation observer for discrete-time linear systems" (F-16 vertical dynamics
 example). The seed's equations, model, noise table and fault profiles are lost in the extraction: this experiment
 runs the digest's clearly labelled reconstruction (spec_linear_papers.md C.2 [RECON]) on a documented vertical-plane
 aircraft model (AIRC, Maciejowski 1989 — not claimed to be the seed's ref. [16]). What is the paper's: the class of
@@ -20,7 +20,7 @@ from robofdi.evaluate.run_folder import prepare_run_dir, write_run_folder
 from robofdi.observers.adaptive import is_spd
 from robofdi.systems.f16 import F16Scenario, build_loop, calibrate, fault_estimates
 
-EXPERIMENTS = {"adaptive-fe": "Seed 004 (reconstructed): adaptive fault-estimation observer, constant + ramp faults, "
+EXPERIMENTS = {"adaptive-fe": "Reconstructed adaptive fault-estimation observer (F-16 paper): constant + ramp faults, "
                               "vertical-plane aircraft"}
 
 #: The printed 5×5 "learning rate" matrix of the seed (symbols lost; (2,4) = −0.58 vs (4,2) = −0.589 [ERRATUM]).

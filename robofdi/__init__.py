@@ -5,9 +5,9 @@ only nominal models, commands and measurements. The main objects, importable fro
 
     import robofdi as fdi
     from robofdi.systems import arm
-    scenario = fdi.arm_scenario(fdi.ASSETS / "arm6.xml", faults=["actuator_additive:joint2:30@1.5"], seed=1)
+    scenario = arm.arm_scenario(fdi.ASSETS / "arm6.xml", faults=["actuator_additive:joint2:100@1.0"], seed=1)
     cal, _ = arm.calibration(scenario)           # thresholds per robot and seed (cached: robofdi.calibration)
-    record = fdi.run_scenario(scenario, cal)     # the closed-loop run, every arm diagnoser online
+    record = arm.run_scenario(scenario, cal)     # the closed-loop run, every arm diagnoser online
     summary = fdi.summarize(record, "my-test")   # detection delay, isolation, false alarms, estimate error
 
 Rooms: ``faults`` (what fails), ``sims`` (plants), ``models`` (beliefs), ``control``, ``observers`` (residual

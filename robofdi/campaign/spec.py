@@ -281,7 +281,7 @@ def _options(where: str, system: System, table: dict):
 
 
 def shipped_specs() -> dict[str, Path]:
-    """The example specs installed with robofdi (experiments/campaigns/*.toml) by name."""
+    """The example specs installed with robofdi (``experiments/campaigns/*.toml``) by name."""
     from importlib import resources
 
     folder = resources.files("robofdi.experiments") / "campaigns"

@@ -150,7 +150,7 @@ class ThrusterParameters:
                 raise RobofdiError(f"ThrusterParameters: field {name!r} must be a finite number > 0, got {v!r}")
 
     def steady_speed(self, voltage: np.ndarray) -> np.ndarray:
-        """Ω [rad/s] at equilibrium K_t (V − K_e Ω)/R_a = K_q |Ω|Ω (sign of V)."""
+        """Ω [rad/s] at equilibrium ``K_t (V − K_e Ω)/R_a = K_q |Ω|Ω`` (sign of V)."""
         V = np.abs(np.asarray(voltage, dtype=float))
         a, b, c = self.torque_coefficient, self.motor_constant**2 / self.resistance, self.motor_constant * V / self.resistance
         return np.sign(voltage) * (-b + np.sqrt(b * b + 4 * a * c)) / (2 * a)
@@ -168,7 +168,7 @@ class ThrusterParameters:
         return np.clip(np.sign(T) * V, -self.max_voltage, self.max_voltage)
 
     def thrust(self, speed: np.ndarray) -> np.ndarray:
-        """T = c |Ω|Ω [N]."""
+        """``T = c |Ω|Ω`` [N]."""
         w = np.asarray(speed, dtype=float)
         return self.thrust_coefficient * np.abs(w) * w
 

@@ -129,10 +129,10 @@ def identify_supply_resistance(residual: VoltageResidual, runs) -> float:
 
 
 class CurrentFeatures:
-    """Filtered regressors of the current characteristic i = θ·φ, φ = [|Ω|Ω, Ω̇, Ω] (propeller load, rotor
-    inertia, viscous motor friction). The motor law K_t i = J Ω̇ + K_q |Ω|Ω is linear in φ, so every term is
+    """Filtered regressors of the current characteristic ``i = θ·φ, φ = [|Ω|Ω, Ω̇, Ω]`` (propeller load, rotor
+    inertia, viscous motor friction). The motor law ``K_t i = J Ω̇ + K_q |Ω|Ω`` is linear in φ, so every term is
     filtered by the same first-order low-pass (α = T/(τ + T)) *before* the product with θ: Ω̇ is the difference of
-    the filtered Ω, and the nonlinear term is filtered as |Ω|Ω (not formed from a filtered Ω), which keeps the
+    the filtered Ω, and the nonlinear term is filtered as ``|Ω|Ω`` (not formed from a filtered Ω), which keeps the
     filtered law exact and the noise out of the derivative. ``update`` → (φ_f (p, 3), i_f (p,))."""
 
     def __init__(self, sample_time: float, tau: float):

@@ -11,7 +11,7 @@ Planar model (Fossen's 3-DOF horizontal model about the body origin, relative-ve
 
 with [u_r, v_r] = [u, v] − R(ψ)ᵀ c, c the world-frame ocean current (two states: without them, the current's drag
 is a persistent bias that the innovations cannot whiten). [X_T, Y_T, N_T] = B_h T̂, B_h the X, Y, N rows of the
-thruster matrix over the horizontal thrusters and T̂ = c |Ω̂|Ω̂ from the nominal motor driven by the commanded
+thruster matrix over the horizontal thrusters and ``T̂ = c |Ω̂|Ω̂`` from the nominal motor driven by the commanded
 voltage. Measurements: DVL u, v, gyro r and compass ψ (the digest's [u, r, ψ] plus the sway the vehicle has).
 
 Residual of the bank: the windowed normalised innovation squared of every filter, NIS_j = mean over W of

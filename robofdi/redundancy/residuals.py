@@ -45,7 +45,7 @@ class SignalMap:
 class RedundancyResidual:
     """Diagnoser: residuals ``tests(*arguments)`` of a test function, with derivatives from a Savitzky–Golay filter.
 
-    tests: f(*args) → sequence of residuals, args ordered as :attr:`SignalMap.arguments`; components: residual names;
+    tests: ``f(*args)`` → sequence of residuals, args ordered as :attr:`SignalMap.arguments`; components: residual names;
     residual_units: their units; measurements / inputs: the simulator's sensor channels and actuators;
     filter: the derivative filter (its delay is :attr:`delay`); signatures: isolation signatures.
     Until the window is full the residual is zero (blank those samples in the decision: :attr:`warmup`).

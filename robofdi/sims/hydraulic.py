@@ -1,6 +1,6 @@
 """The Rosie wheel-actuator rig (truth): MuJoCo mechanics + hydraulics integrated at the physics rate.
 
-Leuschen, Walker & Cavallaro, Sec. 3 and eqs. (5)–(6), with what the catalogue model (eqs. (8)–(10)) lacks:
+Leuschen, Walker & Cavallaro, Sec. 3 and eqs. (5)–(6), with what the catalogue model (eqs. (8)–(10)) lacks::
 
     spool      ẋ_v = (i − x_v)/τ_v,  i = u·(1 − open_winding); stick–slip when the valve sticks; overspeed trip
     valve      Q = K_f x_v sqrt(2 (p_s − sgn(x_v) p_l)/ρ)                   symmetric 4-way law (digest §3 [ERRATUM] 2)

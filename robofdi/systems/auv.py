@@ -1,4 +1,4 @@
-"""The AUV's configuration → calibrated closed loop (shared by experiments ch4-*, campaigns and tests).
+"""The AUV's configuration → calibrated closed loop (shared by experiments ``ch4-*``, campaigns and tests).
 
 The pieces a campaign engine needs, each usable alone:
 
