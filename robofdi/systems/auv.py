@@ -148,20 +148,20 @@ class AuvScenario:
     """
 
     name: str = "ch4-auv"
-    mjcf: str = "auv.xml"
+    mjcf: str = AuvSimulator.mjcf                   # the simulator's defaults, declared once in AuvSimulator
     mission: str = "odin"
     duration: float = 120.0
     seed: int = 0
     faults: tuple = ()
-    current: tuple = (0.10, 0.05, 0.0)
-    control_dt: float = 0.02
+    current: tuple = AuvSimulator.current
+    control_dt: float = AuvSimulator.control_dt
     sensors: AuvSensors = field(default_factory=AuvSensors)
     mismatch: AuvModelMismatch = field(default_factory=AuvModelMismatch)
     diagnosers: tuple = DIAGNOSERS
     allocation: str = "constrained"
     variant: str = "diagnosed"
     health_source: str = "voltage_residual"
-    thrust_limit: float = 40.0
+    thrust_limit: float = AuvSimulator.thrust_limit
     calibration_runs: int = 3
     calibration_duration: float = 240.0
     threshold_margin: float = 2.0
@@ -169,7 +169,7 @@ class AuvScenario:
     start_depth: float = 5.0
     current_map_filter: float = 0.5
     depth_redundancy: bool = False
-    floor_depth: float = 20.0
+    floor_depth: float = AuvSimulator.floor_depth
     ekf_window: float = 2.0
     ekf_margin: float = 1.1
     plan: Any = None
@@ -458,13 +458,13 @@ class AuvOptions:
 
     robot_seeds: tuple = (0,)
     duration: float = 60.0
-    calibration_runs: int = 3
-    calibration_duration: float = 240.0
-    variant: str = "diagnosed"
-    allocation: str = "constrained"
-    health_source: str = "voltage_residual"
-    current: tuple = (0.10, 0.05, 0.0)
-    threshold_margin: float = 2.0
+    calibration_runs: int = AuvScenario.calibration_runs          # the scenario's defaults, declared once there
+    calibration_duration: float = AuvScenario.calibration_duration
+    variant: str = AuvScenario.variant
+    allocation: str = AuvScenario.allocation
+    health_source: str = AuvScenario.health_source
+    current: tuple = AuvScenario.current
+    threshold_margin: float = AuvScenario.threshold_margin
 
     def __post_init__(self):
         check_robot_seeds(self)

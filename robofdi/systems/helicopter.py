@@ -195,11 +195,11 @@ class HelicopterOptions:
     calibration_runs: fault-free runs setting the thresholds."""
 
     robot_seeds: tuple = (0,)
-    duration: float = 10.0
-    mismatch: float = 0.05
-    noise: bool = True
-    accommodation: bool = True
-    calibration_runs: int = 3
+    duration: float = HelicopterScenario.duration       # the scenario's defaults, declared once there
+    mismatch: float = 0.05                              # a campaign's belief is imperfect (the paper's is exact)
+    noise: bool = HelicopterScenario.noise
+    accommodation: bool = HelicopterScenario.accommodation
+    calibration_runs: int = HelicopterScenario.calibration_runs
 
     def __post_init__(self):
         check_robot_seeds(self)

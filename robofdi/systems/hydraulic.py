@@ -303,9 +303,9 @@ class HydraulicOptions:
     better model, all set thresholds); margin: threshold margin >= 1."""
 
     robot_seeds: tuple = (0,)
-    duration: float = 8.0
+    duration: float = HydraulicScenario.duration         # the scenario's defaults, declared once there
     calibration_runs: int = 8
-    margin: float = 1.3
+    margin: float = HydraulicScenario.margin
 
     def __post_init__(self):
         check_robot_seeds(self)
