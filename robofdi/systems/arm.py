@@ -12,6 +12,9 @@ The steps a scenario runs (each usable on its own):
    same start-up samples the in-loop decision blanks. :func:`calibration` caches the result per robot and seed.
 3. :func:`run_scenario` — the scenario's closed-loop run with every diagnosis in the loop, optionally with
    fault compensation fed by a diagnoser's health (or by the oracle, for a bound).
+
+The system (:class:`ArmSystem`, registered as ``arm``: its options, fault targets, calibration per robot instance,
+missions drawn from a seed and runs; :class:`robofdi.protocols.System`) closes the module.
 """
 from __future__ import annotations
 

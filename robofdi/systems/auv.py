@@ -11,6 +11,9 @@ The pieces a campaign engine needs, each usable alone:
 Variants of accommodation (all use the same allocator, so the comparison is fair): ``"no_ftc"`` (allocation with
 every thruster assumed healthy), ``"oracle"`` (the fault labels: a bound, explicitly named) and ``"diagnosed"``
 (the health of :attr:`AuvScenario.health_source`, one diagnosis sample late).
+
+The system (:class:`AuvSystem`, registered as ``auv``: its options, fault targets, calibration per robot instance,
+missions drawn from a seed and runs; :class:`robofdi.protocols.System`) closes the module.
 """
 from __future__ import annotations
 

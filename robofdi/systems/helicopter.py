@@ -11,6 +11,9 @@ Two harnesses differ only in what feeds the accommodation (29) u = (I − R̂)�
 (spec A.7 [HARNESS], the setting of its item-4 numbers) feeds the element-wise r̂ᵢ = f̂ᵢ(k−1)/u_R,i(k−1) of every
 sample, ungated, from the start. Per-sample f̂ noise (std ≈ 56, 26) is as large as u_nom, so that R̂ is mostly noise
 and often at 0.95: u is amplified up to 20×, which raises the SNR of the windowed LS estimate.
+
+The system (:class:`HelicopterSystem`, registered as ``helicopter``: its options, fault targets, calibration per robot instance,
+missions drawn from a seed and runs; :class:`robofdi.protocols.System`) closes the module.
 """
 from __future__ import annotations
 

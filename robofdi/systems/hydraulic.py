@@ -14,6 +14,9 @@ Diagnosers (all built from the catalogue model or fault-free data, never from th
 operating point), ``plar`` (nine regions, blended near borders), ``nnar`` (MLP predictor of ẏ trained on fault-free
 runs), and ``nlar_better`` (better modelling: measured supply pressure, pressure-equation parameters calibrated on
 fault-free data).
+
+The system (:class:`HydraulicSystem`, registered as ``hydraulic``: its options, fault targets, calibration per robot instance,
+missions drawn from a seed and runs; :class:`robofdi.protocols.System`) closes the module.
 """
 from __future__ import annotations
 

@@ -16,6 +16,9 @@ Kalman predictor on the belief) tracks wheel-speed setpoints mean + amplitude ·
 Steps: :func:`linear_calibration` — fault-free runs on missions of their own (run keys ``calibration/<i>``),
 thresholds = margin × max |r| after the observer's start-up (cached per robot seed and settings by
 :mod:`robofdi.calibration`); :func:`run_linear` — one mission with faults, the observer in the loop.
+
+The system (:class:`LinearSystem`, registered as ``linear``: its options, fault targets, calibration per robot instance,
+missions drawn from a seed and runs; :class:`robofdi.protocols.System`) closes the module.
 """
 from __future__ import annotations
 
