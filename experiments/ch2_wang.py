@@ -18,6 +18,7 @@ import numpy as np
 
 from robofdi.evaluate.figures import save_figure
 from robofdi.evaluate.reproduction import reproduction_check as check
+from robofdi.evaluate.headline import recovery_section
 from robofdi.evaluate.run_folder import prepare_run_dir, write_run_folder
 from robofdi.models.linear_examples import CHIP_REFINER, chip_refiner
 from robofdi.observers.gain import GainFaultObserver
@@ -183,6 +184,12 @@ def run(name: str = "ch2-wang", out: str | Path = "runs", seed: int = 0, progres
                              "same channel multiply; an alarm episode that spans both is credited to drift_up")
     summary["estimate_note"] = "estimates are actuator gains f̂ [1]; labels are the injector's additive effect"
     summary["reproduction"] = static + stochastic + [ftc]
+    summary["recovery"] = recovery_section(
+        ("no accommodation", "accommodation (104)"),
+        [{"quantity": f"RMS motor-load deviation from the healthy loop, k in {window}", "unit": "1",
+          "values": {"no accommodation": v["without"], "accommodation (104)": v["with"]}}
+         for window, v in ftc["ours"].items()],
+        health_source="gain", method="eq. (104): the input divided by the estimated actuator gain (noise-free)")
     (run_dir / "figures").mkdir(parents=True, exist_ok=True)
     write_run_folder(run_dir, record, summary, {"accommodation": ftc_rec}, replay=replay)
     _figures(run_dir, record, ftc_rec)

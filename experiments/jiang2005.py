@@ -21,6 +21,7 @@ import numpy as np
 from robofdi.evaluate.figures import save_figure
 from robofdi.evaluate import summarize
 from robofdi.evaluate.reproduction import reproduction_check as check
+from robofdi.evaluate.headline import recovery_section
 from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, write_run_folder
 from robofdi.models.linear_examples import helicopter
 from robofdi.observers.kalman import reduced_order_design
@@ -211,6 +212,14 @@ def run(name: str = "jiang2005", out: str | Path = "runs", seed: int = 0, progre
                           "excitation [sin πt, cos 0.6πt]; R̂ clipped to [0, 0.95]; LS window 25 samples; accommodation fed by "
                           "the gated LS r̂ (the 'digest harness' checks: by the ungated element-wise r̂, spec A.7)")
     summary["reproduction"] = reproduction
+    states, units = nf.columns.get("truth/state", []), nf.units.get("truth/state", [])
+    summary["recovery"] = recovery_section(
+        ("no accommodation", "accommodation (29)"),
+        [{"quantity": f"RMS deviation of {states[i] if i < len(states) else f'x{i + 1}'} from the fault-free run",
+          "unit": (units[i] if i < len(units) else "") or None,
+          "values": {"no accommodation": float(dev_noftc[i]), "accommodation (29)": float(dev_ftc[i])}}
+         for i in range(len(dev_ftc))],
+        method="eq. (29): the input scaled by the estimated effectiveness (noise-free runs)")
     (run_dir / "figures").mkdir(exist_ok=True)
     write_run_folder(run_dir, noisy, summary, {"noise_free": nf, "no_accommodation": noftc, "fault_free": free,
                                                 "unknown_input": ui}, replay=replay)

@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 from robofdi import RobofdiError, __version__
+from robofdi.faults.spec import PROFILE_HELP
 
 # experiment name → module of robofdi.experiments (the repository's experiments/); each module has
 # EXPERIMENTS {name: description} and run().
@@ -39,7 +40,7 @@ def _cmd_list(args) -> int:
 
 
 def _cmd_run(args) -> int:
-    from robofdi.evaluate import results_table
+    from robofdi.evaluate.headline import run_report
     from robofdi.loop import RunAborted
 
     experiments = _experiments()
@@ -63,9 +64,7 @@ def _cmd_run(args) -> int:
         where = f"recorded so far: {exc.partial_path}" if exc.partial_path else "the partial record could not be saved"
         print(f"robofdi: error: {exc} ({where})", file=sys.stderr)
         return 1
-    print(results_table(summary))
-    for check in summary.get("reproduction", []):
-        print(f"  [{'pass' if check['pass'] else 'FAIL'}] {check['quantity']}")
+    print(run_report(summary))
     print(f"\nrun folder: {run_dir}  ({', '.join(sorted(p.name + '/' * p.is_dir() for p in run_dir.iterdir()))})")
     for replay in sorted(run_dir.glob("replay.html")) + sorted(run_dir.glob("*/replay.html")):   # ch6: per system
         record = replay.parent / "record.h5"
@@ -125,8 +124,9 @@ def build_parser() -> argparse.ArgumentParser:
     arm = run.add_argument_group("options of `run arm` (--fault also of `run robosuite-lift`)")
     arm.add_argument("--robot", help="the arm's MJCF file (default: the shipped arm6.xml)")
     arm.add_argument("--fault", dest="faults", action="append", metavar="SPEC",
-                     help="KIND:TARGET:MAGNITUDE@ONSET[-END][~PROFILE][;NAME=VALUE], repeatable, "
-                          "e.g. actuator_additive:joint2:20@1.0 or sensor_bias:joint3_pos:0.004@1.5~ramp(0.5)")
+                     help="KIND:TARGET:MAGNITUDE@ONSET[-END][~PROFILE][;NAME=VALUE], repeatable; PROFILE: "
+                          f"{PROFILE_HELP}; e.g. actuator_additive:joint2:20@1.0 or "
+                          "actuator_additive:joint5:40@3~exponential_rise(0.08)")
     arm.add_argument("--joints", help="comma-separated arm joints (default: every joint driven by a motor)")
     arm.add_argument("--torque-motors", action="store_true",
                      help="replace the arm's position/velocity servos by torque motors (limit: their forcerange)")
@@ -138,7 +138,8 @@ def build_parser() -> argparse.ArgumentParser:
     demo.set_defaults(func=_cmd_run, name="ch3-actuator", **dict.fromkeys(EXPERIMENT_OPTIONS))
     view = sub.add_parser("view", help="open a recorded run in the live Meshcat viewer")
     view.add_argument("run", help="a record .h5 file or a run folder")
-    view.add_argument("--diagnoser", default=None, help="whose detections light up the joints (default: adaptive)")
+    view.add_argument("--diagnoser", default=None,
+                      help="whose detections light up the joints (default: the run's lead diagnoser, as in the table)")
     view.add_argument("--no-browser", action="store_true")
     view.set_defaults(func=_cmd_view)
     camp = sub.add_parser("campaign", help="many seeded fault scenarios, locally or on a Dask cluster")

@@ -28,7 +28,7 @@ import math
 from collections.abc import Mapping, Sequence
 
 __all__ = ["lead_diagnoser", "record_lead", "settle_lead", "best_outcome", "recovery_section", "recovery_table",
-           "lead_line", "order_lead_first"]
+           "lead_line", "order_lead_first", "run_report"]
 
 ORACLE = "oracle"
 
@@ -177,3 +177,27 @@ def recovery_table(summary: Mapping) -> str:
     source = section.get("health_source")
     title = "recovery" + (f" (accommodation fed by {source})" if source else "")
     return "\n".join([title, line(header), line(["-" * w for w in widths]), *(line(r) for r in rows)])
+
+
+def _checks(summary: Mapping) -> list[str]:
+    """``[pass] quantity`` per entry of the summary's reproduction (a published result) and acceptance lists."""
+    out = []
+    for key in ("reproduction", "acceptance"):
+        for check in summary.get(key) or []:
+            if isinstance(check, Mapping) and "quantity" in check:
+                out.append(f"  [{'pass' if check.get('pass') else 'FAIL'}] {check['quantity']}")
+    return out
+
+
+def run_report(summary: Mapping) -> str:
+    """What ``robofdi run`` prints: the results table (lead diagnoser first), the recovery table, the checks."""
+    from robofdi.evaluate.summary import results_table
+
+    parts = [results_table(summary)]
+    recovery = recovery_table(summary)
+    if recovery:
+        parts.append(recovery)
+    checks = _checks(summary)
+    if checks:
+        parts.append("\n".join(["checks"] + checks))
+    return "\n\n".join(parts)
