@@ -20,8 +20,8 @@ from robofdi.evaluate.run_folder import prepare_run_dir, write_run_folder
 from robofdi.observers.adaptive import is_spd
 from robofdi.scenarios.f16 import F16Scenario, build_loop, calibrate, fault_estimates
 
-EXPERIMENTS = {"adaptive-fe": "Seed 004 (reconstructed): adaptive fault-estimation observer, constant + ramp faults, "
-                              "vertical-plane aircraft"}
+EXPERIMENTS = {"adaptive-fe": "Adaptive fault-estimation observer (a reconstruction: the source paper's equations are "
+                              "lost), constant + ramp faults, vertical-plane aircraft"}
 
 #: The printed 5×5 "learning rate" matrix of the seed (symbols lost; (2,4) = −0.58 vs (4,2) = −0.589 [ERRATUM]).
 PRINTED_RATE = np.array([[189923, -147.6, 646.2, 2443, 1727.8],

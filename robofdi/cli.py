@@ -102,6 +102,10 @@ def _cmd_campaign(args) -> int:
     return 1 if summary["runs"]["errors"] else 0
 
 
+#: progress: bars on a terminal, a few lines in a pipe or log (robofdi.progress; ROBOFDI_PROGRESS=bar|plain|off)
+QUIET_HELP = "no progress output (otherwise: a bar per stage on a terminal, a few lines in a pipe or a log)"
+
+
 class _Parser(argparse.ArgumentParser):
     """argparse, with its usage errors on one line like every other error of the command line."""
 
@@ -117,10 +121,10 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
     sub.add_parser("list", help="list the experiments").set_defaults(func=_cmd_list)
     run = sub.add_parser("run", help="run one experiment")
-    run.add_argument("name")
+    run.add_argument("name", help="the experiment (`robofdi list` names them)")
     run.add_argument("--out", default="runs", help="parent folder of the run folder (default: ./runs)")
-    run.add_argument("--seed", type=int, default=0)
-    run.add_argument("--quiet", action="store_true", help="no progress bar")
+    run.add_argument("--seed", type=int, default=0, help="the run's seed: the same seed gives the same results (default: 0)")
+    run.add_argument("--quiet", action="store_true", help=QUIET_HELP)
     arm = run.add_argument_group("options of `run arm` (--fault also of `run robosuite-lift`)")
     arm.add_argument("--robot", help="the arm's MJCF file (default: the shipped arm6.xml)")
     arm.add_argument("--fault", dest="faults", action="append", metavar="SPEC",
@@ -134,7 +138,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo = sub.add_parser("demo", help="the chapter-3 actuator-fault experiment (= run ch3-actuator)")
     demo.add_argument("--out", default="runs")
     demo.add_argument("--seed", type=int, default=0)
-    demo.add_argument("--quiet", action="store_true")
+    demo.add_argument("--quiet", action="store_true", help=QUIET_HELP)
     demo.set_defaults(func=_cmd_run, name="ch3-actuator", **dict.fromkeys(EXPERIMENT_OPTIONS))
     view = sub.add_parser("view", help="open a recorded run in the live Meshcat viewer")
     view.add_argument("run", help="a record .h5 file or a run folder")
@@ -151,7 +155,7 @@ def build_parser() -> argparse.ArgumentParser:
     camp.add_argument("--out", metavar="DIR", help="campaign folder (default: runs/campaign-<spec name>)")
     camp.add_argument("--resume", action="store_true", help="continue the campaign in DIR, skipping finished runs")
     camp.add_argument("--runs", type=int, metavar="N", help="only the first N runs by index (a prefix of the campaign)")
-    camp.add_argument("--quiet", action="store_true", help="no progress bar")
+    camp.add_argument("--quiet", action="store_true", help=QUIET_HELP)
     camp.set_defaults(func=_cmd_campaign)
     return p
 
