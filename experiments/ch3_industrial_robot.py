@@ -23,7 +23,8 @@ import numpy as np
 
 from robofdi.control import Quintic, Sequence
 from robofdi.errors import RobofdiError
-from robofdi.evaluate import results_table, summarize
+from robofdi.evaluate import summarize
+from robofdi.evaluate.headline import run_report
 from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, write_run_folder
 from robofdi.faults import ExponentialRise, Fault
 from robofdi.loop import Rates
@@ -169,7 +170,7 @@ def main(argv=None) -> int:
     p.add_argument("--seed", type=int, default=0)
     a = p.parse_args(argv)
     summary, run_dir = run(a.name, a.out, a.seed)
-    print(results_table(summary))
+    print(run_report(summary))
     print(f"run folder: {run_dir}")
     return 0
 

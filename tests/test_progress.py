@@ -138,3 +138,41 @@ def test_format_seconds():
     assert format_seconds(3.21) == "3.2 s"
     assert format_seconds(125) == "2 min 05 s"
     assert format_seconds(3720) == "1 h 02 min"
+
+
+def test_skipped_stage_is_one_line_and_opens_at_its_first_tick():
+    for tty in (False, True):
+        stream = Stream(tty=tty)
+        progress = Progress("arm", stream=stream)
+        with progress.stage("calibration: 6 motions", total=5000, skipped="from the cache"):
+            pass                              # the cache answered: no tick
+        assert stream.getvalue().strip().startswith("arm: calibration: 6 motions: from the cache (")
+        assert len(stream.getvalue().splitlines()) == 1 and "%" not in stream.getvalue()
+    stream = Stream(tty=False)
+    progress = Progress("arm", stream=stream)
+    with progress.stage("calibration: 6 motions", total=5000, skipped="from the cache") as tick:
+        tick(5000)
+    assert stream.getvalue().splitlines()[0] == "arm: calibration: 6 motions: started, 5000 steps"
+    assert "from the cache" not in stream.getvalue()
+
+
+def test_stage_without_total_is_a_start_and_an_end_line():
+    for tty in (False, True):
+        stream, clock = Stream(tty=tty), Clock()
+        progress = Progress("arm", stream=stream, clock=clock)
+        with progress.stage("run folder: figures, replay"):
+            clock.t += 4.0
+        assert stream.getvalue().splitlines() == ["arm: run folder: figures, replay: started",
+                                                  "arm: run folder: figures, replay: done in 4.0 s"]
+
+
+def test_campaign_stage_resumes_from_initial_and_shows_errors():
+    stream = Stream(tty=False)
+    progress = Progress("campaign arm", stream=stream)
+    with progress.stage("runs", 10, unit="run", initial=4) as bar:
+        for _ in range(6):
+            bar(1)
+        bar.set_postfix(errors=1)
+    lines = stream.getvalue().splitlines()
+    assert lines[0] == "campaign arm: runs: started, 10 runs (4 already done)"
+    assert lines[-1].endswith("(10 runs, errors=1)")

@@ -173,7 +173,7 @@ def run_campaign(spec, out: str | Path, *, workers: int | None = None, scheduler
             calibrations, cal_info = {}, {}
             bars = Progress.of(progress, f"campaign {spec.system}")
             if todo:
-                with bars.stage(f"calibration: {len(keys)} keys", len(keys), unit="calibration") as tick:
+                with bars.stage("calibration", len(keys), unit="calibration") as tick:
                     for key, cal, cached, seconds in pool.map_unordered(_calibrate, [(spec, k) for k in keys]):
                         calibrations[key] = cal
                         cal_info[str(key)] = {"cached": bool(cached), "seconds": seconds}
@@ -182,7 +182,7 @@ def run_campaign(spec, out: str | Path, *, workers: int | None = None, scheduler
                                    "per_key": cal_info}
             start = time.perf_counter()
             errors = 0
-            with (out / JOURNAL).open("a") as fh, bars.stage(f"runs: {total}", total, unit="run",
+            with (out / JOURNAL).open("a") as fh, bars.stage("runs", total, unit="run",
                                                              initial=total - len(todo)) as bar:
                 for entry in pool.map_unordered(execute_run, [(spec, i, calibrations, str(out)) for i in todo]):
                     fh.write(json.dumps(entry, allow_nan=True) + "\n")

@@ -83,8 +83,15 @@ def lead_diagnoser(summary: Mapping, prefer: str | None = None) -> tuple[str | N
     source = _health_source(summary)
     if source in diagnosers and source != ORACLE:
         return source, "its health drives the accommodation"
-    best = best_outcome(diagnosers, summary.get("faults", []), prefer)
-    return best, "best outcome: isolated correctly, fewest false alarms" if best else ""
+    faults = summary.get("faults", [])
+    best = best_outcome(diagnosers, faults, prefer)
+    if best is None:
+        return None, ""
+    key, _ = _outcome_key(diagnosers[best], faults)
+    reason = f"best outcome: {-key[0]} of {len(faults)} faults isolated correctly, {key[1]} false alarms"
+    if best == prefer and best_outcome(diagnosers, faults) != prefer:
+        reason += "; the scenario's primary diagnoser among equals"
+    return best, reason
 
 
 def settle_lead(summary: dict, record) -> str | None:
