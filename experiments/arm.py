@@ -54,7 +54,7 @@ def run(name: str = "arm", out: str | Path = "runs", seed: int = 0, progress: bo
     sim = sc.simulator()
     rates = sc.loop_rates(sim)
     motions = calibration_trajectories(sc, sim)
-    cal_steps = calibration_steps(sc, sum(m.end for m in motions.values()), rates)
+    cal_steps = calibration_steps(sc, sum(m.end for m in motions.values()), rates, motions)
     ticks = run_ticks(sc.run_duration, rates.control_hz)
     with keep_partial(run_dir):
         with progress.stage(f"calibration: {len(motions)} motions", cal_steps, skipped="from the cache") as tick:

@@ -137,8 +137,8 @@ def run(name: str, out: str | Path = "runs", seed: int = 0, progress: bool = Tru
     rates = sc.rates
     ticks = run_ticks(sc.run_duration, rates.control_hz)
     with keep_partial(run_dir):
-        with progress.stage(f"calibration: {len(sc.calibration)} motions", calibration_steps(sc, calibration_time, rates),
-                            skipped="from the cache") as tick:
+        with progress.stage(f"calibration: {len(sc.calibration)} motions",
+                            calibration_steps(sc, calibration_time, rates, sc.calibration), skipped="from the cache") as tick:
             cal, cached = calibration(sc, progress=tick)
         with progress.stage("fault-free run", ticks) as tick:
             fault_free = run_scenario(replace(sc, faults=()), cal, progress=tick, run_key="fault_free")
