@@ -12,7 +12,9 @@ and torque limits, and cached; the motion under test is drawn from the seed and 
 
 Three runs with the same noise: no accommodation; compensation with the health of ``HEALTH_SOURCE``; and the
 same compensation with the true fault (the oracle bound). summary.json["accommodation"] holds the tracking RMS
-of each after the first actuator fault's onset.
+of each after the first actuator fault's onset, and summary.json["recovery"] the same in the shape every experiment
+shares (:mod:`robofdi.evaluate.headline`; ``robofdi run`` prints it). The table and the replay lead with
+``HEALTH_SOURCE``, whose health drives the compensation.
 """
 from __future__ import annotations
 

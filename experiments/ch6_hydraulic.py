@@ -27,6 +27,7 @@ import numpy as np
 from robofdi.errors import RobofdiError
 from robofdi.evaluate.figures import save_figure
 from robofdi.evaluate import summarize
+from robofdi.evaluate.headline import lead_diagnoser
 from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir
 from robofdi.evaluate.summary import write_summary
 from robofdi.models.hydraulic import CATALOGUE, flow_gains
@@ -42,6 +43,8 @@ EXPERIMENTS = {"ch6-hydraulic": "Book ch. 6, hydraulic wheel actuator (Rosie rig
 SCENARIOS = ("baseline", *TABLE1)
 NLAR_TESTS = ("R1", "R2", "R4", "R5")
 LEAK_SIZES = (0.002, 0.004, 0.008, 0.016, 0.032, 0.064, 0.128)        # mm²
+#: the chapter's method: among equally good outcomes, the one the output leads with
+PRIMARY = "nlar"
 CONTROL_HZ = 1000.0                     # the rig's loop rate (robofdi.scenarios.hydraulic): progress ticks per second
 
 
@@ -205,6 +208,8 @@ def run(name: str = "ch6-hydraulic", out: str | Path = "runs", seed: int = 0, pr
             "errata": errata,
             "acceptance": acceptance(summaries, false_alarms, leak),
         })
+        lead, reason = lead_diagnoser(summary, prefer=PRIMARY)      # what the printed table leads with
+        summary["lead"] = {"diagnoser": lead, "reason": reason}
         write_summary(summary, run_dir / "summary.json")
     return summary, run_dir
 

@@ -13,7 +13,8 @@ fault-free scripted episodes with grasps (cached per belief and versions).
 Three episodes with the same seed: fault-free; faulty without accommodation; faulty with
 :class:`~robofdi.ftc.EffectivenessCompensation` fed by the loss of effectiveness ``HEALTH_SOURCE`` identifies after
 isolation (one 2 ms substep late). summary.json["task"] holds robosuite's success (cube lifted more than 4 cm
-above the table at the end of the 7 s episode) of each, summary.json["accommodation"] the identified loss.
+above the table at the end of the 7 s episode) of each, summary.json["accommodation"] the identified loss, and
+summary.json["recovery"] the task results in the shape every experiment shares (``robofdi run`` prints it).
 The record is the faulty episode without accommodation (``compensated.h5``: with it). ``replay.html`` (self-contained
 Meshcat, offline) replays that episode: the Panda's meshes, fingers and cube from the recorded qpos, the faulty
 joint ringed from the onset and lit red from its isolation by ``momentum``; ``replay_compensated.html`` the same
