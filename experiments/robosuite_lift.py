@@ -72,7 +72,7 @@ def run(name: str = "robosuite-lift", out: str | Path = "runs", seed: int = 0, p
     seeds = len(rd.CALIBRATION_SEEDS)
     with keep_partial(run_dir):
         # one episode per seed for the plain momentum residuals, the same again with friction compensation
-        with progress.stage(f"calibration: {seeds} scripted episodes", 2 * seeds, unit="episode",
+        with progress.stage(f"calibration: {seeds} seeds, 2 passes", 2 * seeds, unit="episode",
                             skipped="from the cache") as tick:
             cal, cached = rd.lift_calibration(rd.CALIBRATION_SEEDS, steps=steps, progress=tick)
         episodes, records = {}, {}
