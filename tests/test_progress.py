@@ -176,3 +176,14 @@ def test_campaign_stage_resumes_from_initial_and_shows_errors():
     lines = stream.getvalue().splitlines()
     assert lines[0] == "campaign arm: runs: started, 10 runs (4 already done)"
     assert lines[-1].endswith("(10 runs, errors=1)")
+
+
+def test_only_the_progress_module_draws_bars():
+    """Every long job goes through robofdi.progress: no other module of the package, its experiments or viz
+    imports tqdm (which wrote one line per update into pipes and logs)."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    users = [p.relative_to(root).as_posix() for folder in ("robofdi", "experiments", "viz")
+             for p in sorted((root / folder).rglob("*.py")) if "tqdm" in p.read_text(encoding="utf-8")]
+    assert users == ["robofdi/progress.py"]
