@@ -151,7 +151,7 @@ def run(name: str = "ch6-hydraulic", out: str | Path = "runs", seed: int = 0, pr
     progress = Progress.of(progress, name)
     ticks = run_ticks(duration, CONTROL_HZ)
     with keep_partial(run_dir):
-        with progress.stage(f"calibration: {calibration_runs} runs", calibration_runs * ticks,
+        with progress.stage(f"calibration: {calibration_runs} runs", calibration_runs * ticks * (1 + len(base.diagnosers)),
                             skipped="from the cache") as tick:
             cal, cached = _calibration(base, seed, calibration_runs, tick)
         records, summaries = {}, {}
