@@ -135,7 +135,7 @@ def _ticks(scenario: AuvScenario, duration: float | None = None) -> int:
 def _calibration(name: str, sc: AuvScenario, progress: Progress) -> tuple[AuvCalibration, bool]:
     """:func:`calibration` as a progress stage (one line when it comes from the cache)."""
     replays = len([d for d in sc.diagnosers if d != "ekf_bank"])      # the EKF bank's bound is not fitted
-    with progress.stage(f"calibration: {sc.calibration_runs} missions",
+    with progress.stage(f"calibration: {sc.calibration_runs} mission{'s' * (sc.calibration_runs != 1)}",
                         sc.calibration_runs * _ticks(sc, sc.calibration_duration) * (1 + replays),
                         skipped="from the cache") as tick:
         return calibration(sc, progress=tick)
