@@ -17,11 +17,12 @@ import numpy as np
 from robofdi.evaluate.figures import save_figure
 from robofdi.evaluate.reproduction import reproduction_check as check
 from robofdi.evaluate.run_folder import prepare_run_dir, write_run_folder
+from robofdi.progress import Progress
 from robofdi.observers.adaptive import is_spd
 from robofdi.systems.f16 import F16Scenario, build_loop, calibrate, fault_estimates
 
-EXPERIMENTS = {"adaptive-fe": "Reconstructed adaptive fault-estimation observer (F-16 paper): constant + ramp faults, "
-                              "vertical-plane aircraft"}
+EXPERIMENTS = {"adaptive-fe": "Adaptive fault-estimation observer (a reconstruction: the source paper's equations are "
+                              "lost), constant + ramp faults, vertical-plane aircraft"}
 
 #: The printed 5×5 "learning rate" matrix of the seed (symbols lost; (2,4) = −0.58 vs (4,2) = −0.589 [ERRATUM]).
 PRINTED_RATE = np.array([[189923, -147.6, 646.2, 2443, 1727.8],
@@ -69,13 +70,17 @@ def run(name: str = "adaptive-fe", out: str | Path = "runs", seed: int = 0, prog
     from robofdi.evaluate import summarize
 
     run_dir = prepare_run_dir(out, name, seed)
-    quiet = F16Scenario(seed=seed)
-    loop = build_loop(quiet, calibrate(quiet))
-    rho = loop.diagnoses["adaptive_fe"].diagnoser.spectral_radius
-    record = loop.run(quiet.duration, seed=seed, scenario="f16_vertical noise-free")
-    stats = analyse(record, quiet, rho)
-    noisy_sc = F16Scenario(seed=seed, sensor_noise=0.01)
-    noisy = build_loop(noisy_sc, calibrate(noisy_sc)).run(noisy_sc.duration, seed=seed, scenario="f16_vertical")
+    progress = Progress.of(progress, name)
+    with progress.stage("calibrations and runs: noise-free, noisy", 2, unit="run") as tick:
+        quiet = F16Scenario(seed=seed)
+        loop = build_loop(quiet, calibrate(quiet))
+        rho = loop.diagnoses["adaptive_fe"].diagnoser.spectral_radius
+        record = loop.run(quiet.duration, seed=seed, scenario="f16_vertical noise-free")
+        tick()
+        stats = analyse(record, quiet, rho)
+        noisy_sc = F16Scenario(seed=seed, sensor_noise=0.01)
+        noisy = build_loop(noisy_sc, calibrate(noisy_sc)).run(noisy_sc.duration, seed=seed, scenario="f16_vertical")
+        tick()
     sym = 0.5 * (PRINTED_RATE + PRINTED_RATE.T)
     eig = np.linalg.eigvalsh(sym)
     reproduction = [
@@ -96,7 +101,8 @@ def run(name: str = "adaptive-fe", out: str | Path = "runs", seed: int = 0, prog
     summary["harness"] = ("RECONSTRUCTED (spec C.2): AIRC model at T = 0.1 s, LQR + Kalman predictor at trim; "
                           "gains place the 8 augmented poles on 0.5…0.85; sensor noise std 0.01 in the main run")
     summary["reproduction"] = reproduction
-    (run_dir / "figures").mkdir(parents=True, exist_ok=True)
-    write_run_folder(run_dir, noisy, summary, {"noise_free": record}, replay=replay)
-    _figure(run_dir, record, fault_estimates(record, quiet))
+    with progress.stage("run folder: records, figures"):
+        (run_dir / "figures").mkdir(parents=True, exist_ok=True)
+        write_run_folder(run_dir, noisy, summary, {"noise_free": record}, replay=replay)
+        _figure(run_dir, record, fault_estimates(record, quiet))
     return summary, run_dir

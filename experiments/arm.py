@@ -12,7 +12,9 @@ and torque limits, and cached; the motion under test is drawn from the seed and 
 
 Three runs with the same noise: no accommodation; compensation with the health of ``HEALTH_SOURCE``; and the
 same compensation with the true fault (the oracle bound). summary.json["accommodation"] holds the tracking RMS
-of each after the first actuator fault's onset.
+of each after the first actuator fault's onset, and summary.json["recovery"] the same in the shape every experiment
+shares (:mod:`robofdi.evaluate.headline`; ``robofdi run`` prints it). The table and the replay lead with
+``HEALTH_SOURCE``, whose health drives the compensation.
 """
 from __future__ import annotations
 
@@ -22,13 +24,17 @@ from pathlib import Path
 import numpy as np
 
 from robofdi.evaluate import summarize
+from robofdi.evaluate.headline import recovery_section
 from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, write_run_folder
 from robofdi.loop import ORACLE
+from robofdi.progress import Progress, run_ticks
 from robofdi.record import Record
 from robofdi.systems.arm import arm_scenario, calibration, calibration_steps, calibration_trajectories, run_scenario
 
 EXPERIMENTS = {"arm": "Any MJCF arm (--robot, --fault SPEC): seeded motion, all arm diagnosers online, fault compensation"}
 HEALTH_SOURCE = "consistency"
+#: The three runs, as summary.json["recovery"] names them.
+RECOVERY_VARIANTS = ("no accommodation", "compensation", "oracle compensation")
 OPTIONS = ("robot", "faults", "joints", "torque_motors")
 
 
@@ -43,28 +49,25 @@ def tracking_rms(record: Record, since: float) -> float:
 def run(name: str = "arm", out: str | Path = "runs", seed: int = 0, progress: bool = True, replay: bool = True,
         robot: str | Path | None = None, faults=(), joints=None, torque_motors: bool = False, **overrides):
     """Calibrate (cached), run without and with compensation, evaluate, plot; returns (summary, run folder)."""
-    from tqdm.auto import tqdm
-
     robot = robot or "arm6.xml"
     sc = arm_scenario(robot, faults or (), seed, joints, torque_motors, **overrides)
     run_dir = prepare_run_dir(out, sc.name, seed)
+    progress = Progress.of(progress, sc.name)
     sim = sc.simulator()
     rates = sc.loop_rates(sim)
-    cal_time = sum(m.end for m in calibration_trajectories(sc, sim).values())
-    cal_steps = calibration_steps(sc, cal_time, rates)
-    steps = cal_steps + int(3 * sc.run_duration * rates.control_hz)
-    bar = tqdm(total=steps, desc=f"{sc.name}: calibrate", unit="step", disable=not progress, leave=False)
-    with bar, keep_partial(run_dir):
-        cal, cached = calibration(sc, progress=bar.update)
-        if cached:
-            bar.update(cal_steps)
-        bar.set_description(f"{sc.name}: faulty run")
-        record = run_scenario(sc, cal, progress=bar.update)
-        bar.set_description(f"{sc.name}: compensated")
-        compensated = run_scenario(replace(sc, accommodation="compensation", health_source=HEALTH_SOURCE), cal,
-                                   progress=bar.update)
-        bar.set_description(f"{sc.name}: oracle")
-        oracle = run_scenario(replace(sc, accommodation="compensation", health_source=ORACLE), cal, progress=bar.update)
+    motions = calibration_trajectories(sc, sim)
+    cal_steps = calibration_steps(sc, sum(m.end for m in motions.values()), rates, motions)
+    ticks = run_ticks(sc.run_duration, rates.control_hz)
+    with keep_partial(run_dir):
+        with progress.stage(f"calibration: {len(motions)} motions", cal_steps, skipped="from the cache") as tick:
+            cal, cached = calibration(sc, progress=tick)
+        with progress.stage("run: no accommodation", ticks) as tick:
+            record = run_scenario(sc, cal, progress=tick)
+        with progress.stage(f"run: compensation ({HEALTH_SOURCE})", ticks) as tick:
+            compensated = run_scenario(replace(sc, accommodation="compensation", health_source=HEALTH_SOURCE), cal,
+                                       progress=tick)
+        with progress.stage("run: oracle compensation", ticks) as tick:
+            oracle = run_scenario(replace(sc, accommodation="compensation", health_source=ORACLE), cal, progress=tick)
     fault_dicts = [f.to_dict() for f in sc.faults]
     summary = summarize(record, name, fault_dicts, robot=str(robot), joints=list(sim.joint_names),
                         injection=sc.injection, calibration_cached=cached,
@@ -81,7 +84,13 @@ def run(name: str = "arm", out: str | Path = "runs", seed: int = 0, progress: bo
             "since": since,
             "units": {"tracking_rms_after_onset": "rad", "since": "s"},
         }
-    write_run_folder(run_dir, record, summary, {"compensated": compensated}, replay=replay)
+        rms = summary["accommodation"]["tracking_rms_after_onset"]
+        summary["recovery"] = recovery_section(
+            RECOVERY_VARIANTS, [{"quantity": f"joint tracking RMS for t >= {since:g} s (first actuator fault)",
+                                 "unit": "rad", "values": dict(zip(RECOVERY_VARIANTS, rms.values()))}],
+            health_source=HEALTH_SOURCE, method=summary["accommodation"]["method"])
+    with progress.stage("run folder: records, figures" + (", replay" if replay else "")):
+        write_run_folder(run_dir, record, summary, {"compensated": compensated}, replay=replay)
     return summary, run_dir
 
 

@@ -23,10 +23,12 @@ import numpy as np
 
 from robofdi.control import Quintic, Sequence
 from robofdi.errors import RobofdiError
-from robofdi.evaluate import results_table, summarize
+from robofdi.evaluate import summarize
+from robofdi.evaluate.headline import run_report
 from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, write_run_folder
 from robofdi.faults import ExponentialRise, Fault
 from robofdi.loop import Rates
+from robofdi.progress import Progress, run_ticks
 from robofdi.systems.arm import ArmScenario, calibration, calibration_steps, check_scenario, run_scenario
 
 Q0 = (np.pi / 2, -2 * np.pi / 3, np.pi / 6, -np.pi / 2, np.pi / 2, 0.0)
@@ -128,22 +130,20 @@ def reproduction(name: str, summary: dict, record, fault_free) -> list[dict]:
 
 def run(name: str, out: str | Path = "runs", seed: int = 0, progress: bool = True, replay: bool = True, **overrides):
     """Calibrate (cached), run fault-free and faulty, evaluate, plot; returns (summary, run folder)."""
-    from tqdm.auto import tqdm
-
     sc = scenario(name, seed, **overrides)
     run_dir = prepare_run_dir(out, name, seed)
+    progress = Progress.of(progress, name)
     calibration_time = sum(r.end for r in sc.calibration.values())
     rates = sc.rates
-    steps = calibration_steps(sc, calibration_time, rates) + int(2 * sc.run_duration * rates.control_hz)
-    bar = tqdm(total=steps, desc=f"{name}: calibrate", unit="step", disable=not progress, leave=False)
-    with bar, keep_partial(run_dir):
-        cal, cached = calibration(sc, progress=bar.update)
-        if cached:
-            bar.update(calibration_steps(sc, calibration_time, rates))
-        bar.set_description(f"{name}: fault-free run")
-        fault_free = run_scenario(replace(sc, faults=()), cal, progress=bar.update, run_key="fault_free")
-        bar.set_description(f"{name}: faulty run")
-        record = run_scenario(sc, cal, progress=bar.update)
+    ticks = run_ticks(sc.run_duration, rates.control_hz)
+    with keep_partial(run_dir):
+        with progress.stage(f"calibration: {len(sc.calibration)} motions",
+                            calibration_steps(sc, calibration_time, rates, sc.calibration), skipped="from the cache") as tick:
+            cal, cached = calibration(sc, progress=tick)
+        with progress.stage("fault-free run", ticks) as tick:
+            fault_free = run_scenario(replace(sc, faults=()), cal, progress=tick, run_key="fault_free")
+        with progress.stage("faulty run", ticks) as tick:
+            record = run_scenario(sc, cal, progress=tick)
     faults = [f.to_dict() for f in sc.faults]
     summary = summarize(record, name, faults)
     fault_free_summary = summarize(fault_free, name, [])["diagnosers"]
@@ -158,7 +158,8 @@ def run(name: str, out: str | Path = "runs", seed: int = 0, progress: bool = Tru
         "calibration_cached": cached,
     }
     summary["reproduction"] = reproduction(name, summary, record, fault_free)
-    write_run_folder(run_dir, record, summary, {"fault_free": fault_free}, replay=replay)
+    with progress.stage("run folder: records, figures" + (", replay" if replay else "")):
+        write_run_folder(run_dir, record, summary, {"fault_free": fault_free}, replay=replay)
     return summary, run_dir
 
 
@@ -169,7 +170,7 @@ def main(argv=None) -> int:
     p.add_argument("--seed", type=int, default=0)
     a = p.parse_args(argv)
     summary, run_dir = run(a.name, a.out, a.seed)
-    print(results_table(summary))
+    print(run_report(summary))
     print(f"run folder: {run_dir}")
     return 0
 

@@ -32,16 +32,17 @@ from pathlib import Path
 
 import numpy as np
 
-from robofdi.calibration import is_cached
 from robofdi.errors import RobofdiError
 from robofdi.evaluate.figures import save_figure
 from robofdi.evaluate import summarize
+from robofdi.evaluate.headline import recovery_section
 from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, write_run_folder
 from robofdi.faults import Fault
 from robofdi.ftc.allocation import capability
+from robofdi.progress import Progress, run_ticks
 from robofdi.record import Record
 from robofdi.systems.auv import (
-    AuvScenario, calibration, calibration_description, check_scenario, current_map_regions, depth_switch_time,
+    AuvCalibration, AuvScenario, calibration, check_scenario, current_map_regions, depth_switch_time,
     run_scenario, tracking_rms,
 )
 
@@ -92,10 +93,24 @@ SCENARIOS = {"ch4-auv": ch4_auv_scenario, "ch4-flooded": ch4_flooded_scenario, "
              "ch4-roby2": ch4_roby2_scenario}
 
 
-def _steps(scenario: AuvScenario, runs: int, cached: bool) -> int:
-    per_run = int(round(scenario.duration / scenario.control_dt)) + 1
-    cal = 0 if cached else scenario.calibration_runs * (int(round(scenario.calibration_duration / scenario.control_dt)) + 1)
-    return int(round(runs * per_run)) + cal
+def _ticks(scenario: AuvScenario, duration: float | None = None) -> int:
+    """Progress ticks of one run of ``duration`` (default: the scenario's) seconds."""
+    return run_ticks(scenario.duration if duration is None else duration, 1.0 / scenario.control_dt)
+
+
+def _calibration(name: str, sc: AuvScenario, progress: Progress) -> tuple[AuvCalibration, bool]:
+    """:func:`calibration` as a progress stage (one line when it comes from the cache)."""
+    replays = len([d for d in sc.diagnosers if d != "ekf_bank"])      # the EKF bank's bound is not fitted
+    with progress.stage(f"calibration: {sc.calibration_runs} mission{'s' * (sc.calibration_runs != 1)}",
+                        sc.calibration_runs * _ticks(sc, sc.calibration_duration) * (1 + replays),
+                        skipped="from the cache") as tick:
+        return calibration(sc, progress=tick)
+
+
+def _write(progress: Progress, replay: bool, *args, **kwargs):
+    """:func:`write_run_folder` as a progress stage."""
+    with progress.stage("run folder: records, figures" + (", replay" if replay else "")):
+        return write_run_folder(*args, replay=replay, **kwargs)
 
 
 def voltage_detectability(record: Record, threshold: np.ndarray, window: float = 0.5) -> dict:
@@ -164,16 +179,16 @@ def plot_task_space(records: dict[str, Record], onsets, path: Path) -> Path:
     return _save(fig, axes[-1], path)
 
 
-def _run_ch4_auv(name, run_dir, seed, bar, replay):
+def _run_ch4_auv(name, run_dir, seed, progress, replay):
     sc = ch4_auv_scenario(seed)
     check_scenario(sc)
-    cal, cached = calibration(sc, progress=bar.update)
+    cal, cached = _calibration(name, sc, progress)
     records, summaries = {}, {}
-    bar.set_description(f"{name}: fault-free")
-    records["fault_free"] = run_scenario(replace(sc, faults=(), variant="no_ftc"), cal, progress=bar.update)
+    with progress.stage("run: fault-free", _ticks(sc)) as tick:
+        records["fault_free"] = run_scenario(replace(sc, faults=(), variant="no_ftc"), cal, progress=tick)
     for variant in ("no_ftc", "oracle", "diagnosed"):
-        bar.set_description(f"{name}: {variant}")
-        records[variant] = run_scenario(replace(sc, variant=variant), cal, progress=bar.update)
+        with progress.stage(f"run: {variant}", _ticks(sc)) as tick:
+            records[variant] = run_scenario(replace(sc, variant=variant), cal, progress=tick)
         summaries[variant] = summarize(records[variant], sc.name)
     since = max(f.onset for f in sc.faults)
     rms = {k: tracking_rms(r, since) for k, r in records.items()}
@@ -201,41 +216,51 @@ def _run_ch4_auv(name, run_dir, seed, bar, replay):
                                   "odin_onsets": list(ODIN_ONSETS), "time_scale": TIME_SCALE,
                                   "sensors": asdict(sc.sensors), "mismatch": asdict(sc.mismatch)},
                         calibration_cached=cached)
-    write_run_folder(run_dir, main, summary, {k: records[k] for k in ("fault_free", "no_ftc", "oracle")}, replay=False)
-    onsets = [f.onset for f in sc.faults]
-    variants = {k: records[k] for k in ("no_ftc", "oracle", "diagnosed")}
-    plot_thrusters(variants, onsets, run_dir / "figures" / "fig10_thrusters.png")
-    plot_task_space(variants, onsets, run_dir / "figures" / "fig11_task_space.png")
-    if replay:
-        from robofdi.viz import write_replay_html
+    labels = {"fault_free": "fault-free", "no_ftc": "no accommodation", "oracle": "oracle allocation",
+              "diagnosed": "diagnosed allocation"}
+    summary["recovery"] = recovery_section(
+        labels.values(), [{"quantity": f"position tracking RMS for t >= {since:g} s (last fault)", "unit": "m",
+                           "values": {labels[k]: rms[k] for k in labels}},
+                          {"quantity": "ratio to fault-free", "unit": "1",
+                           "values": {labels[k]: rms[k] / base for k in labels}}],
+        health_source=sc.health_source, method=f"reallocation ({sc.allocation}) around the isolated thrusters")
+    with progress.stage("run folder: records, figures" + (", replay" if replay else "")):
+        write_run_folder(run_dir, main, summary, {k: records[k] for k in ("fault_free", "no_ftc", "oracle")},
+                         replay=False)
+        onsets = [f.onset for f in sc.faults]
+        variants = {k: records[k] for k in ("no_ftc", "oracle", "diagnosed")}
+        plot_thrusters(variants, onsets, run_dir / "figures" / "fig10_thrusters.png")
+        plot_task_space(variants, onsets, run_dir / "figures" / "fig11_task_space.png")
+        if replay:
+            from robofdi.viz import write_replay_html
 
-        write_replay_html(main, run_dir / "replay.html", diagnoser=sc.health_source)
+            write_replay_html(main, run_dir / "replay.html", diagnoser=summary.get("lead", {}).get("diagnoser"))
     return summary
 
 
-def _single_run(name: str, sc: AuvScenario, bar) -> tuple[Record, dict, bool]:
+def _single_run(name: str, sc: AuvScenario, progress) -> tuple[Record, dict, bool]:
     """Check, calibrate (cached) and run one scenario: (record, summary, calibration came from the cache)."""
     check_scenario(sc)
-    cal, cached = calibration(sc, progress=bar.update)
-    bar.set_description(f"{name}: run")
-    record = run_scenario(sc, cal, progress=bar.update)
+    cal, cached = _calibration(name, sc, progress)
+    with progress.stage("run", _ticks(sc)) as tick:
+        record = run_scenario(sc, cal, progress=tick)
     return record, summarize(record, sc.name), cached
 
 
-def _run_ch4_flooded(name, run_dir, seed, bar, replay):
+def _run_ch4_flooded(name, run_dir, seed, progress, replay):
     sc = ch4_flooded_scenario(seed)
-    record, summary, cached = _single_run(name, sc, bar)
+    record, summary, cached = _single_run(name, sc, progress)
     regions = current_map_regions(record, sc.faults)
     summary["regions"] = regions
     summary["calibration_cached"] = cached
-    write_run_folder(run_dir, record, summary, replay=replay)
+    _write(progress, replay, run_dir, record, summary)
     _plot_currents(record, sc, run_dir / "figures" / "fig8_currents.png")
     return summary
 
 
-def _run_ch4_depth_sensor(name, run_dir, seed, bar, replay):
+def _run_ch4_depth_sensor(name, run_dir, seed, progress, replay):
     sc = ch4_depth_sensor_scenario(seed)
-    record, summary, cached = _single_run(name, sc, bar)
+    record, summary, cached = _single_run(name, sc, progress)
     onset = sc.faults[0].onset
     switch = depth_switch_time(record)
     depth_error = np.abs(record.truth_state[:, 2] - record.signals["reference"][:, 2])
@@ -249,7 +274,7 @@ def _run_ch4_depth_sensor(name, run_dir, seed, bar, replay):
         "units": {"onset": "s", "switch_time": "s", "switch_delay": "s", "max_depth_error_before_onset": "m",
                   "max_depth_error_after_onset": "m", "depth_error_below_0.1m_from": "s", "final_depth_error": "m"}}
     summary["calibration_cached"] = cached
-    write_run_folder(run_dir, record, summary, replay=replay)
+    _write(progress, replay, run_dir, record, summary)
     _plot_depth(record, sc, switch, run_dir / "figures" / "depth_switch.png")
     return summary
 
@@ -297,23 +322,23 @@ def _plot_nis(record: Record, sc: AuvScenario, path: Path) -> Path:
 FAULT_FREE_CHECK = 600.0
 
 
-def _run_ch4_roby2(name, run_dir, seed, bar, replay):
+def _run_ch4_roby2(name, run_dir, seed, progress, replay):
     sc = ch4_roby2_scenario(seed)
-    record, summary, cached = _single_run(name, sc, bar)
+    record, summary, cached = _single_run(name, sc, progress)
     cal, _ = calibration(sc)
     summary["ekf_bank"] = ekf_bank_isolation(record, sc.faults, sc.ekf_window)
     summary["ekf_bank"]["process_noise"] = cal.ekf_process_noise
     summary["ekf_bank"]["units"]["process_noise"] = "N²"
-    bar.set_description(f"{name}: fault-free {FAULT_FREE_CHECK:g} s")
-    free = run_scenario(replace(sc, faults=(), duration=FAULT_FREE_CHECK), cal, progress=bar.update,
-                           run_key="fault_free")
+    with progress.stage(f"run: fault-free check, {FAULT_FREE_CHECK:g} s", _ticks(sc, FAULT_FREE_CHECK)) as tick:
+        free = run_scenario(replace(sc, faults=(), duration=FAULT_FREE_CHECK), cal, progress=tick,
+                               run_key="fault_free")
     tr = free.diagnosers["ekf_bank"]
     summary["ekf_bank"]["fault_free"] = {
         "duration": FAULT_FREE_CHECK, "peak_nominal_nis": float(tr.residual[cal.blanking:, 0].max()),
         "nominal_alarm_samples": int(tr.alarm[:, 0].sum()), "declared": sorted({str(s) for s in tr.isolated} - {""}),
         "units": {"duration": "s", "peak_nominal_nis": "1", "nominal_alarm_samples": "1"}}
     summary["calibration_cached"] = cached
-    write_run_folder(run_dir, record, summary, replay=replay)
+    _write(progress, replay, run_dir, record, summary)
     _plot_nis(record, sc, run_dir / "figures" / "nis_bank.png")
     return summary
 
@@ -360,17 +385,11 @@ def _plot_currents(record: Record, sc: AuvScenario, path: Path) -> Path:
 
 def run(name: str = "ch4-auv", out: str | Path = "runs", seed: int = 0, progress: bool = True, replay: bool = True):
     """Run one chapter-4 experiment; returns (summary, run folder)."""
-    from tqdm.auto import tqdm
-
     if name not in EXPERIMENTS:
         raise RobofdiError(f"unknown experiment {name!r}; expected one of {', '.join(EXPERIMENTS)}")
-    sc = SCENARIOS[name](seed)
-    cached = is_cached("auv", calibration_description(sc))
-    runs = {"ch4-auv": 4, "ch4-roby2": 1 + FAULT_FREE_CHECK / sc.duration}.get(name, 1)
     run_dir = prepare_run_dir(out, name, seed)
     runner = {"ch4-auv": _run_ch4_auv, "ch4-flooded": _run_ch4_flooded, "ch4-depth-sensor": _run_ch4_depth_sensor,
               "ch4-roby2": _run_ch4_roby2}[name]
-    bar = tqdm(total=_steps(sc, runs, cached), desc=f"{name}: calibrate", unit="step", disable=not progress, leave=False)
-    with bar, keep_partial(run_dir):
-        summary = runner(name, run_dir, seed, bar, replay)
+    with keep_partial(run_dir):
+        summary = runner(name, run_dir, seed, Progress.of(progress, name), replay)
     return summary, run_dir

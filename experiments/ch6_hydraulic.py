@@ -24,9 +24,11 @@ import numpy as np
 from robofdi.errors import RobofdiError
 from robofdi.evaluate.figures import save_figure
 from robofdi.evaluate import summarize
+from robofdi.evaluate.headline import lead_diagnoser
 from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir
 from robofdi.evaluate.summary import write_summary
 from robofdi.models.hydraulic import CATALOGUE, flow_gains
+from robofdi.progress import Progress, run_ticks
 from robofdi.systems.hydraulic import (
     TABLE1, HydraulicScenario, calibration, fault_free_rms, leak_flow_share, operating_profile, run_scenario,
     table1_fault,
@@ -37,6 +39,9 @@ EXPERIMENTS = {"ch6-hydraulic": "Book ch. 6, hydraulic wheel actuator (Rosie rig
 SCENARIOS = ("baseline", *TABLE1)
 NLAR_TESTS = ("R1", "R2", "R4", "R5")
 LEAK_SIZES = (0.002, 0.004, 0.008, 0.016, 0.032, 0.064, 0.128)        # mm²
+#: the chapter's method: among equally good outcomes, the one the output leads with
+PRIMARY = "nlar"
+CONTROL_HZ = 1000.0                     # the rig's loop rate (robofdi.systems.hydraulic): progress ticks per second
 
 
 def _merged_summary(summaries: dict, seed: int, duration: float) -> dict:
@@ -119,73 +124,73 @@ def run(name: str = "ch6-hydraulic", out: str | Path = "runs", seed: int = 0, pr
         replay: bool = True, fault_free_runs: int = 20, calibration_runs: int = 8, onset: float = 5.0,
         duration: float = 8.0):
     """Calibrate (cached), run the baseline and Table-1 faults, the fault-free and leak studies; write everything."""
-    from tqdm.auto import tqdm
-
     if name not in EXPERIMENTS:
         raise RobofdiError(f"unknown experiment {name!r}; expected one of {list(EXPERIMENTS)}")
     base = HydraulicScenario("baseline", duration=duration, seed=seed)
     run_dir = prepare_run_dir(out, name, seed)
-    ticks = int(duration * 1000)
-    total = ((calibration_runs + len(SCENARIOS) + 1 + fault_free_runs + len(RMS_SPEEDS)) * ticks
-             + len(LEAK_SIZES) * int((onset + 2) * 1000))
-    bar = tqdm(total=total, desc=f"{name}: calibrate", unit="step", disable=not progress, leave=False)
-    with bar, keep_partial(run_dir):
-        cal, cached = calibration(base, calibration_runs, 1000 + 100 * seed, bar.update)
-        if cached:
-            bar.update(calibration_runs * ticks)
+    progress = Progress.of(progress, name)
+    ticks = run_ticks(duration, CONTROL_HZ)
+    with keep_partial(run_dir):
+        with progress.stage(f"calibration: {calibration_runs} runs", calibration_runs * ticks * (1 + len(base.diagnosers)),
+                            skipped="from the cache") as tick:
+            cal, cached = calibration(base, calibration_runs, 1000 + 100 * seed, tick)
         records, summaries = {}, {}
-        for sc_name in SCENARIOS:
-            bar.set_description(f"{name}: {sc_name}")
-            faults = () if sc_name == "baseline" else (table1_fault(sc_name, onset),)
-            sc = replace(base, name=sc_name, faults=faults)
-            records[sc_name] = run_scenario(sc, cal, progress=bar.update)
-            summaries[sc_name] = summarize(records[sc_name], name, diagnosers=None,
-                                           derivative_filter_delay=sc.filter().delay,
-                                           profile=sc.profile(), scenario=sc_name)
-        bar.set_description(f"{name}: fault-free runs")
-        false_alarms = fault_free_study(base, cal, fault_free_runs, seed, bar.update)
-        bar.set_description(f"{name}: NLAR vs linear AR")
-        rms = rms_study(base, cal, seed, progress=bar.update)
-        bar.set_description(f"{name}: printed R2, R5")
-        printed = run_scenario(replace(base, name="printed", diagnosers=("nlar",), r2_variant="as_printed",
-                                       r5_variant="as_printed"), cal, run_key="printed", progress=bar.update)
+        with progress.stage(f"Table-1 faults: {len(SCENARIOS)} runs", len(SCENARIOS) * ticks) as tick:
+            for sc_name in SCENARIOS:
+                faults = () if sc_name == "baseline" else (table1_fault(sc_name, onset),)
+                sc = replace(base, name=sc_name, faults=faults)
+                records[sc_name] = run_scenario(sc, cal, progress=tick)
+                summaries[sc_name] = summarize(records[sc_name], name, diagnosers=None,
+                                               derivative_filter_delay=sc.filter().delay,
+                                               profile=sc.profile(), scenario=sc_name)
+        with progress.stage(f"fault-free runs: {fault_free_runs} runs", fault_free_runs * ticks) as tick:
+            false_alarms = fault_free_study(base, cal, fault_free_runs, seed, tick)
+        with progress.stage(f"NLAR vs linear AR: {len(RMS_SPEEDS)} speeds", len(RMS_SPEEDS) * ticks) as tick:
+            rms = rms_study(base, cal, seed, progress=tick)
+        with progress.stage("printed R2, R5: 1 run", ticks) as tick:
+            printed = run_scenario(replace(base, name="printed", diagnosers=("nlar",), r2_variant="as_printed",
+                                           r5_variant="as_printed"), cal, run_key="printed", progress=tick)
         errata = {"fault_free_rms_after_ramp": {
             "corrected": fault_free_rms(records["baseline"], "nlar", since=base.ramp_time + 0.5),
             "as_printed": fault_free_rms(printed, "nlar", since=base.ramp_time + 0.5)},
             "note": "R2 as printed misses the valve term; R5 as printed has sqrt(2(p_s - y2)/rho) for "
                     "sqrt(2/(rho (p_s - y2))) (spec digest 4.3)",
             "units": {"R1": "rad/s^2", "R2": "rad/s^3", "R4": "Pa/s", "R5": "Pa/s^2"}}
-        bar.set_description(f"{name}: leak study")
-        leak = leak_study(base, cal, onset=onset, progress=bar.update)
-    for sc_name, rec in records.items():
-        folder = run_dir / sc_name
-        folder.mkdir(exist_ok=True)
-        rec.save(folder / "record.h5")
-        write_summary(summaries[sc_name], folder / "summary.json")
-        if replay:
-            from robofdi.viz.hydraulic import write_hydraulic_replay
+        with progress.stage(f"leak study: {len(LEAK_SIZES)} sizes",
+                            len(LEAK_SIZES) * run_ticks(onset + 2.0, CONTROL_HZ)) as tick:
+            leak = leak_study(base, cal, onset=onset, progress=tick)
+    with progress.stage("run folder: records, figures" + (", replays" if replay else "")):
+        for sc_name, rec in records.items():
+            folder = run_dir / sc_name
+            folder.mkdir(exist_ok=True)
+            rec.save(folder / "record.h5")
+            write_summary(summaries[sc_name], folder / "summary.json")
+            if replay:
+                from robofdi.viz.hydraulic import write_hydraulic_replay
 
-            write_hydraulic_replay(rec, folder / "replay.html")
-    figures = run_dir / "figures"
-    figures.mkdir(exist_ok=True)
-    plot_fault_figures(records, figures)
-    plot_linearisation_error(figures / "fig5_linearisation_error.png")
-    plot_linear_vs_plar(base, cal, figures / "fig11_linear_ar_vs_plar.png")
-    summary = _merged_summary({k: v for k, v in summaries.items()}, seed, duration)
-    summary.update({
-        "scenarios": {k: {"folder": k, "faults": v["faults"], "diagnosers": v["diagnosers"]} for k, v in summaries.items()},
-        "derivative_filter": {**asdict(base.filter()), "delay": base.filter().delay,
-                              "units": {"dt": "s", "delay": "s", "window": "samples"}},
-        "thresholds": {k: dict(zip(_components(records["baseline"], k), v.tolist())) for k, v in cal.thresholds.items()},
-        "calibration": {"runs": calibration_runs, "profiles": cal.profiles, "cached": cached, "margin": cal.margin,
-                        "better_model_parameters": cal.better_params},
-        "fault_free": false_alarms,
-        "nlar_vs_linear_rms": rms,
-        "leak_study": leak,
-        "errata": errata,
-        "acceptance": acceptance(summaries, false_alarms, leak),
-    })
-    write_summary(summary, run_dir / "summary.json")
+                write_hydraulic_replay(rec, folder / "replay.html")
+        figures = run_dir / "figures"
+        figures.mkdir(exist_ok=True)
+        plot_fault_figures(records, figures)
+        plot_linearisation_error(figures / "fig5_linearisation_error.png")
+        plot_linear_vs_plar(base, cal, figures / "fig11_linear_ar_vs_plar.png")
+        summary = _merged_summary({k: v for k, v in summaries.items()}, seed, duration)
+        summary.update({
+            "scenarios": {k: {"folder": k, "faults": v["faults"], "diagnosers": v["diagnosers"]} for k, v in summaries.items()},
+            "derivative_filter": {**asdict(base.filter()), "delay": base.filter().delay,
+                                  "units": {"dt": "s", "delay": "s", "window": "samples"}},
+            "thresholds": {k: dict(zip(_components(records["baseline"], k), v.tolist())) for k, v in cal.thresholds.items()},
+            "calibration": {"runs": calibration_runs, "profiles": cal.profiles, "cached": cached, "margin": cal.margin,
+                            "better_model_parameters": cal.better_params},
+            "fault_free": false_alarms,
+            "nlar_vs_linear_rms": rms,
+            "leak_study": leak,
+            "errata": errata,
+            "acceptance": acceptance(summaries, false_alarms, leak),
+        })
+        lead, reason = lead_diagnoser(summary, prefer=PRIMARY)      # what the printed table leads with
+        summary["lead"] = {"diagnoser": lead, "reason": reason}
+        write_summary(summary, run_dir / "summary.json")
     return summary, run_dir
 
 

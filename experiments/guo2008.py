@@ -17,6 +17,7 @@ from robofdi.evaluate.figures import save_figure
 from robofdi.evaluate import summarize
 from robofdi.evaluate.reproduction import reproduction_check as check
 from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, write_run_folder
+from robofdi.progress import Progress
 from robofdi.models.linear_examples import aircraft_lateral
 from robofdi.models.linear import discretize
 from robofdi.observers.uio import uio_design
@@ -80,10 +81,15 @@ def run(name: str = "guo2008", out: str | Path = "runs", seed: int = 0, progress
     sc = AircraftScenario(seed=seed, dt=dt)
     model = discretize(aircraft_lateral(), dt)
     design = uio_design(model, [-SIGMA] * 6)
+    progress = Progress.of(progress, name)
     with keep_partial(run_dir):
-        threshold = calibrate(sc)
-        rec = build_loop(sc, threshold).run(sc.duration, seed=seed, scenario="aircraft")
-        calm = build_loop(replace(sc, gust=False), threshold).run(sc.duration, seed=seed, run_key="no_gust")
+        with progress.stage("calibration"):
+            threshold = calibrate(sc)
+        with progress.stage("runs: with and without the gust", 2, unit="run") as tick:
+            rec = build_loop(sc, threshold).run(sc.duration, seed=seed, scenario="aircraft")
+            tick()
+            calm = build_loop(replace(sc, gust=False), threshold).run(sc.duration, seed=seed, run_key="no_gust")
+            tick()
     decoupling = float(np.max(np.abs(residual_vectors(rec, sc) - residual_vectors(calm, sc))))
     tr = rec.diagnosers["amm"]
     t = tr.time
@@ -117,7 +123,8 @@ def run(name: str = "guo2008", out: str | Path = "runs", seed: int = 0, progress
                                 "(ū − u); the reproduction list carries the lock check")
     summary["threshold"] = {"nominal": threshold, "unit": "weighted output norm"}
     summary["reproduction"] = reproduction
-    (run_dir / "figures").mkdir(parents=True, exist_ok=True)
-    write_run_folder(run_dir, rec, summary, {"no_gust": calm}, replay=replay)
-    _figures(run_dir, rec, J, rec.columns["signals/u"])
+    with progress.stage("run folder: records, figures"):
+        (run_dir / "figures").mkdir(parents=True, exist_ok=True)
+        write_run_folder(run_dir, rec, summary, {"no_gust": calm}, replay=replay)
+        _figures(run_dir, rec, J, rec.columns["signals/u"])
     return summary, run_dir

@@ -21,13 +21,18 @@ import numpy as np
 from robofdi.evaluate.figures import save_figure
 from robofdi.evaluate import summarize
 from robofdi.evaluate.reproduction import reproduction_check as check
+from robofdi.evaluate.headline import recovery_section
 from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, write_run_folder
+from robofdi.progress import Progress
 from robofdi.models.linear_examples import helicopter
 from robofdi.observers.kalman import reduced_order_design
 from robofdi.systems.helicopter import (
     FAULT_OUTPUTS, UNKNOWN_INPUT_FAULTS, HelicopterScenario, build_loop, calibrate, fault_estimates,
 )
 
+#: Closed-loop runs of :func:`run` (progress units): fault-free, no accommodation, noise-free, noisy, 3 LS seeds,
+#: 3 harness seeds, the unknown-input example.
+RUNS = 11
 EXPERIMENTS = {"jiang2005": "Jiang & Chowdhury 2005: reduced-order Kalman fault estimation + LOE accommodation, helicopter"}
 
 
@@ -147,72 +152,90 @@ def run(name: str = "jiang2005", out: str | Path = "runs", seed: int = 0, progre
     model = helicopter()
     design = reduced_order_design(model, -model.B, FAULT_OUTPUTS)
     quiet = HelicopterScenario(seed=seed, noise=False)
-    with keep_partial(run_dir):
+    progress = Progress.of(progress, name)
+    with keep_partial(run_dir), progress.stage("calibrations and runs", RUNS, unit="run") as tick:
         thr_quiet = calibrate(quiet)
         free = build_loop(replace(quiet, faults=(), accommodation=False)).run(quiet.duration, seed=seed,
                                                                              run_key="fault_free")
+        tick()
         noftc = build_loop(replace(quiet, accommodation=False), thr_quiet).run(quiet.duration, seed=seed, run_key="no_ftc")
+        tick()
         nf = build_loop(quiet, thr_quiet).run(quiet.duration, seed=seed, scenario="helicopter noise-free")
+        tick()
         noisy_sc = HelicopterScenario(seed=seed)
         noisy = build_loop(noisy_sc, calibrate(noisy_sc)).run(noisy_sc.duration, seed=seed, scenario="helicopter")
+        tick()
         ls = {}
         for s in (seed + 1, seed + 2, seed + 3):
             sc = HelicopterScenario(seed=s, accommodation=False, covariance_mode="corrected")
             rec = build_loop(sc).run(sc.duration, seed=s, run_key="ls_estimate")
             ls[s] = _ls_effectiveness(rec, sc)
+            tick()
         item4 = {}
         for s in (seed + 1, seed + 2, seed + 3):
             sc = HelicopterScenario(seed=s, harness="digest")
             item4[s] = _item4(build_loop(sc).run(sc.duration, seed=s, run_key="digest_harness"), sc)
+            tick()
         ui_sc = HelicopterScenario(seed=seed, noise=False, faults=UNKNOWN_INPUT_FAULTS, unknown_input=0.1,
                                    covariance_mode="swapped", accommodation=False)
         ui = build_loop(ui_sc, thr_quiet[:2]).run(ui_sc.duration, seed=seed, run_key="unknown_input")
         _, zeta = fault_estimates(ui, ui_sc)
-    # noise-free exactness: f̂(k−1) against f(k−1) = r u (labels), after the first samples
-    f, _ = fault_estimates(nf, quiet)
-    lab = -np.stack([nf.faults["r1"].value, nf.faults["r2"].value], axis=1)
-    exact_err = float(np.max(np.abs(f[2:] - lab[1:-1])))
-    r_true = _true_effectiveness(nf, {"r1": "collective", "r2": "cyclic"})
-    tr = nf.diagnosers["kalman_fe"]
-    u_prev = nf.signals["u_diag"][:-1]
-    ok = np.abs(u_prev) > 1e-6
-    r_err = float(np.max(np.abs(tr.residual[1:] - r_true[:-1])[ok]))
-    dev_ftc, dev_noftc = _rms_dev(nf, free), _rms_dev(noftc, free)
-    ratio = dev_ftc / dev_noftc
-    zeta_end = float(zeta[-1, 0])
-    f_ui, _ = fault_estimates(ui, ui_sc)
-    lab_ui = -ui.faults["r3"].value
-    ui_err = float(abs(f_ui[-1, 0] - lab_ui[-2]))
-    ls_mean = float(np.mean(list(ls.values())))
-    reproduction = [
-        check("Abar11", 1.0521, float(design.Abar11[0, 0]), 5e-5, abs(design.Abar11[0, 0] - 1.0521) < 5e-5),
-        check("Abar21", 10.5091, float(design.Abar21[0, 0]), 5e-5, abs(design.Abar21[0, 0] - 10.5091) < 5e-5),
-        check("rank_CE", 2, design.rank_CE, 0, design.rank_CE == 2),
-        check("exact_estimate: max |f̂(k−1) − f(k−1)| noise-free after the one-step delay", 0.0, exact_err, 1e-9,
-               exact_err < 1e-9),
-        check("max |r̂ − r| noise-free where |u| > 1e-6 (element-wise r̂ = f̂/u)", 0.0, r_err, 1e-9, r_err < 1e-9),
-        check("r1_mean: LS r̂₁ over [5, 10] s, noisy, mean over 3 seeds (corrected covariances)", 0.4, ls_mean, 0.02,
-               abs(ls_mean - 0.4) < 0.02, note=f"per seed {ls}; with the as-printed covariances the LS estimate is "
-               "biased up (≈0.56) by the noise the deadbeat filter feeds into u"),
-        check("accommodation: RMS deviation from fault-free, with / without (29), per state", "quick recovery (Fig. 2)",
-               {"with": dev_ftc.tolist(), "without": dev_noftc.tolist(), "ratio": ratio.tolist()}, 0.01,
-               bool(np.all(dev_ftc < 0.01) and np.all(dev_noftc[:3] > 0.04))),
-        *_item4_checks(item4),
-        check("zeta_hat(10 s), unknown-input filter, noise-free (swapped covariances)", 0.1, zeta_end, 0.002,
-               abs(zeta_end - 0.1) < 0.002),
-        check("|f̂ − f| at 10 s, unknown-input example", 0.0, ui_err, 1e-4, ui_err < 1e-4),
-    ]
-    summary = summarize(noisy, name, [f.to_dict() for f in noisy_sc.faults])
-    summary["noise_free"] = summarize(nf, name, [f.to_dict() for f in quiet.faults])["diagnosers"]
-    summary["thresholds"] = {"noisy": calibrate(noisy_sc).tolist(), "noise_free": thr_quiet.tolist(), "unit": "1"}
-    summary["estimate_note"] = ("estimate_rmse compares r̂ [1] with the injector's additive label −r·u [input unit]; "
-                                "the reproduction list carries the effectiveness checks")
-    summary["harness"] = ("LQR Q=I4, R=I2 on the estimator's x̂ (the paper gives no controller); x0=[1,0.5,0,0]; "
-                          "excitation [sin πt, cos 0.6πt]; R̂ clipped to [0, 0.95]; LS window 25 samples; accommodation fed by "
-                          "the gated LS r̂ (the 'digest harness' checks: by the ungated element-wise r̂, spec A.7)")
-    summary["reproduction"] = reproduction
-    (run_dir / "figures").mkdir(exist_ok=True)
-    write_run_folder(run_dir, noisy, summary, {"noise_free": nf, "no_accommodation": noftc, "fault_free": free,
-                                                "unknown_input": ui}, replay=replay)
-    _figures(run_dir, noisy, nf, free, noftc, ui, ui_sc, zeta)
+        tick()
+    with progress.stage("checks, run folder: records, figures"):
+        # noise-free exactness: f̂(k−1) against f(k−1) = r u (labels), after the first samples
+        f, _ = fault_estimates(nf, quiet)
+        lab = -np.stack([nf.faults["r1"].value, nf.faults["r2"].value], axis=1)
+        exact_err = float(np.max(np.abs(f[2:] - lab[1:-1])))
+        r_true = _true_effectiveness(nf, {"r1": "collective", "r2": "cyclic"})
+        tr = nf.diagnosers["kalman_fe"]
+        u_prev = nf.signals["u_diag"][:-1]
+        ok = np.abs(u_prev) > 1e-6
+        r_err = float(np.max(np.abs(tr.residual[1:] - r_true[:-1])[ok]))
+        dev_ftc, dev_noftc = _rms_dev(nf, free), _rms_dev(noftc, free)
+        ratio = dev_ftc / dev_noftc
+        zeta_end = float(zeta[-1, 0])
+        f_ui, _ = fault_estimates(ui, ui_sc)
+        lab_ui = -ui.faults["r3"].value
+        ui_err = float(abs(f_ui[-1, 0] - lab_ui[-2]))
+        ls_mean = float(np.mean(list(ls.values())))
+        reproduction = [
+            check("Abar11", 1.0521, float(design.Abar11[0, 0]), 5e-5, abs(design.Abar11[0, 0] - 1.0521) < 5e-5),
+            check("Abar21", 10.5091, float(design.Abar21[0, 0]), 5e-5, abs(design.Abar21[0, 0] - 10.5091) < 5e-5),
+            check("rank_CE", 2, design.rank_CE, 0, design.rank_CE == 2),
+            check("exact_estimate: max |f̂(k−1) − f(k−1)| noise-free after the one-step delay", 0.0, exact_err, 1e-9,
+                   exact_err < 1e-9),
+            check("max |r̂ − r| noise-free where |u| > 1e-6 (element-wise r̂ = f̂/u)", 0.0, r_err, 1e-9, r_err < 1e-9),
+            check("r1_mean: LS r̂₁ over [5, 10] s, noisy, mean over 3 seeds (corrected covariances)", 0.4, ls_mean, 0.02,
+                   abs(ls_mean - 0.4) < 0.02, note=f"per seed {ls}; with the as-printed covariances the LS estimate is "
+                   "biased up (≈0.56) by the noise the deadbeat filter feeds into u"),
+            check("accommodation: RMS deviation from fault-free, with / without (29), per state", "quick recovery (Fig. 2)",
+                   {"with": dev_ftc.tolist(), "without": dev_noftc.tolist(), "ratio": ratio.tolist()}, 0.01,
+                   bool(np.all(dev_ftc < 0.01) and np.all(dev_noftc[:3] > 0.04))),
+            *_item4_checks(item4),
+            check("zeta_hat(10 s), unknown-input filter, noise-free (swapped covariances)", 0.1, zeta_end, 0.002,
+                   abs(zeta_end - 0.1) < 0.002),
+            check("|f̂ − f| at 10 s, unknown-input example", 0.0, ui_err, 1e-4, ui_err < 1e-4),
+        ]
+        summary = summarize(noisy, name, [f.to_dict() for f in noisy_sc.faults])
+        summary["noise_free"] = summarize(nf, name, [f.to_dict() for f in quiet.faults])["diagnosers"]
+        summary["thresholds"] = {"noisy": calibrate(noisy_sc).tolist(), "noise_free": thr_quiet.tolist(), "unit": "1"}
+        summary["estimate_note"] = ("estimate_rmse compares r̂ [1] with the injector's additive label −r·u [input unit]; "
+                                    "the reproduction list carries the effectiveness checks")
+        summary["harness"] = ("LQR Q=I4, R=I2 on the estimator's x̂ (the paper gives no controller); x0=[1,0.5,0,0]; "
+                              "excitation [sin πt, cos 0.6πt]; R̂ clipped to [0, 0.95]; LS window 25 samples; "
+                              "accommodation fed by the gated LS r̂ (the 'digest harness' checks: by the ungated "
+                              "element-wise r̂, spec A.7)")
+        summary["reproduction"] = reproduction
+        states, units = nf.columns.get("truth/state", []), nf.units.get("truth/state", [])
+        summary["recovery"] = recovery_section(
+            ("no accommodation", "accommodation (29)"),
+            [{"quantity": f"RMS deviation of {states[i] if i < len(states) else f'x{i + 1}'} from the fault-free run",
+              "unit": (units[i] if i < len(units) else "") or None,
+              "values": {"no accommodation": float(dev_noftc[i]), "accommodation (29)": float(dev_ftc[i])}}
+             for i in range(len(dev_ftc))],
+            method="eq. (29): the input scaled by the estimated effectiveness (noise-free runs)")
+        (run_dir / "figures").mkdir(exist_ok=True)
+        write_run_folder(run_dir, noisy, summary, {"noise_free": nf, "no_accommodation": noftc, "fault_free": free,
+                                                    "unknown_input": ui}, replay=replay)
+        _figures(run_dir, noisy, nf, free, noftc, ui, ui_sc, zeta)
     return summary, run_dir

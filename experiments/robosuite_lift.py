@@ -13,7 +13,8 @@ fault-free scripted episodes with grasps (cached per belief and versions).
 Three episodes with the same seed: fault-free; faulty without accommodation; faulty with
 :class:`~robofdi.ftc.EffectivenessCompensation` fed by the loss of effectiveness ``HEALTH_SOURCE`` identifies after
 isolation (one 2 ms substep late). summary.json["task"] holds robosuite's success (cube lifted more than 4 cm
-above the table at the end of the 7 s episode) of each, summary.json["accommodation"] the identified loss.
+above the table at the end of the 7 s episode) of each, summary.json["accommodation"] the identified loss, and
+summary.json["recovery"] the task results in the shape every experiment shares (``robofdi run`` prints it).
 The record is the faulty episode without accommodation (``compensated.h5``: with it). ``replay.html`` (self-contained
 Meshcat, offline) replays that episode: the Panda's meshes, fingers and cube from the recorded qpos, the faulty
 joint ringed from the onset and lit red from its isolation by ``momentum``; ``replay_compensated.html`` the same
@@ -27,8 +28,10 @@ from pathlib import Path
 import numpy as np
 
 from robofdi.evaluate import summarize
+from robofdi.evaluate.headline import recovery_section
 from robofdi.evaluate.figures import save_figure
 from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, write_run_folder
+from robofdi.progress import Progress
 
 EXPERIMENTS = {"robosuite-lift": "robosuite Panda Lift (OSC_POSE, scripted grasp): joint-2 loss of effectiveness mid-task, "
                                  "momentum diagnosers online, task success without vs with compensation"}
@@ -56,8 +59,6 @@ def plot_cube_heights(episodes: dict, faults, path: Path) -> Path:
 def run(name: str = "robosuite-lift", out: str | Path = "runs", seed: int = 0, progress: bool = True,
         replay: bool = True, faults=()):
     """Calibrate (cached), run fault-free, faulty, faulty + compensation; evaluate, plot; returns (summary, run folder)."""
-    from tqdm.auto import tqdm
-
     from robofdi.adapters import robosuite_diagnosis as rd
     from robofdi.adapters.robosuite import FaultyRobosuiteEnv, write_mjcf
     from robofdi.faults import parse_fault_spec
@@ -66,20 +67,22 @@ def run(name: str = "robosuite-lift", out: str | Path = "runs", seed: int = 0, p
     env = rd.make_lift()
     FaultyRobosuiteEnv(env, faults).detach()          # bad targets fail here, before anything is simulated
     run_dir = prepare_run_dir(out, name, seed)
+    progress = Progress.of(progress, name)
     steps = rd.EPISODE_STEPS
-    bar = tqdm(total=2 * len(rd.CALIBRATION_SEEDS) + 3, desc=f"{name}: calibrate", unit="episode",
-               disable=not progress, leave=False)
-    with bar, keep_partial(run_dir):
-        cal, cached = rd.lift_calibration(rd.CALIBRATION_SEEDS, steps=steps, progress=bar.update)
-        if cached:
-            bar.update(2 * len(rd.CALIBRATION_SEEDS))
+    seeds = len(rd.CALIBRATION_SEEDS)
+    with keep_partial(run_dir):
+        # one episode per seed for the plain momentum residuals, the same again with friction compensation
+        with progress.stage(f"calibration: {seeds} seeds, 2 passes", 2 * seeds, unit="episode",
+                            skipped="from the cache") as tick:
+            cal, cached = rd.lift_calibration(rd.CALIBRATION_SEEDS, steps=steps, progress=tick)
         episodes, records = {}, {}
-        for label, fs, acc in (("fault-free", [], False), ("no accommodation", faults, False),
-                               ("compensation", faults, True)):
-            bar.set_description(f"{name}: {label}")
-            episodes[label], records[label] = rd.run_lift(cal, fs, seed, accommodation=acc, health_source=HEALTH_SOURCE,
-                                                         env=env, steps=steps, scenario=name, meta={"variant": label})
-            bar.update(1)
+        with progress.stage("episodes: fault-free, no accommodation, compensation", 3, unit="episode") as tick:
+            for label, fs, acc in (("fault-free", [], False), ("no accommodation", faults, False),
+                                   ("compensation", faults, True)):
+                episodes[label], records[label] = rd.run_lift(cal, fs, seed, accommodation=acc,
+                                                             health_source=HEALTH_SOURCE, env=env, steps=steps,
+                                                             scenario=name, meta={"variant": label})
+                tick(1)
         write_mjcf(env, run_dir)                     # the model the records name (meta["mjcf"]) for the replays
         env.close()
     record = records["no accommodation"]
@@ -100,13 +103,21 @@ def run(name: str = "robosuite-lift", out: str | Path = "runs", seed: int = 0, p
         "identified_loss_at_end": compensated.meta["identified_loss"][HEALTH_SOURCE],
         "units": {"lifted_at": "s", "max_cube_height": "m above the table", "loss": "1 (fraction of torque lost)"},
     }
-    write_run_folder(run_dir, record, summary, {"compensated": compensated, "fault_free": records["fault-free"]},
-                     replay=replay)
-    plot_cube_heights(episodes, faults, run_dir / "figures" / "cube_height.png")
-    if replay:
-        from robofdi.viz import write_replay_html
+    summary["recovery"] = recovery_section(
+        episodes, [{"quantity": "task success (cube lifted > 4 cm at the end)", "unit": None,
+                    "values": {k: ep.success for k, ep in episodes.items()}},
+                   {"quantity": "cube lifted at", "unit": "s", "values": {k: ep.lifted_at for k, ep in episodes.items()}},
+                   {"quantity": "highest cube height above the table", "unit": "m",
+                    "values": {k: float(np.max(ep.cube_height)) for k, ep in episodes.items()}}],
+        health_source=HEALTH_SOURCE, method=summary["accommodation"]["method"])
+    with progress.stage("run folder: records, figures" + (", replays" if replay else "")):
+        write_run_folder(run_dir, record, summary, {"compensated": compensated, "fault_free": records["fault-free"]},
+                         replay=replay)
+        plot_cube_heights(episodes, faults, run_dir / "figures" / "cube_height.png")
+        if replay:
+            from robofdi.viz import write_replay_html
 
-        write_replay_html(run_dir / "compensated.h5", run_dir / "replay_compensated.html")
+            write_replay_html(run_dir / "compensated.h5", run_dir / "replay_compensated.html")
     return summary, run_dir
 
 

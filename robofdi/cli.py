@@ -16,6 +16,7 @@ import sys
 from pathlib import Path
 
 from robofdi import RobofdiError, __version__
+from robofdi.faults.spec import PROFILE_HELP
 
 # options of `robofdi run` that only some experiments take (module attribute OPTIONS lists them)
 EXPERIMENT_OPTIONS = {"robot": "--robot", "faults": "--fault", "joints": "--joints", "torque_motors": "--torque-motors"}
@@ -49,7 +50,7 @@ def _is_system(name: str) -> bool:
 
 
 def _cmd_run(args) -> int:
-    from robofdi.evaluate import results_table
+    from robofdi.evaluate.headline import run_report
     from robofdi.loop import RunAborted
 
     experiments = _experiments()
@@ -77,9 +78,7 @@ def _cmd_run(args) -> int:
         where = f"recorded so far: {exc.partial_path}" if exc.partial_path else "the partial record could not be saved"
         print(f"robofdi: error: {exc} ({where})", file=sys.stderr)
         return 1
-    print(results_table(summary))
-    for check in summary.get("reproduction", []):
-        print(f"  [{'pass' if check['pass'] else 'FAIL'}] {check['quantity']}")
+    print(run_report(summary))
     print(f"\nrun folder: {run_dir}  ({', '.join(sorted(p.name + '/' * p.is_dir() for p in run_dir.iterdir()))})")
     for replay in sorted(run_dir.glob("replay.html")) + sorted(run_dir.glob("*/replay.html")):   # ch6: per system
         record = replay.parent / "record.h5"
@@ -131,6 +130,10 @@ def _cmd_campaign(args) -> int:
     return 1 if summary["runs"]["errors"] else 0
 
 
+#: progress: bars on a terminal, a few lines in a pipe or log (robofdi.progress; ROBOFDI_PROGRESS=bar|plain|off)
+QUIET_HELP = "no progress output (otherwise: a bar per stage on a terminal, a few lines in a pipe or a log)"
+
+
 class _Parser(argparse.ArgumentParser):
     """argparse, with its usage errors on one line like every other error of the command line."""
 
@@ -148,13 +151,14 @@ def build_parser() -> argparse.ArgumentParser:
     run = sub.add_parser("run", help="run one experiment, or one run of a system")
     run.add_argument("name", help="an experiment or a system of `robofdi list`, or 'package.module:attribute'")
     run.add_argument("--out", default="runs", help="parent folder of the run folder (default: ./runs)")
-    run.add_argument("--seed", type=int, default=0)
-    run.add_argument("--quiet", action="store_true", help="no progress bar")
+    run.add_argument("--seed", type=int, default=0, help="the run's seed: the same seed gives the same results (default: 0)")
+    run.add_argument("--quiet", action="store_true", help=QUIET_HELP)
     arm = run.add_argument_group("options of `run arm` (--fault also of `run robosuite-lift` and of systems)")
     arm.add_argument("--robot", help="the arm's MJCF file (default: the shipped arm6.xml)")
     arm.add_argument("--fault", dest="faults", action="append", metavar="SPEC",
-                     help="KIND:TARGET:MAGNITUDE@ONSET[-END][~PROFILE][;NAME=VALUE], repeatable, "
-                          "e.g. actuator_additive:joint2:20@1.0 or sensor_bias:joint3_pos:0.004@1.5~ramp(0.5)")
+                     help="KIND:TARGET:MAGNITUDE@ONSET[-END][~PROFILE][;NAME=VALUE], repeatable; PROFILE: "
+                          f"{PROFILE_HELP}; e.g. actuator_additive:joint2:20@1.0 or "
+                          "actuator_additive:joint5:40@3~exponential_rise(0.08)")
     arm.add_argument("--joints", help="comma-separated arm joints (default: every joint driven by a motor)")
     arm.add_argument("--torque-motors", action="store_true",
                      help="replace the arm's position/velocity servos by torque motors (limit: their forcerange)")
@@ -162,14 +166,15 @@ def build_parser() -> argparse.ArgumentParser:
     demo = sub.add_parser("demo", help="the chapter-3 actuator-fault experiment (= run ch3-actuator)")
     demo.add_argument("--out", default="runs")
     demo.add_argument("--seed", type=int, default=0)
-    demo.add_argument("--quiet", action="store_true")
+    demo.add_argument("--quiet", action="store_true", help=QUIET_HELP)
     demo.set_defaults(func=_cmd_run, name="ch3-actuator", **dict.fromkeys(EXPERIMENT_OPTIONS))
     cache = sub.add_parser("cache", help="the calibration cache: list it, or clear it")
     cache.add_argument("action", nargs="?", choices=("list", "clear"), default="list")
     cache.set_defaults(func=_cmd_cache)
     view = sub.add_parser("view", help="open a recorded run in the live Meshcat viewer")
     view.add_argument("run", help="a record .h5 file or a run folder")
-    view.add_argument("--diagnoser", default=None, help="whose detections light up the joints (default: adaptive)")
+    view.add_argument("--diagnoser", default=None,
+                      help="whose detections light up the joints (default: the run's lead diagnoser, as in the table)")
     view.add_argument("--no-browser", action="store_true")
     view.set_defaults(func=_cmd_view)
     camp = sub.add_parser("campaign", help="many seeded fault scenarios, locally or on a Dask cluster")
@@ -181,7 +186,7 @@ def build_parser() -> argparse.ArgumentParser:
     camp.add_argument("--out", metavar="DIR", help="campaign folder (default: runs/campaign-<spec name>)")
     camp.add_argument("--resume", action="store_true", help="continue the campaign in DIR, skipping finished runs")
     camp.add_argument("--runs", type=int, metavar="N", help="only the first N runs by index (a prefix of the campaign)")
-    camp.add_argument("--quiet", action="store_true", help="no progress bar")
+    camp.add_argument("--quiet", action="store_true", help=QUIET_HELP)
     camp.set_defaults(func=_cmd_campaign)
     return p
 

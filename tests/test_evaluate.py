@@ -172,16 +172,30 @@ def test_results_table_lists_every_diagnoser_and_fault():
     table = results_table(s)
     assert "delay [ms]" in table and table.splitlines()[0] == "two-faults  system=arm6  seed=0"
     lines = table.splitlines()
-    assert len(lines) == 3 + 4  # title, header, rule, one row per (diagnoser, fault)
+    assert len(lines) == 3 + 4 + 1  # title, header, rule, one row per (diagnoser, fault), the lead
     assert len({len(line) for line in lines[1:3]}) == 1  # header and rule are aligned
     # tau3: alarm rises at 1.006 (6 ms), joint3 isolated at 1.010; the estimate stays 0, so the RMSE over
     # t = 1.010, 1.012, …, 3.998 against the true 2(t − 1) is sqrt(mean(4 s²)), s = 0.010 … 2.998 step 0.002.
     # tau5: component 2 rises at 3.004 (4 ms) but nothing new is isolated. momentum never alarms.
     s_grid = 0.010 + 0.002 * np.arange(1495)
     rmse = f"{np.sqrt(np.mean(4 * s_grid**2)):.4g}"       # 3.468
-    assert [line.split() for line in lines[3:]] == [
-        ["recursive", "tau3", "yes", "6.0", "joint3", "yes", rmse, "0"],
-        ["recursive", "tau5", "yes", "4.0", "-", "no", "-", "0"],
+    assert [line.split() for line in lines[3:-1]] == [
+        ["recursive", "*", "tau3", "yes", "6.0", "joint3", "yes", rmse, "0"],
+        ["recursive", "*", "tau5", "yes", "4.0", "-", "no", "-", "0"],
         ["momentum", "tau3", "no", "-", "-", "-", "-", "0"],
         ["momentum", "tau5", "no", "-", "-", "-", "-", "0"],
     ]
+    assert lines[-1] == "* lead: recursive (best outcome: 1 of 2 faults isolated correctly, 0 false alarms)"
+
+
+def test_results_table_leads_with_the_named_or_health_source_diagnoser():
+    """The lead goes first: the one the summary names, else the accommodation's health source, else the best."""
+    tr = trace(alarm_on=[(0, 1.006, DURATION)], isolated_from=[("joint3", 1.010)])
+    rec = record({"tau3": labels(1.0)}, {"adaptive": trace(alarm_on=[]), "consistency": tr})
+    s = summarize(rec, "lead", [spec("tau3", "joint3", 1.0)])
+    assert [line.split()[0] for line in results_table(s).splitlines()[3:5]] == ["consistency", "adaptive"]
+    s["accommodation"] = {"health_source": "adaptive"}
+    lines = results_table(s).splitlines()
+    assert lines[3].split()[:2] == ["adaptive", "*"] and lines[-1] == "* lead: adaptive (its health drives the accommodation)"
+    s["lead"] = {"diagnoser": "consistency", "reason": "the recommended scheme"}
+    assert results_table(s).splitlines()[-1] == "* lead: consistency (the recommended scheme)"

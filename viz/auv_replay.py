@@ -120,9 +120,10 @@ def build_auv_replay(vis: meshcat.Visualizer, record, diagnoser: str | None = No
 def write_auv_replay_html(record, path: str | Path, diagnoser: str | None = None, fps: int = 10) -> Path:
     """Write the self-contained HTML replay (meshcat's JS inlined, offline) to ``path``; returns the path
     (:func:`robofdi.viz.write_replay_html`, which sends AUV records here)."""
-    from robofdi.viz.replay import _as_record, _is_auv, write_replay_html
+    from robofdi.viz.replay import _as_record, _system_replay, write_replay_html
 
     record = _as_record(record)
-    if not _is_auv(record):
-        raise RobofdiError("AUV replay: the record is not an AUV run (truth/state must start with x y z qw qx qy qz)")
+    if _system_replay(record) is not build_auv_replay:
+        raise RobofdiError(f"AUV replay: the record is not an AUV run (system {record.system!r}; expected 'auv' or "
+                           "meta['replay'] = 'auv')")
     return write_replay_html(record, path, diagnoser, fps)

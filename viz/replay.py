@@ -35,7 +35,7 @@ from robofdi import RobofdiError
 from .scene import MeshcatScene, rgba_to_material
 
 __all__ = ["Replay", "Marker", "resolve_mjcf", "scene_joints", "fault_joint", "isolated_joints", "build_replay",
-           "write_replay_html", "view", "close_visualizer"]
+           "write_replay_html", "view", "close_visualizer", "REPLAYS", "register_replay"]
 
 ROOT = "robot"
 ONSET_RGBA = (1.0, 0.85, 0.0, 0.55)
@@ -122,15 +122,16 @@ def isolated_joints(isolated: str, joint_names) -> set[str]:
 
 
 def _choose_diagnoser(record, diagnoser: str | None) -> str | None:
+    """``diagnoser`` if given (checked), else the run's lead (:func:`robofdi.evaluate.headline.record_lead`: the one
+    the experiment named, else the accommodation's health source, else the best outcome on the labels)."""
+    from robofdi.evaluate.headline import record_lead
+
     diags = record.diagnosers or {}
     if diagnoser is not None:
         if diagnoser not in diags:
             raise RobofdiError(f"diagnoser {diagnoser!r}: not in the record (available: {sorted(diags)})")
         return diagnoser
-    primary = (record.meta or {}).get("primary_diagnoser")
-    if primary in diags:
-        return primary
-    return next(iter(diags), None)
+    return record_lead(record)
 
 
 def _fault_intervals(record, joint_names) -> dict[str, list[tuple[float, float]]]:
@@ -334,8 +335,8 @@ def build_replay(vis: meshcat.Visualizer, record, diagnoser: str | None = None, 
                  folder: str | Path | None = None) -> Replay:
     """Draw ``record``'s robot into ``vis`` and set an animation of its motion with fault markers.
 
-    ``diagnoser`` picks the trace whose isolation drives the "detected" markers (default:
-    ``record.meta["primary_diagnoser"]``, else the first diagnoser). Frames are the record's truth
+    ``diagnoser`` picks the trace whose isolation drives the "detected" markers (default: the run's lead,
+    :func:`robofdi.evaluate.headline.record_lead`). Frames are the record's truth
     ``qpos`` linearly resampled at ``fps``. ``folder``: where a relative ``meta["mjcf"]`` is looked for first
     (:func:`resolve_mjcf`).
     """
@@ -408,28 +409,54 @@ def _as_record(record_or_path):
     return record_or_path
 
 
-def _is_auv(record) -> bool:
-    """A record of robofdi.sims.auv (hull pose first in truth/state): replayed by :mod:`robofdi.viz.auv_replay`."""
-    return list(record.columns.get("truth/state", [])[:7]) == ["x", "y", "z", "qw", "qx", "qy", "qz"]
+#: Replays of systems that are not drawn joint by joint from their model file: ``record.system`` → builder
+#: ``"module:function"`` taking (visualizer, record, diagnoser, fps). A record may name its own with
+#: ``meta["replay"]`` (a key of this table); :func:`register_replay` adds one.
+REPLAYS: dict[str, str] = {"auv": "robofdi.viz.auv_replay:build_auv_replay"}
+#: Frame rate cap of those replays [1/s] (each frame keys every marker).
+SYSTEM_REPLAY_FPS = 10
+
+
+def register_replay(system: str, builder: str) -> None:
+    """Replay records of ``system`` with ``builder`` (``"module:function"``, see :data:`REPLAYS`)."""
+    if not isinstance(builder, str) or ":" not in builder:
+        raise RobofdiError(f"replay builder for {system!r}: expected 'module:function', got {builder!r}")
+    REPLAYS[str(system)] = builder
+
+
+def _system_replay(record):
+    """The builder of a record whose system has its own replay (:data:`REPLAYS`), else None (the model file's)."""
+    import importlib
+
+    key = (record.meta or {}).get("replay") or record.system
+    spec = REPLAYS.get(key)
+    if spec is None:
+        return None
+    module, _, name = spec.partition(":")
+    return getattr(importlib.import_module(module), name)
+
+
+def _lead(record, diagnoser: str | None) -> str | None:
+    return diagnoser or _choose_diagnoser(record, None)
 
 
 def write_replay_html(record, path: str | Path, diagnoser: str | None = None, fps: int = 50) -> Path:
     """Write a self-contained HTML replay (meshcat's JS inlined, works offline) to ``path``; returns the path.
 
-    ``record`` is a :class:`robofdi.record.Record` or the path of a saved one. AUV records go to
-    :func:`robofdi.viz.auv_replay.write_auv_replay_html` (at most 10 frames per second). A relative model name
-    in the record is looked for next to the saved record, else next to ``path`` (the run folder).
+    ``record`` is a :class:`robofdi.record.Record` or the path of a saved one. A system with a replay of its own
+    (:data:`REPLAYS`, e.g. the AUV: :func:`robofdi.viz.auv_replay.build_auv_replay`) gets it, at most
+    :data:`SYSTEM_REPLAY_FPS` frames per second. ``diagnoser`` defaults to the run's lead. A relative model name in
+    the record is looked for next to the saved record, else next to ``path`` (the run folder).
     """
     path = Path(path)
     folder = Path(record).parent if isinstance(record, (str, Path)) else path.parent
     record = _as_record(record)
-    if _is_auv(record):
-        from .auv_replay import build_auv_replay
-
-        shown = diagnoser or record.meta.get("health_source")
+    system_replay = _system_replay(record)
+    if system_replay is not None:
+        shown = _lead(record, diagnoser)
 
         def build(vis):
-            build_auv_replay(vis, record, shown, min(int(fps), 10))
+            system_replay(vis, record, shown, min(int(fps), SYSTEM_REPLAY_FPS))
     else:
         def build(vis):
             build_replay(vis, record, diagnoser=diagnoser, fps=fps, folder=folder)
@@ -494,11 +521,10 @@ def view(record_path, diagnoser: str | None = None, open_browser: bool = True, f
             with contextlib.redirect_stdout(io.StringIO()):
                 vis = meshcat.Visualizer()
             arm()
-            if _is_auv(record):
-                from .auv_replay import build_auv_replay
-
-                shown = diagnoser or record.meta.get("health_source")
-                build_auv_replay(vis, record, shown, min(int(fps), 10))
+            system_replay = _system_replay(record)
+            if system_replay is not None:
+                shown = _lead(record, diagnoser)
+                system_replay(vis, record, shown, min(int(fps), SYSTEM_REPLAY_FPS))
             else:
                 shown = build_replay(vis, record, diagnoser=diagnoser, fps=fps, folder=folder).diagnoser
             url = vis.url()

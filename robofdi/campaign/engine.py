@@ -140,9 +140,8 @@ def run_campaign(spec, out: str | Path, *, workers: int | None = None, scheduler
     cores available; 1 = this process); scheduler: a Dask scheduler address instead. runs: only the first ``runs``
     run indices (a prefix of the full campaign). Everything is checked (spec, scheduler, folder) before any run.
     """
-    from tqdm.auto import tqdm
-
     from robofdi.campaign.results import CampaignResult, write_outputs
+    from robofdi.progress import Progress
 
     spec = load_spec(spec)
     total = spec.runs
@@ -172,16 +171,19 @@ def run_campaign(spec, out: str | Path, *, workers: int | None = None, scheduler
             keys = spec.campaign_system.calibration_keys(spec.options)
             start = time.perf_counter()
             calibrations, cal_info = {}, {}
+            bars = Progress.of(progress, f"campaign {spec.system}")
             if todo:
-                for key, cal, cached, seconds in pool.map_unordered(_calibrate, [(spec, k) for k in keys]):
-                    calibrations[key] = cal
-                    cal_info[str(key)] = {"cached": bool(cached), "seconds": seconds}
+                with bars.stage("calibration", len(keys), unit="calibration") as tick:
+                    for key, cal, cached, seconds in pool.map_unordered(_calibrate, [(spec, k) for k in keys]):
+                        calibrations[key] = cal
+                        cal_info[str(key)] = {"cached": bool(cached), "seconds": seconds}
+                        tick(1)
             session.calibration = {"keys": [str(k) for k in keys], "wall_time": time.perf_counter() - start,
                                    "per_key": cal_info}
             start = time.perf_counter()
             errors = 0
-            with (out / JOURNAL).open("a") as fh, tqdm(total=total, initial=total - len(todo), unit="run", desc=spec.system,
-                                                       disable=not progress, smoothing=0.05) as bar:
+            with (out / JOURNAL).open("a") as fh, bars.stage("runs", total, unit="run",
+                                                             initial=total - len(todo)) as bar:
                 for entry in pool.map_unordered(execute_run, [(spec, i, calibrations, str(out)) for i in todo]):
                     fh.write(json.dumps(entry, allow_nan=True) + "\n")
                     fh.flush()
@@ -189,7 +191,7 @@ def run_campaign(spec, out: str | Path, *, workers: int | None = None, scheduler
                     journal[entry["index"]] = entry
                     session.runs += 1
                     errors += entry["rows"][0].get("error") is not None if entry["rows"] else 0
-                    bar.update(1)
+                    bar(1)
                     if errors:
                         bar.set_postfix(errors=errors)
             session.seconds = time.perf_counter() - start

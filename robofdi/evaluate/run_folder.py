@@ -7,6 +7,7 @@ from pathlib import Path
 
 from robofdi.errors import RobofdiError
 from robofdi.evaluate.figures import plot_estimates, plot_residuals
+from robofdi.evaluate.headline import settle_lead
 from robofdi.evaluate.summary import write_summary
 from robofdi.record import Record
 
@@ -41,7 +42,11 @@ def prepare_run_dir(out: str | Path, name: str, seed: int) -> Path:
 def write_run_folder(run_dir: Path, record: Record, summary: Mapping, others: Mapping[str, Record] | None = None,
                      replay: bool = True) -> Path:
     """Save the record (and ``others`` as ``<key>.h5``), the summary, one residual figure per diagnoser, the
-    estimates figure and the self-contained Meshcat replay."""
+    estimates figure and the self-contained Meshcat replay. The run's lead diagnoser is decided first
+    (:func:`~robofdi.evaluate.headline.settle_lead`) and written into the summary and the record, so the printed
+    table and the replay lead with the same one."""
+    if isinstance(summary, dict):
+        settle_lead(summary, record)
     record.save(run_dir / "record.h5")
     for key, rec in (others or {}).items():
         rec.save(run_dir / f"{key}.h5")

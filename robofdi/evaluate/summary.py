@@ -99,15 +99,22 @@ def _fmt(value, spec: str = "", none: str = "-") -> str:
 
 
 def results_table(summary: Mapping) -> str:
-    """Plain-text table, one row per (diagnoser, fault), fixed-width columns."""
+    """Plain-text table, one row per (diagnoser, fault), fixed-width columns; the lead diagnoser
+    (:func:`robofdi.evaluate.headline.lead_diagnoser`) first, marked ``*`` and named under the table."""
+    from robofdi.evaluate.headline import lead_diagnoser, lead_line, order_lead_first
+
     targets = {f["name"]: str(f["target"]) for f in summary.get("faults", [])}
     header = ["diagnoser", "fault", "detected", "delay [ms]", "isolated", "correct", "estimate RMSE", "false alarms"]
     rows = []
-    for dname, metrics in summary.get("diagnosers", {}).items():
+    diagnosers = summary.get("diagnosers", {})
+    lead, _ = lead_diagnoser(summary)
+    for dname in order_lead_first(list(diagnosers), lead):
+        metrics = diagnosers[dname]
+        shown = f"{dname} *" if dname == lead and len(diagnosers) > 1 else dname
         detections = metrics.get("detections", [])
         false_alarms = str(metrics.get("false_alarms", "-"))
         if not detections:
-            rows.append([dname, "-", "-", "-", "-", "-", "-", false_alarms])
+            rows.append([shown, "-", "-", "-", "-", "-", "-", false_alarms])
         for d in detections:
             fault = d["fault"]
             detected = d.get("time") is not None
@@ -116,7 +123,7 @@ def results_table(summary: Mapping) -> str:
                 correct = d.get("isolated") is not None and d.get("isolated") == targets.get(fault)
             delay = d.get("delay")
             rows.append([
-                dname,
+                shown,
                 fault,
                 "yes" if detected else "no",
                 _fmt(None if delay is None else 1e3 * delay, ".1f"),
@@ -133,4 +140,6 @@ def results_table(summary: Mapping) -> str:
 
     title = f"{summary.get('experiment', '')}  system={summary.get('system', '')}  seed={summary.get('seed')}"
     out = [title, line(header), line(["-" * w for w in widths])] + [line(r) for r in rows]
+    if len(diagnosers) > 1 and lead:
+        out.append(f"* {lead_line(summary)}")
     return "\n".join(out)

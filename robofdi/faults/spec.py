@@ -3,14 +3,17 @@
     KIND:TARGET:MAGNITUDE@ONSET[-END][~PROFILE][;NAME=VALUE ...]
 
     actuator_additive:joint2:20@1.0                 20 N·m on joint 2 from t = 1 s (step)
-    actuator_additive:joint5:40@3.0~exp(0.08)       incipient: 40 (1 − e^{−(t−3)/0.08})
+    actuator_additive:joint5:40@3.0~exponential_rise(0.08)   incipient: 40 (1 − e^{−(t−3)/0.08})
     sensor_bias:joint3_pos:0.004@1.5-2.5~ramp(0.5)  ramps to 4 mrad over 0.5 s, gone at 2.5 s
     actuator_loss_of_effectiveness:joint4:0.6@2     60 % loss of effectiveness
     actuator_hard_over:joint1:0@1~ramp(0.2);limit=150
     component_friction:joint3:1.5@1                 joint-3 friction × 2.5
 
-Profiles: ``step``, ``exp(TAU)``, ``ramp(DURATION)``, ``sin(FREQUENCY[,PHASE])``, ``intermittent(PERIOD,DUTY)``
-(seconds, hertz, radians). The fault's name is TARGET_KIND (``joint2_additive``), numbered if repeated.
+Profiles, by the names a campaign TOML and summary.json use (:data:`robofdi.faults.profiles.PROFILE_TYPES`):
+``step``, ``exponential_rise(TAU)``, ``ramp(DURATION)``, ``sinusoid(FREQUENCY[,PHASE])``,
+``oscillation(MEAN,AMPLITUDE,FREQUENCY[,PHASE])``, ``intermittent(PERIOD,DUTY)`` (seconds, hertz, radians);
+``exp(TAU)`` and ``sin(…)`` are accepted as short aliases. The fault's name is TARGET_KIND (``joint2_additive``),
+numbered if repeated.
 """
 from __future__ import annotations
 
@@ -19,17 +22,28 @@ from collections.abc import Sequence
 
 from robofdi.errors import RobofdiError
 from robofdi.faults.fault import FAULT_KINDS, Fault
-from robofdi.faults.profiles import ExponentialRise, Intermittent, Profile, Ramp, Sinusoid, Step
+from robofdi.faults.profiles import ExponentialRise, Intermittent, Oscillation, Profile, Ramp, Sinusoid, Step
 
-__all__ = ["parse_fault_spec", "parse_fault_specs", "SPEC_FORMAT"]
+__all__ = ["parse_fault_spec", "parse_fault_specs", "SPEC_FORMAT", "PROFILE_HELP"]
 
 SPEC_FORMAT = "KIND:TARGET:MAGNITUDE@ONSET[-END][~PROFILE][;NAME=VALUE]"
 _SPEC = re.compile(
     r"^(?P<kind>[a-z_]+):(?P<target>[^:@~;]+):(?P<magnitude>[^@]+)@(?P<onset>[0-9.eE+]+)(?:-(?P<end>[0-9.eE+]+))?"
     r"(?:~(?P<profile>[a-z_]+(?:\([^)]*\))?))?(?P<params>(?:;[a-z_]+=[^;]+)*)$"
 )
-_PROFILES = {"step": (Step, 0, 0), "exp": (ExponentialRise, 1, 1), "ramp": (Ramp, 1, 1),
-             "sin": (Sinusoid, 1, 2), "intermittent": (Intermittent, 2, 2)}
+#: canonical profile name (the serialised type name) → (class, least and most arguments, argument names)
+_PROFILES = {
+    Step.type_name: (Step, 0, 0, ""),
+    ExponentialRise.type_name: (ExponentialRise, 1, 1, "TAU"),
+    Ramp.type_name: (Ramp, 1, 1, "DURATION"),
+    Sinusoid.type_name: (Sinusoid, 1, 2, "FREQUENCY[,PHASE]"),
+    Oscillation.type_name: (Oscillation, 3, 4, "MEAN,AMPLITUDE,FREQUENCY[,PHASE]"),
+    Intermittent.type_name: (Intermittent, 2, 2, "PERIOD,DUTY"),
+}
+#: short names the command line has always accepted
+_ALIASES = {"exp": ExponentialRise.type_name, "sin": Sinusoid.type_name}
+#: the profiles as the help text shows them
+PROFILE_HELP = ", ".join(f"{name}({args})" if args else name for name, (_, _, _, args) in _PROFILES.items())
 
 
 def _number(text: str, what: str, spec: str) -> float:
@@ -41,11 +55,10 @@ def _number(text: str, what: str, spec: str) -> float:
 
 def _profile(text: str, spec: str) -> Profile:
     m = re.fullmatch(r"([a-z_]+)(?:\((.*)\))?", text)
-    name, args = m.group(1), m.group(2)
-    if name not in _PROFILES:
-        raise RobofdiError(f"fault spec {spec!r}: unknown profile {name!r}; expected one of "
-                           "step, exp(TAU), ramp(DURATION), sin(FREQUENCY[,PHASE]), intermittent(PERIOD,DUTY)")
-    cls, lo, hi = _PROFILES[name]
+    name, args = m.group(1), m.group(2)          # name: as typed (an alias stays in the messages)
+    if _ALIASES.get(name, name) not in _PROFILES:
+        raise RobofdiError(f"fault spec {spec!r}: unknown profile {name!r}; expected one of {PROFILE_HELP}")
+    cls, lo, hi, _ = _PROFILES[_ALIASES.get(name, name)]
     values = [_number(a.strip(), f"profile {name} argument", spec) for a in args.split(",")] if args else []
     if not lo <= len(values) <= hi:
         raise RobofdiError(f"fault spec {spec!r}: profile {name} takes {lo if lo == hi else f'{lo} to {hi}'} "

@@ -264,11 +264,19 @@ def calibrate(scenario: ArmScenario, records: dict[str, Record],
                        thresholds(replace(settings, residual_space="state"), state_schemes), design, evidence)
 
 
-def calibration_steps(scenario: ArmScenario, records_duration: float, rates: Rates) -> int:
-    """Progress units of :func:`calibration`: control ticks simulated plus ticks replayed per scheme."""
-    ticks = int(records_duration * rates.control_hz)
+def calibration_steps(scenario: ArmScenario, records_duration: float, rates: Rates,
+                      motions: Mapping | None = None) -> int:
+    """Progress units of :func:`calibration`: control ticks simulated plus ticks replayed per scheme — exact when
+    the calibration ``motions`` are given (each run ticks once per sample, both ends; the consistency scheme
+    replays only its held-out motions), else estimated from their total duration."""
     replays = 1 + len(scenario.schemes) + len([s for s in STATE_SPACE_SCHEMES if s in scenario.schemes])
-    return ticks * (1 + replays)
+    if motions is None:
+        return int(records_duration * rates.control_hz) * (1 + replays)
+    ticks = {k: int(round(m.end * rates.control_hz)) + 1 for k, m in motions.items()}
+    every, held = sum(ticks.values()), sum(ticks[k] for k in consistency_split(ticks)[1])
+    first = next(iter(ticks.values()), 0)
+    schemes = [*scenario.schemes, *(s for s in STATE_SPACE_SCHEMES if s in scenario.schemes)]
+    return every + first + sum(held or every if s == "consistency" else every for s in schemes)
 
 
 def _calibration_description(scenario: ArmScenario, sim: ArmSimulator, trajectories: Mapping) -> dict:

@@ -313,7 +313,8 @@ def calibration(scenario: AuvScenario, progress: Callable[[int], None] | None = 
 def calibrate(scenario: AuvScenario, progress: Callable[[int], None] | None = None,
               records: list[Record] | None = None) -> AuvCalibration:
     """Identify the current characteristic on the calibration telemetry, then each diagnoser's thresholds
-    (margin × peak |r| over the calibration runs, the start-up blanking skipped)."""
+    (margin × peak |r| over the calibration runs, the start-up blanking skipped). ``progress(n)`` is told the
+    ticks of the calibration runs and of their replays (one per diagnoser but the EKF bank)."""
     records = records if records is not None else calibration_records(scenario, progress)
     sim = scenario.simulator()
     model = scenario.nominal_model(sim)
@@ -336,7 +337,7 @@ def calibrate(scenario: AuvScenario, progress: Callable[[int], None] | None = No
         if name == "ekf_bank":                     # the χ² 99 % bound of the windowed NIS, not a fitted peak
             thresholds[name] = np.full(len(diagnoser.components), diagnoser.bound)
             continue
-        residuals = [diagnose_record(r, Diagnosis(diagnoser)).residual for r in records]
+        residuals = [diagnose_record(r, Diagnosis(diagnoser), progress=progress).residual for r in records]
         thresholds[name] = calibrate_thresholds(residuals, scenario.threshold_margin, skip)
     return AuvCalibration(theta, thresholds, skip, scenario.control_dt, arx, ekf_q, supply)
 

@@ -255,7 +255,7 @@ def calibrate(base: HydraulicScenario | None = None, runs: int = 8, seed: int = 
     better = fit_pressure_parameters(half, flt)
     cal = HydraulicCalibration({}, nnar, better, flt.window, profiles, base.margin)
     for name, d in _diagnosers(base, cal, base.diagnosers).items():
-        residuals = [diagnose_record(rec, Diagnosis(d), Rates(1000.0, 1000.0)).residual for rec in records]
+        residuals = [diagnose_record(rec, Diagnosis(d), Rates(1000.0, 1000.0), progress).residual for rec in records]
         cal.thresholds[name] = calibrate_thresholds(residuals, base.margin, skip=flt.window)
     return cal
 
