@@ -225,6 +225,12 @@ class DiagnosisBank:
                 self._pending = self._source.health
         return sampled
 
+    @property
+    def latest_health(self) -> Health:
+        """The health source's health after the last diagnosis sample — for a loop that diagnoses after it
+        actuates (a same-sample feedthrough, :mod:`robofdi.systems.refiner`), where that is already one late."""
+        return self._source.health if self._source is not None else HEALTHY
+
     def traces(self) -> dict[str, DiagnoserTrace]:
         return {name: r.trace() for name, r in self.runners.items()}
 

@@ -27,7 +27,7 @@ from robofdi.errors import RobofdiError
 from robofdi.evaluate import summarize
 from robofdi.faults import Fault, Oscillation
 from robofdi.ftc import EffectivenessCompensation
-from robofdi.loop import ClosedLoop, Diagnosis
+from robofdi.loop import ClosedLoop, Diagnosis, replay
 from robofdi.models.linear import LinearMismatch, perturbed
 from robofdi.models.linear_examples import HELICOPTER_NOISE, helicopter
 from robofdi.observers.kalman import COVARIANCE_MODES, KalmanFaultEstimator
@@ -176,14 +176,9 @@ def fault_estimates(record: Record, sc: HelicopterScenario) -> tuple[np.ndarray,
     """(f̂(k−1), ζ̂(k)) per diagnosis sample, replayed offline over the record's y_meas / u_diag with the scenario's
     estimator (deterministic: the same numbers the online diagnoser computed)."""
     belief = perturbed(helicopter(), LinearMismatch(sc.mismatch, sc.seed)) if sc.mismatch else helicopter()
-    fe = _estimator(sc, belief, sc.samples)
-    y, u = record.signals["y_meas"], record.signals["u_diag"]
-    f, z = [], []
-    for j in range(len(record.time)):
-        fe.update(y[j], u[j - 1] if j else np.zeros(u.shape[1]))
-        f.append(fe.fault_estimate.copy())
-        z.append(fe.unknown_input_estimate)
-    return np.array(f), np.array(z)
+    rows = replay(record, _estimator(sc, belief, sc.samples),
+                  tap=lambda fe, _: (fe.fault_estimate.copy(), fe.unknown_input_estimate))
+    return np.array([f for f, _ in rows]), np.array([z for _, z in rows])
 
 
 # ---------------------------------------------------------------------------------------------------- the campaign face
