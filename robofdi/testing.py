@@ -297,11 +297,7 @@ def check_diagnoser(make_diagnoser: Callable[[], Any], samples, name: str | None
     k = _first_difference(first[:cut + 1], other[:cut + 1])
     if k is not None:
         _fail(part, "no look-ahead", f"the output of sample {k} depends on samples after {cut}")
-    # --- reset reproduces (after a full run, after a partial run), and a fresh instance agrees
-    k = _first_difference(first[:cut + 1], [tuple(np.array(p, copy=True) for p in _residual_parts(res))
-                                            for res in _run(make_diagnoser(), y[:cut + 1], u[:cut + 1])])
-    if k is not None:
-        _fail(part, "reset reproduces", f"two fresh diagnosers differ at sample {k} on the same samples")
+    # --- reset reproduces (after a full run, after a partial run); a fresh instance agreed above up to the cut
     for before in (n, cut):
         d.reset()
         _run(d, y[:before], u[:before])
