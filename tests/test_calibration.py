@@ -80,6 +80,6 @@ def test_a_torn_file_is_recomputed_and_an_unstorable_value_kept_in_memory(cache)
 
 def test_clear_empties_the_cache(cache):
     for n in range(3):
-        calibration.cached("probe", {"n": n}, lambda: n)
+        calibration.cached("probe", {"n": n}, lambda n=n: n)
     assert calibration.clear() == 3 and calibration.entries() == []
     assert not calibration.cached("probe", {"n": 0}, lambda: 0)[1]

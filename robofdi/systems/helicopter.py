@@ -149,7 +149,8 @@ def build_loop(sc: HelicopterScenario, threshold=None) -> ClosedLoop:
         diagnoses[source] = Diagnosis(_estimator(sc, belief, 1), Ungated(fe.components))
     return ClosedLoop(plant, controller, reference, sc.faults, diagnoses,
                       accommodation=acc, health_source=source if sc.accommodation else None,
-                      reference_columns=[f"ref_{n}" for n in truth.output_names])
+                      reference_columns=[f"ref_{n}" for n in truth.output_names],
+                      reference_units=list(truth.units["y"]))
 
 
 def calibrate(sc: HelicopterScenario) -> np.ndarray:
