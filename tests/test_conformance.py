@@ -221,11 +221,20 @@ def test_every_shipped_diagnoser_conforms(case):
 
 def test_the_shipped_decisions_conform():
     from robofdi.decision import Signature, ThresholdDecision, WindowedTTest
+    from robofdi.decision.directional import DirectionalDecision
+    from robofdi.decision.multiple_model import NisBankDecision, SwitchingIndexDecision
 
     r = np.random.default_rng(0).normal(size=(60, 3))
     sigs = [Signature(c, frozenset([c])) for c in ("a", "b", "c")]
     check_decision(lambda: ThresholdDecision(["a", "b", "c"], np.full(3, 1.5), sigs, confirm=2), r)
     check_decision(lambda: WindowedTTest(["a"], [2.0], [Signature("f", frozenset(["a"]))], window=5), r[:, :1])
+    check_decision(lambda: DirectionalDecision(["a", "b", "c"], np.full(3, 1.5), {"f": [1, 0, 0], "g": [0, 1, 1]},
+                                               confirm=2), r)
+    pos = np.abs(r) * [1.0, 1.0, 1.0]
+    check_decision(lambda: SwitchingIndexDecision(["r0", "r1", "r2"], np.array([1.0, 1e9, 1e9]), ["m1", "m2"], 0.01),
+                   pos, name="SwitchingIndexDecision")
+    check_decision(lambda: NisBankDecision(["n0", "n1", "n2"], np.full(3, 2.0), ["h1", "h2"]), pos * 2,
+                   name="NisBankDecision")
 
 
 # ---------------------------------------------------------------------------------------------------- systems
