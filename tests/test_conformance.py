@@ -437,3 +437,21 @@ def test_a_loop_refuses_a_diagnoser_without_the_protocol():
 
     with pytest.raises(RobofdiError, match="does not implement the Diagnoser protocol.*inputs"):
         ClosedLoop(wheel_speed_plant(), OpenLoop(2), lambda t: np.zeros(2), diagnoses={"half": Diagnosis(Half())})
+
+
+def test_the_dm_control_environment_gives_the_same_observations_for_the_same_seed():
+    """The adapters' environments are not Simulators (a dm_env / robosuite interface): their same-seed check. The
+    robosuite wrapper's is in tests/test_robosuite_adapter.py (episodes replayed in a fresh environment)."""
+    if not HAS["dm_control"]:
+        pytest.skip("dm_control is not installed (extra 'dm_control')")
+    import robofdi.adapters.dm_control_diagnosis as dc
+
+    def episode(seed):
+        env = dc.cartpole_env(["sensor_bias:position[0]:0.1@0.05"], seed)
+        out = [dict(env.reset().observation)]
+        out += [dict(env.step(np.array([0.3])).observation) for _ in range(10)]
+        return out
+
+    a, b, c = episode(3), episode(3), episode(4)
+    assert all(x.keys() == y.keys() and all(np.array_equal(x[k], y[k]) for k in x) for x, y in zip(a, b))
+    assert not all(np.array_equal(x["position"], y["position"]) for x, y in zip(a, c))
