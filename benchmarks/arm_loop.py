@@ -145,6 +145,10 @@ class _StubDiagnoser:
     def __init__(self, like, residual):
         self.components, self.estimate_components = like.components, like.estimate_components
         self.estimate_modes, self._res = like.estimate_modes, residual
+        self.inputs, self.measurements, self.units = like.inputs, like.measurements, like.units
+
+    def signatures(self):
+        return []
 
     def reset(self):
         pass

@@ -15,7 +15,13 @@ fault is invertible (the diagnosers are told ū with faulty(ū) = u, :meth:`Faul
 are refused at construction.
 
 Labels come from what the plant received: an actuator fault's value is its effect after saturation.
-The same :class:`DiagnosisRunner` steps a diagnoser online here and offline over a record (:func:`diagnose_record`).
+
+The engine's parts serve every loop (this one, the refiner's, the robosuite and dm_control adapters'):
+:class:`DiagnosisRunner` steps one diagnosis (diagnoser → decision → identification → health) and keeps its
+trace; :class:`DiagnosisBank` steps every diagnosis of a run and hands out the health one diagnosis sample late;
+:class:`Recorder` collects the rows of a run and turns them into the arrays, labels, columns and units of a
+:class:`~robofdi.record.Record`. Offline, :func:`diagnose_record` and :func:`replay` step a diagnoser over a
+record's diagnoser view with the same input forming (ū(k−1), zeros at the first sample).
 """
 from __future__ import annotations
 
@@ -25,15 +31,25 @@ from typing import Any
 
 import numpy as np
 
-from robofdi.decision import Identification, ThresholdDecision
+from robofdi.decision import Identification
 from robofdi.errors import RobofdiError
 from robofdi.faults import FAULT_KINDS, Fault, FaultInjector
-from robofdi.protocols import HEALTHY, Accommodation, Controller, Health, Reference, Simulator
+from robofdi.protocols import (
+    HEALTHY,
+    Accommodation,
+    Controller,
+    Decision,
+    Diagnoser,
+    Health,
+    Identifier,
+    Reference,
+    Simulator,
+)
 from robofdi.record import DiagnoserTrace, FaultLabels, Record
 from robofdi.seeding import stream
 
-__all__ = ["Rates", "Diagnosis", "DiagnosisRunner", "ClosedLoop", "RunAborted", "diagnose_record", "diagnoser_inputs",
-           "ORACLE"]
+__all__ = ["Rates", "Diagnosis", "DiagnosisRunner", "DiagnosisBank", "Recorder", "ClosedLoop", "RunAborted",
+           "diagnose_record", "diagnoser_inputs", "replay", "ORACLE"]
 
 #: ``health_source`` of the oracle accommodation: health read from the fault labels (a bound, never a diagnosis).
 ORACLE = "oracle"
@@ -78,10 +94,32 @@ class Rates:
 
 @dataclass
 class Diagnosis:
-    """A diagnoser (:class:`robofdi.protocols.Diagnoser`) and, optionally, its decision."""
+    """A diagnoser (:class:`robofdi.protocols.Diagnoser`), optionally its decision
+    (:class:`robofdi.protocols.Decision`) and its identification (:class:`robofdi.protocols.Identifier`; None:
+    :class:`robofdi.decision.Identification` of the diagnoser's ``estimate_components`` / ``estimate_modes``)."""
 
-    diagnoser: Any
-    decision: ThresholdDecision | None = None
+    diagnoser: Diagnoser
+    decision: Decision | None = None
+    identification: Identifier | None = None
+
+
+def protocol_members(protocol: type) -> list[str]:
+    """The public attributes and methods a protocol class declares (its annotations and its functions)."""
+    names = list(getattr(protocol, "__annotations__", {}))
+    names += [k for k, v in vars(protocol).items() if callable(v) and not k.startswith("_") and k not in names]
+    return names
+
+
+def _check_diagnosis(name: str, d: Diagnosis) -> None:
+    """A diagnosis whose parts do not implement the protocols is refused here, naming what is missing."""
+    for field_name, part, protocol in (("diagnoser", d.diagnoser, Diagnoser), ("decision", d.decision, Decision),
+                                       ("identification", d.identification, Identifier)):
+        if part is None and field_name != "diagnoser":
+            continue
+        if not isinstance(part, protocol):
+            missing = [m for m in protocol_members(protocol) if not hasattr(part, m)]
+            raise RobofdiError(f"diagnosis {name!r}: field {field_name!r} does not implement the {protocol.__name__} "
+                               f"protocol (missing: {', '.join(missing) or 'some members'})")
 
 
 class RunAborted(RuntimeError):
@@ -100,7 +138,8 @@ class DiagnosisRunner:
     def __init__(self, diagnosis: Diagnosis, rates: Rates, name: str = ""):
         self.diagnosis, self.rates, self.name = diagnosis, rates, name
         d = diagnosis.diagnoser
-        self.identification = Identification(d.estimate_components, d.estimate_modes)
+        self.identification = (diagnosis.identification if diagnosis.identification is not None
+                               else Identification(d.estimate_components, d.estimate_modes))
         self.reset()
 
     def reset(self) -> None:
@@ -136,9 +175,7 @@ class DiagnosisRunner:
         rows["isolated"].append("+".join(isolated))
         rows["estimate"].append(estimate)
         if isolated:
-            components = self.identification.components
-            self.health = Health(t, tuple(isolated), {c: float(estimate[i]) for i, c in enumerate(components)
-                                                      if c in isolated}, self.name)
+            self.health = Health(t, tuple(isolated), self.identification.magnitudes(estimate, isolated), self.name)
         return True
 
     def trace(self) -> DiagnoserTrace:
@@ -154,23 +191,126 @@ class DiagnosisRunner:
             estimate=np.asarray(rows["estimate"], dtype=float).reshape(len(rows["time"]), e),
             components=list(d.diagnoser.components),
             estimate_components=list(d.diagnoser.estimate_components),
-            units={k: list(v) for k, v in getattr(d.diagnoser, "units", {}).items()},
+            units={k: list(v) for k, v in d.diagnoser.units.items()},
         )
+
+
+class DiagnosisBank:
+    """Every diagnosis of one run, stepped together (:class:`DiagnosisRunner` each, reset at construction).
+
+    :attr:`health` is the health of ``health_source`` (a name in ``diagnoses``; None: always healthy) one diagnosis
+    sample late — what the accommodation may use at this tick without an algebraic loop."""
+
+    def __init__(self, diagnoses: Mapping[str, Diagnosis], rates: Rates, health_source: str | None = None):
+        if health_source is not None and health_source not in diagnoses:
+            raise RobofdiError(f"DiagnosisBank: field 'health_source' must be one of the diagnoses "
+                               f"{sorted(diagnoses)}, got {health_source!r}")
+        self.runners = {name: DiagnosisRunner(d, rates, name) for name, d in diagnoses.items()}
+        self._source = self.runners.get(health_source) if health_source is not None else None
+        self.health = self._pending = HEALTHY
+
+    def reset(self) -> None:
+        for runner in self.runners.values():
+            runner.reset()
+        self.health = self._pending = HEALTHY
+
+    def push(self, j: int, t: float, y: np.ndarray, u_prev: np.ndarray) -> bool:
+        """:meth:`DiagnosisRunner.push` of every diagnosis; True when a diagnosis sample was taken."""
+        sampled = False
+        for runner in self.runners.values():
+            sampled |= runner.push(j, t, y, u_prev)
+        if sampled:      # health moves on one diagnosis sample late: no algebraic loop
+            self.health = self._pending
+            if self._source is not None:
+                self._pending = self._source.health
+        return sampled
+
+    @property
+    def latest_health(self) -> Health:
+        """The health source's health after the last diagnosis sample — for a loop that diagnoses after it
+        actuates (a same-sample feedthrough, :mod:`robofdi.systems.refiner`), where that is already one late."""
+        return self._source.health if self._source is not None else HEALTHY
+
+    def traces(self) -> dict[str, DiagnoserTrace]:
+        return {name: r.trace() for name, r in self.runners.items()}
+
+
+class Recorder:
+    """The rows of one run, appended tick by tick, and the arrays of its :class:`~robofdi.record.Record`.
+
+    ``keys``: the row series; ``label_names``: the faults whose (active, value) labels are kept."""
+
+    def __init__(self, keys: Sequence[str], label_names: Sequence[str] = ()):
+        self.rows: dict[str, list] = {k: [] for k in keys}
+        self.labels: dict[str, tuple[list, list]] = {name: ([], []) for name in label_names}
+
+    def append(self, **values) -> None:
+        rows = self.rows
+        for key, value in values.items():
+            rows[key].append(value)
+
+    def append_labels(self, labels: Mapping[str, tuple[bool, float]]) -> None:
+        """One tick of :attr:`robofdi.faults.FaultInjector.labels` (name → (active, value))."""
+        for name, (active, value) in labels.items():
+            self.labels[name][0].append(active)
+            self.labels[name][1].append(value)
+
+    def last(self, key: str, default=None):
+        rows = self.rows[key]
+        return rows[-1] if rows else default
+
+    def array(self, key: str, width: int | None = None, dtype=float) -> np.ndarray:
+        """The rows of ``key`` as an array ((N,) for scalars; (N, width) when ``width`` is given)."""
+        a = np.asarray(self.rows[key], dtype=dtype)
+        return a if width is None else a.reshape(-1, width)
+
+    def fault_labels(self, units: Mapping[str, str]) -> dict[str, FaultLabels]:
+        """The labels as :class:`~robofdi.record.FaultLabels`, ``units``: fault name → unit of its value."""
+        return {k: FaultLabels(np.asarray(a, dtype=bool), np.asarray(v, dtype=float), units[k])
+                for k, (a, v) in self.labels.items()}
+
+
+def _record_rates(record: Record) -> Rates:
+    return Rates(**{k: record.rates[k] for k in ("control_hz", "diagnosis_hz", "input_hold") if k in record.rates})
+
+
+def _ticks(record: Record):
+    """(j, t, y_j, ū_{j−1}) of every control tick of the record's diagnoser view (zeros before the first)."""
+    y, u = record.signals["y_meas"], record.signals["u_diag"]
+    for j, t in enumerate(record.time):
+        yield j, float(t), y[j], u[j - 1] if j else np.zeros_like(u[0])
 
 
 def diagnose_record(record: Record, diagnosis: Diagnosis, rates: Rates | None = None, progress=None) -> DiagnoserTrace:
     """Run a diagnosis offline over a record's diagnoser view: signals ``y_meas`` (the measurement after
     sensor faults) and ``u_diag`` (the input the diagnosers are told). ``progress(k)`` is told every 1000 ticks."""
-    rates = rates or Rates(**{k: record.rates[k] for k in ("control_hz", "diagnosis_hz", "input_hold")})
-    runner = DiagnosisRunner(diagnosis, rates)
-    y, u = record.signals["y_meas"], record.signals["u_diag"]
-    for j, t in enumerate(record.time):
-        runner.push(j, float(t), y[j], u[j - 1] if j else np.zeros_like(u[0]))
+    runner = DiagnosisRunner(diagnosis, rates or _record_rates(record))
+    for j, t, y, u in _ticks(record):
+        runner.push(j, t, y, u)
         if progress is not None and j % 1000 == 999:
             progress(1000)
     if progress is not None:
         progress(len(record.time) % 1000)
     return runner.trace()
+
+
+def replay(record: Record, diagnoser: Diagnoser, rates: Rates | None = None, tap=None) -> list:
+    """Step ``diagnoser`` (reset first) over the record's diagnoser view as :func:`diagnose_record` does, without
+    a decision; returns ``tap(diagnoser, residual)`` of every diagnosis sample (default: the residual) — for
+    quantities a diagnoser keeps beside its residual (a bank's every residual, an estimator's state)."""
+    out = []
+
+    class _Tap:                           # the diagnoser's protocol face, recording what ``tap`` reads
+        def __getattr__(self, name):
+            return getattr(diagnoser, name)
+
+        def update(self, y, u):
+            res = diagnoser.update(y, u)
+            out.append(res if tap is None else tap(diagnoser, res))
+            return res
+
+    diagnose_record(record, Diagnosis(_Tap()), rates)
+    return out
 
 
 def diagnoser_inputs(record: Record, rates: Rates | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -179,6 +319,10 @@ def diagnoser_inputs(record: Record, rates: Rates | None = None) -> tuple[np.nda
     fault-free runs sample by sample."""
     class _Tap:
         inputs, measurements, components, estimate_components, estimate_modes = [], [], ["tap"], ["tap"], ["level"]
+        units = {"residual": ["1"], "estimate": ["1"]}
+
+        def signatures(self):
+            return []
 
         def __init__(self):
             self.seen = []
@@ -258,9 +402,10 @@ class ClosedLoop:
                 f"control period {sim.control_dt} s"
             )
         for name, d in self.diagnoses.items():
-            for attr, names in (("inputs", sim.actuators), ("measurements", sim.sensor_channels)):
-                expected = getattr(d.diagnoser, attr, None)
-                if expected is not None and list(expected) != list(names):
+            _check_diagnosis(name, d)
+            for attr, expected, names in (("inputs", d.diagnoser.inputs, sim.actuators),
+                                          ("measurements", d.diagnoser.measurements, sim.sensor_channels)):
+                if list(expected) != list(names):
                     raise RobofdiError(
                         f"ClosedLoop: diagnoser {name!r} expects {attr} {list(expected)}, the simulator has {list(names)}"
                     )
@@ -303,40 +448,34 @@ class ClosedLoop:
         dt = 1.0 / rates.control_hz
         steps = int(round(duration / dt))
         inj = self._injector(stream(seed, run_key))
-        runners = {name: DiagnosisRunner(d, rates, name) for name, d in self.diagnoses.items()}
-        health_runner = runners.get(self.health_source)
         oracle = self.health_source == ORACLE
+        bank = DiagnosisBank(self.diagnoses, rates, None if oracle else self.health_source)
         accommodation = self.accommodation
-        for part in (self.controller, accommodation):     # stateful parts start every run afresh
-            if hasattr(part, "reset"):
-                part.reset()
+        if hasattr(self.controller, "reset"):     # stateful parts start every run afresh
+            self.controller.reset()
+        if accommodation is not None:
+            accommodation.reset()
         online = self.injection == "online"
         components = inj.has_component_faults
-        keys = ("time", "state", "u_applied", "reference", "u_cmd", "u", "u_diag", "y_true", "y_meas")
-        rows: dict[str, list] = {k: [] for k in keys}
-        labels: dict[str, tuple[list, list]] = {name: ([], []) for name in inj.label_names}
+        rec = Recorder(("time", "state", "u_applied", "reference", "u_cmd", "u", "u_diag", "y_true", "y_meas"),
+                       inj.label_names)
         fault_by_name = {f.name: f for f in self.faults}
 
         def record() -> Record:
-            return self._record(rows, labels, runners, scenario, seed, run_key, duration, meta)
+            return self._record(rec, bank, scenario, seed, run_key, duration, meta)
 
-        health = pending = HEALTHY
         try:
             y = sim.reset(initial_state, seed=stream(seed, run_key, "sensors"))
             u_prev_diag = np.zeros(len(sim.actuators))
             for j in range(steps + 1):
                 t = j * dt
                 y_faulty = inj.sense(t, y)
-                sampled = False
-                for runner in runners.values():
-                    sampled |= runner.push(j, t, y_faulty, u_prev_diag)
-                if sampled:      # health moves on one diagnosis sample late: no algebraic loop
-                    health = pending
-                    if health_runner is not None:
-                        pending = health_runner.health
+                bank.push(j, t, y_faulty, u_prev_diag)
                 if oracle:
                     health = Health(t, tuple(fault_by_name[n].target for n, (a, _) in inj.labels.items() if a),
                                     {fault_by_name[n].target: v for n, (a, v) in inj.labels.items() if a}, ORACLE)
+                else:
+                    health = bank.health
                 ref = self.reference(t)
                 u_cmd = self.controller.update(y_faulty if online else y, ref)
                 u = accommodation.update(u_cmd, health) if accommodation is not None else u_cmd
@@ -347,38 +486,28 @@ class ClosedLoop:
                             sim.apply_component_fault(kind, target, value)
                 else:
                     u_plant, u_diag = u, inj.emulate(t, u)
-                rows["time"].append(t)
-                rows["state"].append(sim.state)
-                rows["reference"].append(ref)
-                rows["u_cmd"].append(u_cmd)
-                rows["u"].append(u)
-                rows["u_diag"].append(u_diag)
-                rows["y_true"].append(sim.true_output)
-                rows["y_meas"].append(y_faulty)
-                for name, (active, value) in inj.labels.items():
-                    labels[name][0].append(active)
-                    labels[name][1].append(value)
+                rec.append(time=t, state=sim.state, reference=ref, u_cmd=u_cmd, u=u, u_diag=u_diag,
+                           y_true=sim.true_output, y_meas=y_faulty)
+                rec.append_labels(inj.labels)
                 u_prev_diag = u_diag
                 if j < steps:
                     y = sim.step(u_plant)
-                    rows["u_applied"].append(sim.u_applied.copy())
+                    rec.append(u_applied=sim.u_applied.copy())
                 else:
-                    rows["u_applied"].append(sim.saturate(u_plant))
+                    rec.append(u_applied=sim.saturate(u_plant))
                 if progress is not None:
                     progress(1)
         except KeyboardInterrupt:
-            t_stop = rows["time"][-1] if rows["time"] else 0.0
-            raise RunAborted(f"run interrupted at t = {t_stop:.3f} s", _trim(record())) from None
+            raise RunAborted(f"run interrupted at t = {rec.last('time', 0.0):.3f} s", _trim(record())) from None
         except Exception as exc:
-            t_fail = rows["time"][-1] if rows["time"] else 0.0
-            raise RunAborted(f"run failed at t = {t_fail:.3f} s: {exc}", _trim(record())) from exc
+            raise RunAborted(f"run failed at t = {rec.last('time', 0.0):.3f} s: {exc}", _trim(record())) from exc
         return record()
 
-    def _record(self, rows, labels, runners, scenario, seed, run_key, duration, meta) -> Record:
+    def _record(self, rec: Recorder, bank: DiagnosisBank, scenario, seed, run_key, duration, meta) -> Record:
         sim = self.simulator
         u_cols, u_units = list(sim.actuators), list(sim.units.get("u", [""] * len(sim.actuators)))
         y_cols, y_units = list(sim.sensor_channels), list(sim.units.get("y", [""] * len(sim.sensor_channels)))
-        reference = _stack_references(rows["reference"])
+        reference = _stack_references(rec.rows["reference"])
         width = reference.shape[1]
         ref_cols = list(self.reference_columns) if self.reference_columns else [f"reference[{i}]" for i in range(width)]
         columns = {"truth/state": list(sim.state_names), "truth/u_applied": u_cols, "signals/reference": ref_cols}
@@ -390,23 +519,19 @@ class ClosedLoop:
             columns[f"signals/{key}"], units[f"signals/{key}"] = y_cols, y_units
         faults = {f.name: f for f in self.faults}
         n_u, n_y, n_x = len(u_cols), len(y_cols), len(sim.state_names)
-
-        def array(key, width):
-            return np.asarray(rows[key], dtype=float).reshape(-1, width)
-
         return Record(
             system=sim.system,
             scenario=scenario,
             seed=seed,
             rates=self.rates.as_dict(sim.physics_dt),
-            time=np.asarray(rows["time"], dtype=float),
-            truth_state=array("state", n_x),
-            u_applied=array("u_applied", n_u),
-            faults={k: FaultLabels(np.asarray(a, dtype=bool), np.asarray(v, dtype=float), _label_unit(faults[k], sim))
-                    for k, (a, v) in labels.items()},
-            signals={"reference": reference, "u_cmd": array("u_cmd", n_u), "u": array("u", n_u),
-                     "u_diag": array("u_diag", n_u), "y_true": array("y_true", n_y), "y_meas": array("y_meas", n_y)},
-            diagnosers={name: r.trace() for name, r in runners.items()},
+            time=rec.array("time"),
+            truth_state=rec.array("state", n_x),
+            u_applied=rec.array("u_applied", n_u),
+            faults=rec.fault_labels({k: _label_unit(faults[k], sim) for k in rec.labels}),
+            signals={"reference": reference, "u_cmd": rec.array("u_cmd", n_u), "u": rec.array("u", n_u),
+                     "u_diag": rec.array("u_diag", n_u), "y_true": rec.array("y_true", n_y),
+                     "y_meas": rec.array("y_meas", n_y)},
+            diagnosers=bank.traces(),
             meta={"injection": self.injection, "duration": duration, "faults": [f.to_dict() for f in self.faults],
                   "accommodation": type(self.accommodation).__name__ if self.accommodation is not None else None,
                   "health_source": self.health_source, "run_key": run_key, **(meta or {})},

@@ -21,8 +21,8 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-__all__ = ["Simulator", "Controller", "Reference", "Accommodation", "Diagnoser", "Decision", "Health", "System",
-           "TargetLimit", "Mission"]
+__all__ = ["Simulator", "Controller", "Reference", "Accommodation", "Diagnoser", "Decision", "Identifier", "Health",
+           "System", "TargetLimit", "Mission"]
 
 
 @runtime_checkable
@@ -96,9 +96,17 @@ class Accommodation(Protocol):
     def update(self, u_cmd: np.ndarray, health: Health) -> np.ndarray: ...
 
 
+@runtime_checkable
 class Diagnoser(Protocol):
     """A residual generator stepped sample by sample: ``update(y, u)`` with y = x̄(k) measured now and u = ū(k−1),
-    the input held over the interval that ended at sample k (no look-ahead)."""
+    the input held over the interval that ended at sample k (no look-ahead).
+
+    The contract (checked by :func:`robofdi.testing.check_diagnoser`): the output at sample k depends on samples
+    0..k only; ``reset()`` then the same inputs give the same outputs; ``components`` / ``estimate_components``
+    name the entries of ``Residual.r`` / ``Residual.estimate`` and ``units`` gives one unit string per entry;
+    non-finite or mis-shaped ``y`` / ``u`` raise :class:`~robofdi.errors.RobofdiError` naming the field
+    (:func:`robofdi.observers.check_measurement`); it holds nominal models only, never a simulator. The decision
+    and the health are not the diagnoser's: :class:`robofdi.loop.DiagnosisRunner` produces them."""
 
     inputs: list[str]                    # names of the entries of u it expects (the simulator's actuators)
     measurements: list[str]              # names of the entries of y it expects (the simulator's sensor channels)
@@ -114,6 +122,7 @@ class Diagnoser(Protocol):
     def signatures(self) -> Sequence[Any]: ...                          # -> robofdi.decision.Signature
 
 
+@runtime_checkable
 class Decision(Protocol):
     """Residual evaluation: alarms per component and the isolated hypothesis."""
 
@@ -122,6 +131,21 @@ class Decision(Protocol):
     def reset(self) -> None: ...
 
     def update(self, residual: np.ndarray) -> Any: ...                  # -> robofdi.decision.Alarms
+
+
+@runtime_checkable
+class Identifier(Protocol):
+    """Fault identification after isolation: the diagnoser's candidates gated by the isolated hypotheses
+    (:class:`robofdi.decision.Identification`, Caccavale & Villani Sec. 6), and the magnitudes a
+    :class:`Health` carries."""
+
+    components: list[str]                # names of the estimate entries (fault targets)
+
+    def reset(self) -> None: ...
+
+    def update(self, candidates: np.ndarray, isolated: Sequence[str]) -> np.ndarray: ...
+
+    def magnitudes(self, estimate: np.ndarray, isolated: Sequence[str]) -> Mapping[str, float]: ...
 
 
 @dataclass(frozen=True)

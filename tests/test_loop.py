@@ -194,12 +194,17 @@ class _Probe:
     """A diagnoser that only records what it is told (to check the loop's sampling, not the physics)."""
 
     def __init__(self, n):
-        self.components = self.estimate_components = [f"joint{i + 1}" for i in range(n)]
+        self.components = self.estimate_components = self.inputs = [f"joint{i + 1}" for i in range(n)]
+        self.measurements = [f"joint{i + 1}_{k}" for k in ("pos", "vel") for i in range(n)]
         self.estimate_modes = ["level"] * n
+        self.units = {"residual": ["1"] * n, "estimate": ["1"] * n}
         self.seen = []
 
     def reset(self):
         self.seen = []
+
+    def signatures(self):
+        return []
 
     def update(self, y, u):
         from robofdi.observers import Residual

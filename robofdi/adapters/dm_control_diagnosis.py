@@ -29,10 +29,13 @@ from robofdi.errors import RobofdiError
 from robofdi.models.manipulator import ModelMismatch
 from robofdi.models.multibody import MultibodyModel
 from robofdi.observers.momentum import MomentumObserver
+from robofdi.loop import Diagnosis, DiagnosisBank, Rates, Recorder
+from robofdi.observers.residual import Residual, check_measurement
+from robofdi.record import FaultLabels
 from robofdi.seeding import rng
 
 __all__ = ["suite_model", "cartpole_measurement", "CartpoleDiagnoser", "ExcitationPolicy", "run_episode",
-           "calibrate_cartpole", "cartpole_record"]
+           "calibrate_cartpole", "cartpole_record", "MEASUREMENTS"]
 
 os.environ.setdefault("MUJOCO_GL", "egl")
 
@@ -52,28 +55,42 @@ def cartpole_measurement(observation) -> np.ndarray:
     return np.array([p[0], np.arctan2(p[2], p[1]), v[0], v[1]])
 
 
-class CartpoleDiagnoser:
-    """Momentum residual on both cart-pole joints, fed with observations and the commanded (fault-free) actions.
+#: The cart-pole measurement a diagnoser reads (:func:`cartpole_measurement`) and its units.
+MEASUREMENTS = ["x", "theta", "x_dot", "theta_dot"]
+MEASUREMENT_UNITS = ["m", "rad", "m/s", "rad/s"]
 
-    Residual components: the joint names (``slider`` [N], ``hinge_1`` [N·m]); signatures: one per actuator."""
+
+class CartpoleDiagnoser:
+    """Momentum residual on both cart-pole joints (a :class:`~robofdi.protocols.Diagnoser`): ``update(y, u)`` with
+    y = :func:`cartpole_measurement` of the observation at sample k and u = the action held over the step that
+    ended there (ū(k−1), the commanded, fault-free action).
+
+    Residual components: the joint names (``slider`` [N], ``hinge_1`` [N·m]); signatures: one per actuator; no
+    identification candidates."""
 
     def __init__(self, model: MultibodyModel, sample_time: float, gain: float = 20.0):
         self.model = model
         self.observer = MomentumObserver(model, sample_time, gain)
+        self.inputs = list(model.actuator_names)
+        self.measurements = list(MEASUREMENTS)
         self.components = list(model.joint_names)
-        self.signatures = [Signature(a, frozenset(j for j, b in zip(model.joint_names, model.B[:, k]) if b != 0))
-                           for k, a in enumerate(model.actuator_names)]
+        self.estimate_components, self.estimate_modes = [], []
+        self.units = {"residual": ["N" if k == "slide" else "N·m" for k in model.joint_kinds], "estimate": []}
+        self._signatures = [Signature(a, frozenset(j for j, b in zip(model.joint_names, model.B[:, k]) if b != 0))
+                            for k, a in enumerate(model.actuator_names)]
         self.reset()
+
+    def signatures(self) -> list[Signature]:
+        return list(self._signatures)
 
     def reset(self) -> None:
         self.observer.reset()
-        self._tau = np.zeros(self.model.n)
 
-    def update(self, observation, action) -> np.ndarray:
-        """Residual after ``observation``; ``action`` is the command sent at this sample (used at the next one)."""
-        r = self.observer.update(cartpole_measurement(observation), self._tau).r
-        self._tau = self.model.joint_torque(action)
-        return r
+    def update(self, y: np.ndarray, u: np.ndarray) -> Residual:
+        """Residual at sample k (De Luca & Mattone 2003 eq. (10)) from y(k) and τ = B ū(k−1)."""
+        u = check_measurement(u, len(self.inputs), "u")
+        r = self.observer.update(y, self.model.joint_torque(u)).r
+        return Residual(r, np.zeros(0))
 
 
 class ExcitationPolicy:
@@ -91,21 +108,40 @@ class ExcitationPolicy:
         return np.array([np.clip(u, -1.0, 1.0)])
 
 
-def run_episode(env: FaultyEnvironment, diagnoser: CartpoleDiagnoser, policy, steps: int):
-    """(times [s], residuals (N, n), labels (N, n_faults, 2)) of one episode of ``steps`` control steps."""
+def _observation(ts) -> dict:
+    """The policy's and the diagnoser's view of a time step: the observation without the labels (belief)."""
+    return {key: v for key, v in ts.observation.items() if key != LABELS_KEY}
+
+
+def _episode(env: FaultyEnvironment, bank: DiagnosisBank, policy, steps: int, rec: Recorder | None = None):
+    """One episode of ``steps`` control steps, every diagnosis of ``bank`` stepped at every control step with
+    y = the measurement now and ū(k−1) = the action sent at the previous step (zeros at the first)."""
     ts = env.reset()
-    diagnoser.reset()
+    bank.reset()
     dt = env.env.control_timestep()
-    times, res, labels = [], [], []
+    data = env.physics.data
+    u_prev = np.zeros(len(env.actuators))
     for k in range(steps + 1):
-        obs = {key: v for key, v in ts.observation.items() if key != LABELS_KEY}  # belief: no labels
+        obs = _observation(ts)
         action = policy(k * dt, obs)
-        res.append(diagnoser.update(obs, action))
-        times.append(k * dt)
-        labels.append(ts.observation[LABELS_KEY])
+        y = cartpole_measurement(obs)
+        t = float(np.round(k * dt, 9))
+        bank.push(k, t, y, u_prev)
+        if rec is not None:
+            rec.append(time=t, x=np.r_[data.qpos, data.qvel], y=y, u=action, labels=ts.observation[LABELS_KEY])
+        u_prev = np.asarray(action, dtype=float)
         if k < steps:
             ts = env.step(action)
-    return np.array(times), np.array(res), np.array(labels)
+
+
+def run_episode(env: FaultyEnvironment, diagnoser: CartpoleDiagnoser, policy, steps: int):
+    """(times [s], residuals (N, n), labels (N, n_faults, 2)) of one episode of ``steps`` control steps."""
+    dt = env.env.control_timestep()
+    bank = DiagnosisBank({"momentum": Diagnosis(diagnoser)}, Rates(1.0 / dt, 1.0 / dt, "first"))
+    rec = Recorder(("time", "x", "y", "u", "labels"))
+    _episode(env, bank, policy, steps, rec)
+    trace = bank.traces()["momentum"]
+    return np.arange(steps + 1) * dt, trace.residual, np.array(rec.rows["labels"])
 
 
 def cartpole_env(faults=(), seed: int = 0, task: str = "swingup") -> FaultyEnvironment:
@@ -117,7 +153,7 @@ def cartpole_env(faults=(), seed: int = 0, task: str = "swingup") -> FaultyEnvir
 def calibrate_cartpole(diagnoser: CartpoleDiagnoser, seeds, steps: int, skip: int, margin: float = 1.2) -> ThresholdDecision:
     """Thresholds margin × max |r| over fault-free episodes (one per seed), ignoring the first ``skip`` samples."""
     runs = [run_episode(cartpole_env((), s), diagnoser, ExcitationPolicy(s), steps)[1] for s in seeds]
-    return ThresholdDecision(diagnoser.components, calibrate_thresholds(runs, margin, skip), diagnoser.signatures,
+    return ThresholdDecision(diagnoser.components, calibrate_thresholds(runs, margin, skip), diagnoser.signatures(),
                              blanking=skip, confirm=3)
 
 
@@ -127,44 +163,26 @@ def cartpole_record(faults, seed: int, diagnoser: CartpoleDiagnoser, decision: T
     ``policy_seed``) diagnosed by ``diagnoser`` + ``decision``, as a robofdi :class:`~robofdi.record.Record` at the
     10 ms control step: truth/state the physics' [x, θ, ẋ, θ̇], y_meas the observation's (the diagnoser's input),
     the diagnoser's trace under ``name``."""
-    from robofdi.record import DiagnoserTrace, FaultLabels, Record
+    from robofdi.record import Record
 
     env = cartpole_env(faults, seed)
     policy = ExcitationPolicy(seed if policy_seed is None else policy_seed)
-    ts = env.reset()
-    diagnoser.reset()
-    decision.reset()
     dt = env.env.control_timestep()
-    rows = {k: [] for k in ("time", "x", "y", "u", "labels", "r", "alarm", "isolated")}
-    data = env.physics.data
-    for k in range(steps + 1):
-        obs = {key: v for key, v in ts.observation.items() if key != LABELS_KEY}
-        action = policy(k * dt, obs)
-        r = diagnoser.update(obs, action)
-        alarms = decision.update(r)
-        for key, value in (("time", k * dt), ("x", np.r_[data.qpos, data.qvel]), ("y", cartpole_measurement(obs)), ("u", action),
-                           ("labels", ts.observation[LABELS_KEY]), ("r", r), ("alarm", alarms.alarm),
-                           ("isolated", "+".join(alarms.isolated))):
-            rows[key].append(value)
-        if k < steps:
-            ts = env.step(action)
-    t = np.round(np.array(rows["time"]), 9)
-    labels = np.array(rows["labels"]).reshape(len(t), len(env.faults), 2)
-    comps = diagnoser.components
+    bank = DiagnosisBank({name: Diagnosis(diagnoser, decision)}, Rates(1.0 / dt, 1.0 / dt, "first"))
+    rec = Recorder(("time", "x", "y", "u", "labels"))
+    _episode(env, bank, policy, steps, rec)
+    t = rec.array("time")
+    labels = np.array(rec.rows["labels"]).reshape(len(t), len(env.faults), 2)
     units = {"actuator": "1 (action)", "sensor": "observation unit"}
-    trace = DiagnoserTrace(time=t, residual=np.array(rows["r"]), threshold=np.asarray(decision.threshold, dtype=float),
-                           alarm=np.array(rows["alarm"], dtype=bool), isolated=np.array(rows["isolated"], dtype=object),
-                           estimate=np.zeros((len(t), 0)), components=list(comps), estimate_components=[],
-                           units={"residual": ["N", "N·m"], "estimate": []})
-    state, y = np.array(rows["x"]), np.array(rows["y"])
-    u = np.array(rows["u"])
+    state, y = rec.array("x"), rec.array("y")
+    u = rec.array("u")
     return Record(system="dm_control-cartpole", scenario=scenario, seed=int(seed),
                   rates={"control_hz": 1.0 / dt, "diagnosis_hz": 1.0 / dt}, time=t, truth_state=state,
                   faults={f.name: FaultLabels(labels[:, i, 0] > 0, labels[:, i, 1], units.get(f.family, ""))
                           for i, f in enumerate(env.faults)},
-                  signals={"u_cmd": u, "y_meas": y}, diagnosers={name: trace}, u_applied=u,
+                  signals={"u_cmd": u, "y_meas": y}, diagnosers=bank.traces(), u_applied=u,
                   meta={"faults": [f.to_dict() for f in env.faults], "duration": float(t[-1]), "injection": "online"},
                   columns={"truth/state": ["x", "theta", "x_dot", "theta_dot"], "truth/u_applied": env.actuators,
-                           "signals/u_cmd": env.actuators, "signals/y_meas": ["x", "theta", "x_dot", "theta_dot"]},
+                           "signals/u_cmd": env.actuators, "signals/y_meas": list(MEASUREMENTS)},
                   units={"truth/state": ["m", "rad", "m/s", "rad/s"], "truth/u_applied": ["1"],
-                         "signals/u_cmd": ["1"], "signals/y_meas": ["m", "rad", "m/s", "rad/s"]})
+                         "signals/u_cmd": ["1"], "signals/y_meas": list(MEASUREMENT_UNITS)})

@@ -45,11 +45,11 @@ global ``np.random``) from the same stream, restoring the global state afterward
 same episodes. What robosuite draws once at construction (Lift's cube size, with ``hard_reset=False``) is not the
 wrapper's: seed it around ``robosuite.make`` (as :func:`robofdi.adapters.robosuite_diagnosis.make_lift` does).
 
-Diagnosis and accommodation (optional): ``diagnosis.update(t, y, u)`` runs at every substep on the measurement y and
-the command u held over the previous substep (:mod:`robofdi.adapters.robosuite_diagnosis`) and returns a
-:class:`~robofdi.protocols.Health`; ``accommodation.update(u_cmd, health)`` (e.g.
-:class:`~robofdi.ftc.EffectivenessCompensation`) sits between the controller and the actuator faults and gets that
-health one substep late.
+Diagnosis and accommodation (optional): ``diagnosis``, a :class:`~robofdi.loop.DiagnosisBank` at the substep rate,
+is pushed at every substep with the measurement y and the command u held over the previous substep
+(:mod:`robofdi.adapters.robosuite_diagnosis`); ``accommodation.update(u_cmd, health)`` (e.g.
+:class:`~robofdi.ftc.EffectivenessCompensation`) sits between the controller and the actuator faults and gets the
+bank's health one substep late. The history is a :class:`~robofdi.loop.Recorder`.
 """
 from __future__ import annotations
 
@@ -63,6 +63,7 @@ import mujoco
 
 from robofdi.errors import RobofdiError, all_finite
 from robofdi.faults import Fault, FaultInjector, parse_fault_spec
+from robofdi.loop import DiagnosisBank, Recorder
 from robofdi.models.manipulator import actuator_kind, is_torque_motor
 from robofdi.protocols import HEALTHY
 from robofdi.record import FaultLabels, Record
@@ -235,7 +236,8 @@ class FaultyRobosuiteEnv:
     """``env`` with ``faults`` on its arm's torques, joint sensors and components, and labels in every step's
     ``info["robofdi_faults"]`` (module docstring). ``sensors``: the joint sensor model (default: 20-bit encoders,
     1e-3 rad/s velocity noise; ``SensorModel.ideal()`` for exact readings). ``diagnosis`` / ``accommodation``:
-    optional, stepped at every substep. ``robot`` / ``part``: which robot of the environment and which of its
+    optional (a :class:`~robofdi.loop.DiagnosisBank` at the substep rate; an accommodation), stepped at every
+    substep. ``robot`` / ``part``: which robot of the environment and which of its
     controlled parts (robosuite's part names: ``right``, ``left`` for a second arm)."""
 
     def __init__(self, env, faults: Sequence[Fault | str] = (), seed: int = 0, robot: int = 0,
@@ -251,6 +253,9 @@ class FaultyRobosuiteEnv:
         self.env, self.seed, self.faults, self.sensors = env, int(seed), _faults(faults), sensors
         for f in self.faults:
             self.arm.check_target(f)
+        if diagnosis is not None and not isinstance(diagnosis, DiagnosisBank):
+            raise RobofdiError(f"FaultyRobosuiteEnv: field 'diagnosis' must be a robofdi.loop.DiagnosisBank, got "
+                               f"{type(diagnosis).__name__}")
         self.diagnosis, self.accommodation = diagnosis, accommodation
         self.component_kinds = {"component_friction": tuple(self.arm.joints), "component_mass": ("payload",)}
         self._episode = -1
@@ -259,13 +264,18 @@ class FaultyRobosuiteEnv:
         env._pre_action = self._substep              # robosuite calls it at every physics substep
         env._robofdi_wrapped = True
         self._nominal = None
-        self.history = None
+        self._recorder: Recorder | None = None
         self._reading = (None, None, None)
 
     # ------------------------------------------------------------------------------------------------ setup
     @property
     def sim(self):
         return self.env.sim
+
+    @property
+    def history(self) -> dict[str, list] | None:
+        """The rows recorded since the last reset (per-substep lists), None before the first reset."""
+        return None if self._recorder is None else self._recorder.rows
 
     @property
     def fault_names(self) -> list[str]:
@@ -316,7 +326,7 @@ class FaultyRobosuiteEnv:
             self.diagnosis.reset()
         if self.accommodation is not None:
             self.accommodation.reset()
-        self.history = {k: [] for k in ("time", "state", "u_cmd", "u", "u_applied", "y_true", "y_meas", "labels", "qpos")}
+        self._recorder = Recorder(("time", "state", "u_cmd", "u", "u_applied", "y_true", "y_meas", "labels", "qpos"))
         return self._observe(obs)
 
     def step(self, action):
@@ -393,9 +403,10 @@ class FaultyRobosuiteEnv:
         t = self.time
         qpos = d.qpos.copy()
         y_true, y = self.measure()
-        health = self.health
         if self.diagnosis is not None:
-            self.health = self.diagnosis.update(t, y, self._u_prev) or health
+            self.diagnosis.push(len(self._recorder.rows["time"]), t, y, self._u_prev)
+            self.health = self.diagnosis.health             # one substep late
+        health = self.health
         swap = not np.array_equal(y, y_true)
         if swap:                                           # the controller sees the measured joint state
             q_true, v_true = d.qpos[a.qpos].copy(), d.qvel[a.dofs].copy()
@@ -415,16 +426,9 @@ class FaultyRobosuiteEnv:
             for kind, target, value in self.injector.components(t):
                 self._apply_component(kind, target, value)
         self._u_prev = np.array(u, dtype=float)
-        h = self.history
-        h["time"].append(t)
-        h["state"].append(y_true)
-        h["u_cmd"].append(u_cmd)
-        h["u"].append(self._u_prev)
-        h["u_applied"].append(ctrl * a.gain)
-        h["y_true"].append(y_true)
-        h["y_meas"].append(y)
-        h["labels"].append([self.injector.labels[n] for n in self.fault_names])
-        h["qpos"].append(qpos)
+        self._recorder.append(time=t, state=y_true, u_cmd=u_cmd, u=self._u_prev, u_applied=ctrl * a.gain,
+                              y_true=y_true, y_meas=y, labels=[self.injector.labels[n] for n in self.fault_names],
+                              qpos=qpos)
 
     def _apply_component(self, kind: str, target: str, value: float) -> None:
         if self._components.get((kind, target)) == value:
@@ -446,8 +450,8 @@ class FaultyRobosuiteEnv:
     # ------------------------------------------------------------------------------------------------ record
     def record(self, scenario: str = "robosuite", diagnosers: dict | None = None, meta: dict | None = None) -> Record:
         """The episode so far as a robofdi :class:`Record` at the substep rate (truth, commands, measurements,
-        labels; ``diagnosers``: name → :class:`DiagnoserTrace`)."""
-        h, a = self.history, self.arm
+        labels; ``diagnosers``: name → :class:`DiagnoserTrace`, default the traces of the wrapper's diagnosis)."""
+        h, a, rec = self.history, self.arm, self._recorder
         if not h or not h["time"]:
             raise RobofdiError("FaultyRobosuiteEnv.record: no substep recorded yet (reset() and step() first)")
         n, steps = a.n, len(h["time"])
@@ -464,17 +468,19 @@ class FaultyRobosuiteEnv:
         for key in ("y_true", "y_meas"):
             columns[f"signals/{key}"], units[f"signals/{key}"] = channels, units_y
         columns["signals/qpos"], units["signals/qpos"] = qpos_columns(self.sim.model._model)
-        u = np.array(h["u"])
+        u = rec.array("u")
+        if diagnosers is None and self.diagnosis is not None:
+            diagnosers = self.diagnosis.traces()
         return Record(
             system=f"robosuite-{type(self.env).__name__}-{a.name}", scenario=scenario, seed=self.seed,
             rates={"physics_dt": dt, "control_hz": 1.0 / dt, "diagnosis_hz": 1.0 / dt,
                    "policy_hz": float(getattr(self.env, "control_freq", 0.0)), "input_hold": "first"},
-            time=np.array(h["time"]), truth_state=np.array(h["state"]), u_applied=np.array(h["u_applied"]),
+            time=rec.array("time"), truth_state=rec.array("state"), u_applied=rec.array("u_applied"),
             faults={f.name: FaultLabels(labels[:, i, 0] > 0, labels[:, i, 1], fault_unit[f.name])
                     for i, f in enumerate(self.faults)},
-            signals={"reference": np.floor(np.array(h["time"])[:, None] * getattr(self.env, "control_freq", 1.0) + 1e-6),
-                     "u_cmd": np.array(h["u_cmd"]), "u": u, "u_diag": u, "y_true": np.array(h["y_true"]),
-                     "y_meas": np.array(h["y_meas"]), "qpos": np.array(h["qpos"])},
+            signals={"reference": np.floor(rec.array("time")[:, None] * getattr(self.env, "control_freq", 1.0) + 1e-6),
+                     "u_cmd": rec.array("u_cmd"), "u": u, "u_diag": u, "y_true": rec.array("y_true"),
+                     "y_meas": rec.array("y_meas"), "qpos": rec.array("qpos")},
             diagnosers=dict(diagnosers or {}),
             meta={"injection": "online", "duration": float(h["time"][-1]), "faults": [f.to_dict() for f in self.faults],
                   "controller": a.controller, "episode": self._episode, "mjcf": MJCF_FILE,

@@ -11,7 +11,8 @@ the arm. Masses and inertias, damping and armature are perturbed (:class:`ModelM
 joints' Coulomb friction (robosuite sets ``frictionloss`` 0.1 N·m on every Panda joint), the finger motion, every
 contact (cube, table), the grasped cube's mass, encoder quantisation and velocity noise.
 
-Diagnosers (each a :class:`RobotDiagnoser`, stepped at every 2 ms physics substep by the wrapper):
+Diagnosers (each a :class:`RobotDiagnoser`, stepped at every 2 ms physics substep by the wrapper through a
+:class:`~robofdi.loop.DiagnosisBank`):
 
 * ``momentum``: the discrete generalised-momentum residual (De Luca & Mattone 2003, eq. (10);
   :class:`~robofdi.observers.momentum.MomentumObserver`) fed with the commanded (pre-fault) torques and the
@@ -39,11 +40,12 @@ from robofdi.errors import RobofdiError
 from robofdi.models.manipulator import ModelMismatch
 from robofdi.models.multibody import MultibodyModel
 from robofdi.observers.momentum import MomentumObserver, identify_friction
-from robofdi.protocols import HEALTHY, Health
-from robofdi.record import DiagnoserTrace
+from robofdi.loop import Diagnosis, DiagnosisBank, Rates
+from robofdi.observers.residual import Residual
 from robofdi.seeding import rng
 
-__all__ = ["arm_model", "RobotDiagnoser", "RobotDiagnosis", "LiftScript", "make_lift", "run_lift_episode", "Episode",
+__all__ = ["arm_model", "RobotDiagnoser", "LossIdentification", "substep_rates", "LiftScript", "make_lift",
+           "run_lift_episode", "Episode",
            "LiftCalibration", "calibrate_lift", "lift_calibration", "run_lift", "DIAGNOSERS", "BELIEF", "EPISODE_STEPS",
            "PHASES", "CALIBRATION_SEEDS"]
 
@@ -78,96 +80,73 @@ def arm_model(env, mismatch: ModelMismatch | None = None, robot: int = 0) -> Mul
 
 
 class RobotDiagnoser:
-    """One momentum residual + threshold decision + loss-of-effectiveness identification (module docstring).
-    ``decision`` None: calibration mode (residuals only)."""
+    """One momentum residual (a :class:`~robofdi.protocols.Diagnoser`): ``update(y, u)`` with y = [q; q̇] measured
+    at a substep and u = the commanded torque held over the previous substep [N·m] → the residual r, also the
+    identification candidates (the unmodelled torque per joint). Keeps ū, the command through the residual's
+    own first-order dynamics (:attr:`filtered_input`), for :class:`LossIdentification`."""
 
-    def __init__(self, name: str, model: MultibodyModel, T: float, friction=None, decision: ThresholdDecision | None = None,
-                 gain: float = OBSERVER_GAIN, forgetting: float = 0.5):
+    def __init__(self, name: str, model: MultibodyModel, T: float, friction=None, gain: float = OBSERVER_GAIN):
         self.name, self.model, self.T = name, model, float(T)
         self.observer = MomentumObserver(model, T, gain, friction)
+        self.inputs, self.measurements = list(self.observer.inputs), list(self.observer.measurements)
         self.components = list(model.joint_names)
-        self.signatures = [Signature(j, frozenset([j])) for j in self.components]
-        self.decision = decision
-        self._a, self._lam = gain * T, float(np.exp(-T / forgetting))
+        self.estimate_components, self.estimate_modes = list(self.components), ["level"] * model.n
+        self.units = {"residual": ["N·m"] * model.n, "estimate": ["N·m"] * model.n}
+        self._a = gain * T
         self.reset()
+
+    def signatures(self) -> list[Signature]:
+        return [Signature(j, frozenset([j])) for j in self.components]
 
     def reset(self) -> None:
         self.observer.reset()
-        if self.decision is not None:
-            self.decision.reset()
-        n = self.model.n
-        self._ubar, self._s_ru, self._s_uu = np.zeros(n), np.zeros(n), np.zeros(n)
-        self.rows = {k: [] for k in ("time", "residual", "alarm", "isolated", "estimate", "loss")}
-        self.health = HEALTHY
+        self._ubar = np.zeros(self.model.n)
 
-    def update(self, t: float, y: np.ndarray, u: np.ndarray) -> Health:
-        """y = [q; q̇] measured at t, u = the commanded torque held over the previous substep [N·m]."""
+    @property
+    def filtered_input(self) -> np.ndarray:
+        """ū after the last sample: u low-passed by the residual's own dynamics (gain K_O, sample time T)."""
+        return self._ubar
+
+    def update(self, y: np.ndarray, u: np.ndarray) -> Residual:
         res = self.observer.update(y, u)
-        r = res.r
         self._ubar = self._ubar + self._a * (np.asarray(u, dtype=float) - self._ubar)   # ū: the residual's LP of u
-        rows = self.rows
-        rows["time"].append(t)
-        rows["residual"].append(r)
-        if self.decision is None:
-            return HEALTHY
-        alarms = self.decision.update(r)
-        iso = alarms.isolated
-        n = self.model.n
+        return Residual(res.r, res.r)
+
+
+class LossIdentification:
+    """Loss of effectiveness of the isolated joints (an :class:`~robofdi.protocols.Identifier`): after isolation
+    of joint i, k̂ = −Σ r_i ū_i / Σ ū_i² over the samples at which i is isolated (exponential forgetting,
+    ``forgetting`` [s]; an actuator gain 1 − k makes the unmodelled torque −k u), clipped to [0, 0.95]. The
+    recorded estimate is the residual of the isolated joints [N·m]; :meth:`magnitudes` (the health) is k̂."""
+
+    def __init__(self, diagnoser: RobotDiagnoser, forgetting: float = 0.5):
+        if not (np.isfinite(forgetting) and forgetting > 0):
+            raise RobofdiError(f"LossIdentification: field 'forgetting' must be > 0 s, got {forgetting!r}")
+        self.diagnoser, self.components = diagnoser, list(diagnoser.components)
+        self._lam = float(np.exp(-diagnoser.T / forgetting))
+        self.reset()
+
+    def reset(self) -> None:
+        n = len(self.components)
+        self._s_ru, self._s_uu, self._loss = np.zeros(n), np.zeros(n), np.zeros(n)
+
+    def update(self, candidates: np.ndarray, isolated) -> np.ndarray:
+        n = len(self.components)
         estimate, loss = np.zeros(n), np.zeros(n)
-        if iso:
-            idx = [self.components.index(c) for c in iso if c in self.components]
+        if isolated:
+            r, ubar = candidates, self.diagnoser.filtered_input
+            idx = [self.components.index(c) for c in isolated if c in self.components]
             lam = self._lam
-            self._s_ru[idx] = lam * self._s_ru[idx] + r[idx] * self._ubar[idx]
-            self._s_uu[idx] = lam * self._s_uu[idx] + self._ubar[idx] ** 2
+            self._s_ru[idx] = lam * self._s_ru[idx] + r[idx] * ubar[idx]
+            self._s_uu[idx] = lam * self._s_uu[idx] + ubar[idx] ** 2
             for i in idx:
                 estimate[i] = r[i]
                 loss[i] = float(np.clip(-self._s_ru[i] / self._s_uu[i], 0.0, 0.95)) if self._s_uu[i] > 1e-9 else 0.0
-            self.health = Health(t, tuple(iso), {self.components[i]: loss[i] for i in idx}, self.name)
-        rows["alarm"].append(alarms.alarm)
-        rows["isolated"].append("+".join(iso))
-        rows["estimate"].append(estimate)
-        rows["loss"].append(loss)
-        return self.health
+        self._loss = loss
+        return estimate
 
-    def residuals(self) -> np.ndarray:
-        return np.array(self.rows["residual"]).reshape(-1, self.model.n)
-
-    def trace(self) -> DiagnoserTrace:
-        if self.decision is None:
-            raise RobofdiError(f"diagnoser {self.name!r}: not calibrated (no decision), no trace")
-        n, rows = self.model.n, self.rows
-        return DiagnoserTrace(time=np.array(rows["time"]), residual=self.residuals(),
-                              threshold=np.array(self.decision.threshold),
-                              alarm=np.array(rows["alarm"], dtype=bool).reshape(-1, n),
-                              isolated=np.array(rows["isolated"], dtype=object),
-                              estimate=np.array(rows["estimate"]).reshape(-1, n),
-                              components=list(self.components), estimate_components=list(self.components),
-                              units={"residual": ["N·m"] * n, "estimate": ["N·m"] * n})
-
-
-class RobotDiagnosis:
-    """Every diagnoser at every substep; returns the health of ``health_source`` (HEALTHY when None)."""
-
-    def __init__(self, diagnosers: list[RobotDiagnoser], health_source: str | None = None):
-        names = [d.name for d in diagnosers]
-        if health_source is not None and health_source not in names:
-            raise RobofdiError(f"health_source: {health_source!r} is not one of the diagnosers {names}")
-        self.diagnosers, self.health_source = {d.name: d for d in diagnosers}, health_source
-
-    def reset(self) -> None:
-        for d in self.diagnosers.values():
-            d.reset()
-
-    def update(self, t: float, y: np.ndarray, u: np.ndarray) -> Health:
-        health = HEALTHY
-        for name, d in self.diagnosers.items():
-            h = d.update(t, y, u)
-            if name == self.health_source:
-                health = h
-        return health
-
-    def traces(self) -> dict[str, DiagnoserTrace]:
-        return {name: d.trace() for name, d in self.diagnosers.items()}
+    def magnitudes(self, estimate: np.ndarray, isolated) -> dict[str, float]:
+        return {c: self._loss[i] for i, c in enumerate(self.components) if c in isolated}
 
 
 # ------------------------------------------------------------------------------------------------ the task
@@ -277,19 +256,24 @@ class LiftCalibration:
     success: int
 
     def diagnosis(self, model: MultibodyModel, T: float, health_source: str | None = None,
-                  diagnosers=None) -> RobotDiagnosis:
-        """Calibrated diagnosers on ``model`` (built by :func:`arm_model` with :attr:`belief`); default: every
-        diagnoser this calibration has thresholds for."""
+                  diagnosers=None) -> DiagnosisBank:
+        """Calibrated diagnoses on ``model`` (built by :func:`arm_model` with :attr:`belief`) stepped at every
+        substep of period ``T``; default: every diagnoser this calibration has thresholds for."""
         blank = int(round(BLANKING / T))
-        out = []
+        out = {}
         for name in (tuple(self.thresholds) if diagnosers is None else diagnosers):
             if name not in self.thresholds:
                 raise RobofdiError(f"diagnosers: {name!r} has no calibrated thresholds; expected some of {list(self.thresholds)}")
-            comps = list(model.joint_names)
-            decision = ThresholdDecision(comps, np.asarray(self.thresholds[name]), [Signature(j, frozenset([j])) for j in comps],
+            d = RobotDiagnoser(name, model, T, self.friction if name == "momentum_friction" else None)
+            decision = ThresholdDecision(d.components, np.asarray(self.thresholds[name]), d.signatures(),
                                          blanking=blank, confirm=CONFIRM)
-            out.append(RobotDiagnoser(name, model, T, self.friction if name == "momentum_friction" else None, decision))
-        return RobotDiagnosis(out, health_source)
+            out[name] = Diagnosis(d, decision, LossIdentification(d))
+        return DiagnosisBank(out, substep_rates(T), health_source)
+
+
+def substep_rates(T: float) -> Rates:
+    """The wrapper's rates: control and diagnosis at every physics substep of period ``T`` [s]."""
+    return Rates(1.0 / T, 1.0 / T, "first")
 
 
 def calibrate_lift(env_factory=make_lift, seeds=CALIBRATION_SEEDS, belief: ModelMismatch = BELIEF,
@@ -310,14 +294,14 @@ def calibrate_lift(env_factory=make_lift, seeds=CALIBRATION_SEEDS, belief: Model
 
     def residuals(name, friction=None):
         out, vels, success = [], [], 0
+        bank = DiagnosisBank({name: Diagnosis(RobotDiagnoser(name, model, T, friction))}, substep_rates(T))
         for s in seeds:
-            d = RobotDiagnoser(name, model, T, friction)
-            env = FaultyRobosuiteEnv(raw, (), seed=s, diagnosis=d)
+            env = FaultyRobosuiteEnv(raw, (), seed=s, diagnosis=bank)
             try:
                 success += run_lift_episode(env, s, steps).success
             finally:
                 env.detach()
-            out.append(d.residuals())
+            out.append(bank.traces()[name].residual)
             vels.append(np.array(env.history["y_meas"])[:, model.n:])
             if progress is not None:
                 progress(1)
@@ -374,8 +358,8 @@ def run_lift(calibration: LiftCalibration, faults=(), seed: int = 0, accommodati
         record = wrapped.record(scenario, diagnosis.traces(), {
             "success": ep.success, "lifted_at": ep.lifted_at, "primary_diagnoser": health_source,
             "health_source": health_source if accommodation else None,
-            "identified_loss": {name: {j: float(v) for j, v in d.health.estimate.items()}
-                                for name, d in diagnosis.diagnosers.items()}, **(meta or {})})
+            "identified_loss": {name: {j: float(v) for j, v in r.health.estimate.items()}
+                                for name, r in diagnosis.runners.items()}, **(meta or {})})
     finally:
         wrapped.detach()
         if env is None:

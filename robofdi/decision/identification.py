@@ -43,3 +43,7 @@ class Identification:
             return np.zeros(len(self.components))
         self._sum = np.where(self._on & self._increment, self._sum + candidates, 0.0)
         return np.where(self._on, np.where(self._increment, self._sum, candidates), 0.0)
+
+    def magnitudes(self, estimate: np.ndarray, isolated: Sequence[str]) -> dict[str, float]:
+        """The identified magnitude of every isolated target (what a :class:`~robofdi.protocols.Health` carries)."""
+        return {c: float(estimate[i]) for i, c in enumerate(self.components) if c in isolated}

@@ -7,7 +7,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from robofdi.decision.isolation import Alarms, Signature, ThresholdDecision
-from robofdi.errors import RobofdiError
+from robofdi.errors import RobofdiError, all_finite
 
 __all__ = ["WindowedTTest", "DENOMINATORS"]
 
@@ -44,6 +44,8 @@ class WindowedTTest:
 
     def update(self, residual: np.ndarray) -> Alarms:
         r = np.asarray(residual, dtype=float)
+        if r.shape != (len(self.components),) or not all_finite(r):
+            raise RobofdiError(f"WindowedTTest: field 'residual' must be {len(self.components)} finite values, got {r!r}")
         self._buffer.append(r)
         m = len(self.components)
         if len(self._buffer) <= self.window:

@@ -78,6 +78,7 @@ class MultibodyModel(ManipulatorModel):
         self._perturb(model, mismatch)
         self.model, self.data = model, model.createData()
         self.joint_names, self.n = names, model.nv
+        self.joint_kinds = kinds            # "hinge" / "slide" per joint
         self.damping = np.array(model.damping, dtype=float)
         chosen = set(ids)
         acts = [a for a in range(m.nu) if joints is None or (int(m.actuator_trntype[a]) in _JOINT_TRANSMISSIONS

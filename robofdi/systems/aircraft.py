@@ -17,7 +17,7 @@ from robofdi.decision import SwitchingIndexDecision, calibrate_thresholds
 from robofdi.errors import RobofdiError
 from robofdi.evaluate import summarize
 from robofdi.faults import Fault
-from robofdi.loop import ClosedLoop, Diagnosis
+from robofdi.loop import ClosedLoop, Diagnosis, replay
 from robofdi.models.linear import LinearMismatch, discretize, perturbed
 from robofdi.models.linear_examples import aircraft_lateral
 from robofdi.observers.uio import LockInPlaceBank
@@ -100,10 +100,4 @@ def switching_index(record: Record, dt: float, c=(1.0, 1.0, 1.0), diagnoser: str
 def residual_vectors(record: Record, sc: AircraftScenario) -> np.ndarray:
     """(N, m+1, p) residual vectors rᵢ = y − C x̂ᵢ of every bank observer, replayed offline over the record."""
     bank = build_loop(sc).diagnoses["amm"].diagnoser
-    bank.reset()
-    y, u = record.signals["y_meas"], record.signals["u_diag"]
-    out = []
-    for j in range(len(record.time)):
-        bank.update(y[j], u[j - 1] if j else np.zeros(u.shape[1]))
-        out.append(bank.residuals.copy())
-    return np.array(out)
+    return np.array(replay(record, bank, tap=lambda d, _: d.residuals.copy()))

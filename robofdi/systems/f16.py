@@ -18,7 +18,7 @@ from robofdi.decision import ThresholdDecision, calibrate_thresholds
 from robofdi.errors import RobofdiError
 from robofdi.evaluate import summarize
 from robofdi.faults import Fault
-from robofdi.loop import ClosedLoop, Diagnosis
+from robofdi.loop import ClosedLoop, Diagnosis, replay
 from robofdi.models.linear import LinearMismatch, discretize, perturbed
 from robofdi.models.linear_examples import f16_vertical
 from robofdi.observers.adaptive import AdaptiveFaultEstimator, adaptive_fe_gains
@@ -93,9 +93,7 @@ def calibrate(sc: F16Scenario, runs: int = 3) -> np.ndarray:
 
 def fault_estimates(record: Record, sc: F16Scenario) -> np.ndarray:
     """f̂(k) per sample, replayed offline over the record's y_meas / u_diag (before any isolation gating)."""
-    fe = _estimator(sc, _belief(sc))
-    y, u = record.signals["y_meas"], record.signals["u_diag"]
-    return np.array([fe.update(y[j], u[j - 1] if j else np.zeros(u.shape[1])).estimate for j in range(len(y))])
+    return np.array([res.estimate for res in replay(record, _estimator(sc, _belief(sc)))])
 
 
 def run_f16(faults: Sequence[Fault] = PAPER_LIKE_FAULTS, seed: int = 0, threshold=None,

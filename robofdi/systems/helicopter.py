@@ -30,7 +30,7 @@ from robofdi.errors import RobofdiError
 from robofdi.evaluate import summarize
 from robofdi.faults import Fault, Oscillation
 from robofdi.ftc import EffectivenessCompensation
-from robofdi.loop import ClosedLoop, Diagnosis
+from robofdi.loop import ClosedLoop, Diagnosis, replay
 from robofdi.models.linear import LinearMismatch, perturbed
 from robofdi.models.linear_examples import HELICOPTER_NOISE, helicopter
 from robofdi.observers.kalman import COVARIANCE_MODES, KalmanFaultEstimator
@@ -152,7 +152,8 @@ def build_loop(sc: HelicopterScenario, threshold=None) -> ClosedLoop:
         diagnoses[source] = Diagnosis(_estimator(sc, belief, 1), Ungated(fe.components))
     return ClosedLoop(plant, controller, reference, sc.faults, diagnoses,
                       accommodation=acc, health_source=source if sc.accommodation else None,
-                      reference_columns=[f"ref_{n}" for n in truth.output_names])
+                      reference_columns=[f"ref_{n}" for n in truth.output_names],
+                      reference_units=list(truth.units["y"]))
 
 
 def calibrate(sc: HelicopterScenario) -> np.ndarray:
@@ -179,14 +180,9 @@ def fault_estimates(record: Record, sc: HelicopterScenario) -> tuple[np.ndarray,
     """(f̂(k−1), ζ̂(k)) per diagnosis sample, replayed offline over the record's y_meas / u_diag with the scenario's
     estimator (deterministic: the same numbers the online diagnoser computed)."""
     belief = perturbed(helicopter(), LinearMismatch(sc.mismatch, sc.seed)) if sc.mismatch else helicopter()
-    fe = _estimator(sc, belief, sc.samples)
-    y, u = record.signals["y_meas"], record.signals["u_diag"]
-    f, z = [], []
-    for j in range(len(record.time)):
-        fe.update(y[j], u[j - 1] if j else np.zeros(u.shape[1]))
-        f.append(fe.fault_estimate.copy())
-        z.append(fe.unknown_input_estimate)
-    return np.array(f), np.array(z)
+    rows = replay(record, _estimator(sc, belief, sc.samples),
+                  tap=lambda fe, _: (fe.fault_estimate.copy(), fe.unknown_input_estimate))
+    return np.array([f for f, _ in rows]), np.array([z for _, z in rows])
 
 
 # ---------------------------------------------------------------------------------------------------- the system

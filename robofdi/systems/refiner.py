@@ -3,9 +3,10 @@
 Wang's model has a same-sample feedthrough (y(k) = C x + D f u(k)) and a controller on the state,
 u(k) = r − K x(k) (eq. (116)). :class:`robofdi.loop.ClosedLoop` measures y before it computes u (the feedthrough
 there acts one sample late, which makes M₀ = 0 and the recursive estimator (38) undefined), so this scenario steps
-its own loop with the same parts: the :class:`FaultInjector` (faults and labels), the :class:`GainFaultObserver`,
-the :class:`WindowedTTest`, :class:`Identification` and the :class:`GainCompensation` accommodation fed by the
-diagnosed health one sample late, and returns the same :class:`Record`.
+its own loop with the engine's parts: the :class:`FaultInjector` (faults and labels), a
+:class:`~robofdi.loop.DiagnosisBank` stepping the :class:`GainFaultObserver` with its :class:`WindowedTTest` and
+identification (the diagnoser is told u(k), the input of its own sample), the :class:`GainCompensation`
+accommodation fed by the diagnosed health one sample late, and a :class:`~robofdi.loop.Recorder` → :class:`Record`.
 
 Numbers (spec_wang_nongaussian.md B.2–B.4): f_H = 10, K = [0.175 0.245], L = [0.533; 0.467], r = 30, N = 10,
 λ = 8; step fault f = 8 on 50 ≤ k < 100; drift ±0.005 f_H per sample on 200 ≤ k < 300 (peak 12.5 at k = 249).
@@ -18,15 +19,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robofdi.decision import Identification, WindowedTTest
+from robofdi.decision import WindowedTTest
 from robofdi.errors import RobofdiError
 from robofdi.evaluate import summarize
 from robofdi.faults import Fault, FaultInjector, Ramp
 from robofdi.ftc import GainCompensation
+from robofdi.loop import Diagnosis, DiagnosisBank, Rates, Recorder
 from robofdi.models.linear_examples import CHIP_REFINER, chip_refiner
 from robofdi.observers.gain import GainFaultObserver
-from robofdi.protocols import HEALTHY, Health
-from robofdi.record import DiagnoserTrace, FaultLabels, Record
+from robofdi.record import Record
 from robofdi.seeding import rng, stream
 
 __all__ = ["RefinerScenario", "PAPER_FAULTS", "run_refiner", "true_gain"]
@@ -92,54 +93,39 @@ def run_refiner(faults: Sequence[Fault] = PAPER_FAULTS, seed: int = 0, **options
     observer = GainFaultObserver(model, CHIP_REFINER["L"], F_H)
     decision = WindowedTTest(observer.components, [CHIP_REFINER["threshold"]], observer.signatures(),
                              window=CHIP_REFINER["window"], denominator=sc.denominator, latch=sc.accommodation)
-    ident = Identification(observer.estimate_components, observer.estimate_modes)
     acc = GainCompensation(model.input_names, F_H) if sc.accommodation else None
     inj = FaultInjector(sc.faults, model.input_names, model.output_names, stream(seed, "run", "faults"))
     w_gen, v_gen = rng(seed, "run", "process"), rng(seed, "run", "sensor")
+    rates = Rates(1.0, 1.0, "first")
+    bank = DiagnosisBank({"gain": Diagnosis(observer, decision)}, rates, "gain")
     x = np.zeros(model.n)
-    health = pending = HEALTHY
-    rows = {k: [] for k in ("x", "u_cmd", "u", "u_applied", "y_true", "y", "res", "alarm", "iso", "est", "stat", "fhat")}
-    labels = {f.name: ([], []) for f in sc.faults}
+    rec = Recorder(("x", "u_cmd", "u", "u_applied", "y_true", "y", "stat", "fhat"), [f.name for f in sc.faults])
     for k in range(sc.samples):
         t = float(k)
-        health = pending
+        health = bank.latest_health                                          # sample k−1's diagnosis
         xs = x if sc.state_feedback == "true" else observer._x
         u_cmd = np.array([r_set]) - K @ xs                                   # (116)
         u = acc.update(u_cmd, health) if acc is not None else u_cmd
         u_plant = inj.actuate(t, u)
         y_true = C @ x + D @ (F_H * u_plant)
         y = y_true + Fm @ np.array([_truncated(v_gen, sc.sigma)])
-        res = observer.update(y, u)
-        alarms = decision.update(res.r)
-        est = ident.update(res.estimate, alarms.isolated)
-        if alarms.isolated:
-            pending = Health(t, tuple(alarms.isolated), {c: float(est[i]) for i, c in enumerate(ident.components)
-                                                        if c in alarms.isolated}, "gain")
-        for key, val in (("x", x), ("u_cmd", u_cmd), ("u", u), ("u_applied", u_plant), ("y_true", y_true), ("y", y),
-                         ("res", res.r), ("alarm", alarms.alarm), ("est", est), ("stat", decision.statistic),
-                         ("fhat", np.diag(observer.gain))):
-            rows[key].append(np.array(val, dtype=float if key != "alarm" else bool))
-        rows["iso"].append("+".join(alarms.isolated))
-        for name, (active, value) in inj.labels.items():
-            labels[name][0].append(active)
-            labels[name][1].append(value)
+        bank.push(k, t, y, u)                                                # the same-sample input u(k)
+        rec.append(**{key: np.array(val, dtype=float) for key, val in (
+            ("x", x), ("u_cmd", u_cmd), ("u", u), ("u_applied", u_plant), ("y_true", y_true), ("y", y),
+            ("stat", decision.statistic), ("fhat", np.diag(observer.gain)))})
+        rec.append_labels(inj.labels)
         x = A @ x + B @ (F_H * u_plant) + E @ np.array([_truncated(w_gen, sc.sigma)])
     time = np.arange(sc.samples, dtype=float)
-    trace = DiagnoserTrace(time=time, residual=np.array(rows["res"]), threshold=np.array(decision.threshold),
-                           alarm=np.array(rows["alarm"]), isolated=np.array(rows["iso"], dtype=object),
-                           estimate=np.array(rows["est"]), components=list(observer.components),
-                           estimate_components=list(observer.estimate_components),
-                           units={k: list(v) for k, v in observer.units.items()})
     u_cols, y_cols = list(model.input_names), list(model.output_names)
     record = Record(
         system="tmp_refiner", scenario="ch2-wang", seed=seed, rates={"control_hz": 1.0, "diagnosis_hz": 1.0,
                                                                      "input_hold": "first"},
-        time=time, truth_state=np.array(rows["x"]), u_applied=np.array(rows["u_applied"]),
-        faults={n: FaultLabels(np.array(a, dtype=bool), np.array(v, dtype=float), "1") for n, (a, v) in labels.items()},
-        signals={"reference": np.full((sc.samples, 1), r_set), "u_cmd": np.array(rows["u_cmd"]), "u": np.array(rows["u"]),
-                 "u_diag": np.array(rows["u"]), "y_true": np.array(rows["y_true"]), "y_meas": np.array(rows["y"]),
-                 "t_statistic": np.array(rows["stat"]), "gain_estimate": np.array(rows["fhat"])},
-        diagnosers={"gain": trace},
+        time=time, truth_state=rec.array("x"), u_applied=rec.array("u_applied"),
+        faults=rec.fault_labels({f.name: "1" for f in sc.faults}),
+        signals={"reference": np.full((sc.samples, 1), r_set), "u_cmd": rec.array("u_cmd"), "u": rec.array("u"),
+                 "u_diag": rec.array("u"), "y_true": rec.array("y_true"), "y_meas": rec.array("y"),
+                 "t_statistic": rec.array("stat"), "gain_estimate": rec.array("fhat")},
+        diagnosers=bank.traces(),
         meta={"injection": "online", "duration": float(sc.samples), "faults": [f.to_dict() for f in sc.faults],
               "accommodation": "GainCompensation" if acc else None, "health_source": "gain" if acc else None,
               "sigma": sc.sigma, "denominator": sc.denominator, "state_feedback": sc.state_feedback,
