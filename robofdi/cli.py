@@ -123,7 +123,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--seed", type=int, default=0)
     run.add_argument("--quiet", action="store_true", help="no progress bar")
     arm = run.add_argument_group("options of `run arm` (--fault also of `run robosuite-lift`)")
-    arm.add_argument("--robot", help="the arm's MJCF file (default: the shipped arm6.xml)")
+    arm.add_argument("--robot", help="the arm's MJCF or URDF file (default: the shipped arm6.xml)")
     arm.add_argument("--fault", dest="faults", action="append", metavar="SPEC",
                      help="KIND:TARGET:MAGNITUDE@ONSET[-END][~PROFILE][;NAME=VALUE], repeatable, "
                           "e.g. actuator_additive:joint2:20@1.0 or sensor_bias:joint3_pos:0.004@1.5~ramp(0.5)")

@@ -14,7 +14,7 @@ The worst-case calibration motions follow Caccavale & Villani, "Fault Diagnosis 
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -32,6 +32,8 @@ SPEEDS = {"fast": (1.0, 1.0), "normal": (1.3, 2.0), "slow": (2.5, 4.0)}
 # way to them: the rest is left for acceleration, so segment durations stay short.
 _GRAVITY_SHARE = 0.8
 _MAX_TRIES = 400
+#: One turn [rad]: the widest working range of a joint (MotionLimits).
+TURN = 2 * np.pi
 # The duration is fitted to (1 − this) × the budget at the sampled path points, to cover the torque between them
 # (at 257 samples the excess between samples is of the order of 1e-5 of the budget).
 _SAMPLING_HEADROOM = 1e-3
@@ -52,11 +54,20 @@ class MotionLimits:
     """What a designed motion must respect, per joint.
 
     lower, upper: joint position range [rad] (from the MJCF: :func:`joint_ranges` or :meth:`from_model`);
+    −inf/+inf for a continuous (unlimited) joint;
     torque_limit: motor torque limit [N·m] (> 0, may be inf);
-    range_margin: fraction of each range kept clear at *each* end, in [0, 0.5);
+    range_margin: fraction of each *working* range kept clear at *each* end, in [0, 0.5);
     torque_fraction: fraction of the torque limit the nominal feed-forward may use, in (0, 1]; the rest is
     left to the feedback and to the model error;
-    max_speed: optional joint speed limit [rad/s], one value or one per joint, > 0.
+    max_speed: optional joint speed limit [rad/s], one value or one per joint, > 0 (inf: none);
+    centre: optional centre [rad] of the working range of the joints whose range spans more than one turn, one
+    value or one per joint (default: the middle of a finite range, 0 — the file's reference — of an unlimited one).
+
+    The working range (:attr:`working_lower`, :attr:`working_upper`) is where motions are designed: the joint
+    range itself when it spans at most one turn (2π); otherwise — continuous joints, and ranges such as ±2π —
+    the one turn [centre − π, centre + π], moved inside the range if needed. One turn is enough: the rigid-body
+    dynamics of a revolute joint (gravity, inertia, Coulomb and viscous terms) are 2π-periodic in its angle,
+    so every pose the joint can take is covered (a slide joint's range in m wider than 2π is windowed alike).
     """
 
     lower: tuple
@@ -65,6 +76,7 @@ class MotionLimits:
     range_margin: float = 0.1
     torque_fraction: float = 0.6
     max_speed: tuple | None = None
+    centre: tuple | None = None
 
     def __post_init__(self):
         lower = _vector("lower", self.lower)
@@ -75,8 +87,10 @@ class MotionLimits:
         object.__setattr__(self, "upper", upper)
         object.__setattr__(self, "torque_limit", torque)
         lo, hi = np.array(lower), np.array(upper)
-        if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)) and np.all(lo < hi)):
-            raise RobofdiError(f"MotionLimits: fields 'lower' < 'upper' must be finite joint ranges [rad], got {lower}, {upper}")
+        bad = np.flatnonzero(~(lo < hi) | (lo == np.inf) | (hi == -np.inf))       # also NaN
+        if bad.size:
+            raise RobofdiError(f"MotionLimits: fields 'lower' < 'upper' must be joint ranges [rad] (−inf/+inf for a "
+                               f"continuous joint), got joints {bad.tolist()} (0-based): {lower}, {upper}")
         if not np.all(np.array(torque) > 0):  # also rejects NaN
             raise RobofdiError(f"MotionLimits: field 'torque_limit' must be > 0 N·m per joint (inf allowed), got {torque}")
         if not (np.isfinite(self.range_margin) and 0.0 <= self.range_margin < 0.5):
@@ -85,9 +99,14 @@ class MotionLimits:
             raise RobofdiError(f"MotionLimits: field 'torque_fraction' must be in (0, 1], got {self.torque_fraction!r}")
         if self.max_speed is not None:
             speed = _vector("max_speed", self.max_speed, n)
-            if not all(np.isfinite(v) and v > 0 for v in speed):
-                raise RobofdiError(f"MotionLimits: field 'max_speed' must be finite and > 0 rad/s, got {speed}")
+            if not all(v > 0 for v in speed):                  # also rejects NaN
+                raise RobofdiError(f"MotionLimits: field 'max_speed' must be > 0 rad/s (inf: none), got {speed}")
             object.__setattr__(self, "max_speed", speed)
+        if self.centre is not None:
+            centre = _vector("centre", self.centre, n)
+            if not np.all(np.isfinite(centre)):
+                raise RobofdiError(f"MotionLimits: field 'centre' must be finite angles [rad], got {centre}")
+            object.__setattr__(self, "centre", centre)
 
     @classmethod
     def from_ranges(cls, lower, upper, torque_limit, **kwargs) -> MotionLimits:
@@ -96,24 +115,51 @@ class MotionLimits:
 
     @classmethod
     def from_model(cls, model, **kwargs) -> MotionLimits:
-        """From a :class:`~robofdi.models.ManipulatorModel`: the ranges of its MJCF and its motor torque limits."""
-        lower, upper = joint_ranges(model.path, model.joint_names)
+        """From a :class:`~robofdi.models.ManipulatorModel`: the joint ranges of its file (±inf where unlimited),
+        its motor torque limits and, where the file gives them, its velocity limits (``max_speed``)."""
+        lower, upper = np.asarray(model.joint_range, dtype=float).T
+        speed = np.asarray(getattr(model, "velocity_limit", np.full(model.n, np.inf)), dtype=float)
+        if "max_speed" not in kwargs and np.any(np.isfinite(speed)):
+            kwargs["max_speed"] = tuple(speed)
         return cls.from_ranges(lower, upper, model.torque_limit, **kwargs)
 
     @property
     def n(self) -> int:
         return len(self.lower)
 
+    def _working(self) -> tuple[np.ndarray, np.ndarray]:
+        lo, hi = np.array(self.lower), np.array(self.upper)
+        wide = ~(hi - lo <= TURN)                       # more than one turn, or unlimited
+        if not wide.any():
+            return lo, hi
+        if self.centre is not None:
+            c = np.array(self.centre)
+        else:
+            c = np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi), np.where(np.isfinite(lo), lo + np.pi,
+                         np.where(np.isfinite(hi), hi - np.pi, 0.0)))
+        c = np.clip(c, lo + np.pi, hi - np.pi)          # the whole turn inside the range
+        return np.where(wide, c - np.pi, lo), np.where(wide, c + np.pi, hi)
+
+    @property
+    def working_lower(self) -> np.ndarray:
+        """Lower end of the working range [rad] (class docstring): ``lower``, or centre − π for a wide joint."""
+        return self._working()[0]
+
+    @property
+    def working_upper(self) -> np.ndarray:
+        """Upper end of the working range [rad] (class docstring): ``upper``, or centre + π for a wide joint."""
+        return self._working()[1]
+
     @property
     def usable_lower(self) -> np.ndarray:
-        """Lowest position a motion may reach [rad]: lower + range_margin · (upper − lower)."""
-        lo, hi = np.array(self.lower), np.array(self.upper)
+        """Lowest position a motion may reach [rad]: the working range's lower end + range_margin · its width."""
+        lo, hi = self._working()
         return lo + self.range_margin * (hi - lo)
 
     @property
     def usable_upper(self) -> np.ndarray:
-        """Highest position a motion may reach [rad]: upper − range_margin · (upper − lower)."""
-        lo, hi = np.array(self.lower), np.array(self.upper)
+        """Highest position a motion may reach [rad]: the working range's upper end − range_margin · its width."""
+        lo, hi = self._working()
         return hi - self.range_margin * (hi - lo)
 
     @property
@@ -128,7 +174,7 @@ def joint_ranges(mjcf: str | Path, joint_names=None) -> tuple[np.ndarray, np.nda
     Raises RobofdiError naming the joint if it is missing or unlimited."""
     import mujoco
 
-    from robofdi.models.manipulator import resolve_asset
+    from robofdi.mjcf import resolve_asset
 
     path = resolve_asset(mjcf)
     try:
@@ -195,9 +241,22 @@ def _check_pose(name: str, q, limits: MotionLimits) -> np.ndarray:
     return q
 
 
-def _check_model(model, limits: MotionLimits) -> None:
+def _check_model(model, limits: MotionLimits) -> MotionLimits:
+    """``limits`` checked against the model, with the model's own velocity limits (``model.velocity_limit``
+    [rad/s], inf = none; e.g. a URDF's ``<limit velocity>``) added to ``max_speed`` — the tighter one wins."""
     if model.n != limits.n:
         raise RobofdiError(f"motion design: the model has {model.n} joints but the MotionLimits {limits.n}")
+    speed = getattr(model, "velocity_limit", None)
+    if speed is None:
+        return limits
+    speed = np.asarray(speed, dtype=float)
+    if speed.shape != (limits.n,) or not np.any(np.isfinite(speed)):
+        return limits
+    if limits.max_speed is not None:
+        speed = np.minimum(speed, limits.max_speed)
+        if np.array_equal(speed, limits.max_speed):
+            return limits
+    return replace(limits, max_speed=tuple(speed))
 
 
 def _min_duration(model, q0, q1, limits: MotionLimits, samples: int) -> float:
@@ -245,7 +304,7 @@ def fit_duration(model, q_start, q_end, limits: MotionLimits, *, floor: float = 
     Raises RobofdiError if gravity alone exceeds the budget somewhere on the path, or if the duration would
     exceed ``max_duration``.
     """
-    _check_model(model, limits)
+    limits = _check_model(model, limits)
     if not (np.isfinite(floor) and floor > 0):
         raise RobofdiError(f"fit_duration: field 'floor' must be > 0 s, got {floor!r}")
     if not (np.isfinite(max_duration) and max_duration >= floor):
@@ -341,7 +400,7 @@ def random_point_to_point(model, limits: MotionLimits, seed, n_segments: int = 1
     [>= 0] at every waypoint reached. seed: an int >= 0 (stream ``robofdi.seeding.rng(seed, "motion")``),
     a SeedSequence, or a numpy Generator. The same seed gives the same motion.
     """
-    _check_model(model, limits)
+    limits = _check_model(model, limits)
     if isinstance(n_segments, bool) or int(n_segments) != n_segments or n_segments < 1:
         raise RobofdiError(f"random_point_to_point: field 'n_segments' must be an integer >= 1, got {n_segments!r}")
     if not (np.isfinite(dwell) and dwell >= 0):
@@ -452,7 +511,7 @@ def calibration_motions(model, limits: MotionLimits, seed, *, low_velocity_time:
     Each motion starts at rest at its ``start_pose``; seed (an int >= 0 or a
     SeedSequence) gives each motion its own stream ``rng(seed, "motion", "calibration", <name>)``.
     """
-    _check_model(model, limits)
+    limits = _check_model(model, limits)
     if not (np.isfinite(low_velocity_time) and low_velocity_time > 0):
         raise RobofdiError(f"calibration_motions: field 'low_velocity_time' must be > 0 s, got {low_velocity_time!r}")
     if not (np.isfinite(sweep_fraction) and 0 < sweep_fraction <= 1):
