@@ -14,6 +14,7 @@ The worst-case calibration motions follow Caccavale & Villani, "Fault Diagnosis 
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -32,6 +33,8 @@ SPEEDS = {"fast": (1.0, 1.0), "normal": (1.3, 2.0), "slow": (2.5, 4.0)}
 # way to them: the rest is left for acceleration, so segment durations stay short.
 _GRAVITY_SHARE = 0.8
 _MAX_TRIES = 400
+# Self-collision is checked along straight joint paths every this many rad of the largest joint displacement.
+_COLLISION_STEP = 0.05
 #: One turn [rad]: the widest working range of a joint (MotionLimits).
 TURN = 2 * np.pi
 # The duration is fitted to (1 − this) × the budget at the sampled path points, to cover the torque between them
@@ -135,8 +138,9 @@ class MotionLimits:
         if self.centre is not None:
             c = np.array(self.centre)
         else:
-            c = np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi), np.where(np.isfinite(lo), lo + np.pi,
-                         np.where(np.isfinite(hi), hi - np.pi, 0.0)))
+            with np.errstate(invalid="ignore"):         # inf − inf where unlimited: replaced below
+                c = np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi),
+                             np.where(np.isfinite(lo), lo + np.pi, np.where(np.isfinite(hi), hi - np.pi, 0.0)))
         c = np.clip(c, lo + np.pi, hi - np.pi)          # the whole turn inside the range
         return np.where(wide, c - np.pi, lo), np.where(wide, c + np.pi, hi)
 
@@ -349,10 +353,56 @@ def _generator(seed, *names: str) -> np.random.Generator:
     return seeded_rng(seed, "motion", *names)
 
 
+class _SelfCollision:
+    """Contacts of the arm's own geometry at given joint positions: MuJoCo's collision detection
+    (``mj_kinematics`` + ``mj_collision``: the file's contype/conaffinity, parent filter and excludes) on the
+    model file the belief was read from (never the running simulator); the other joints at their reference."""
+
+    def __init__(self, path: Path, joint_names: tuple):
+        import mujoco
+
+        self._mujoco = mujoco
+        self.m = mujoco.MjModel.from_xml_path(str(path))
+        m = self.m
+        self.active = bool(np.any((m.geom_contype != 0) | (m.geom_conaffinity != 0)))
+        self.d = mujoco.MjData(m)
+        self.qadr = np.array([m.jnt_qposadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j)] for j in joint_names])
+
+    def free(self, poses: np.ndarray) -> bool:
+        m, d = self.m, self.d
+        for q in poses:
+            d.qpos[:] = m.qpos0
+            d.qpos[self.qadr] = q
+            self._mujoco.mj_kinematics(m, d)
+            self._mujoco.mj_collision(m, d)
+            if d.ncon:
+                return False
+        return True
+
+
+@functools.lru_cache(maxsize=16)
+def _self_collision(path: str, joint_names: tuple) -> _SelfCollision:
+    return _SelfCollision(Path(path), joint_names)
+
+
+def _collision_free(model, q0, q1) -> bool:
+    """No self-contact on the straight joint path q0 → q1, sampled every _COLLISION_STEP rad of the largest joint
+    displacement (always true for a model without a file, or a file with no colliding geom)."""
+    path, names = getattr(model, "path", None), getattr(model, "joint_names", None)
+    if path is None or names is None:
+        return True
+    check = _self_collision(str(path), tuple(names))
+    if not check.active:
+        return True
+    steps = max(2, int(np.ceil(np.max(np.abs(q1 - q0)) / _COLLISION_STEP)) + 1)
+    return check.free(q0 + np.linspace(0.0, 1.0, steps)[:, None] * (q1 - q0))
+
+
 def _statically_fine(model, q0, q1, limits: MotionLimits, samples: int = 17) -> bool:
-    """Gravity within _GRAVITY_SHARE of the budget on the whole straight path q0 → q1."""
+    """Gravity within _GRAVITY_SHARE of the budget on the whole straight path q0 → q1, and no self-collision on it
+    (the arm's own geometry, :class:`_SelfCollision`: a motion into itself would be blocked, not tracked)."""
     _, g = _gravity_along(model, q0, q1, samples)
-    return bool(np.all(np.abs(g) <= _GRAVITY_SHARE * limits.torque_budget))
+    return bool(np.all(np.abs(g) <= _GRAVITY_SHARE * limits.torque_budget)) and _collision_free(model, q0, q1)
 
 
 def _draw_pose(model, limits: MotionLimits, rng: np.random.Generator, previous=None, what: str = "pose") -> np.ndarray:
@@ -362,8 +412,8 @@ def _draw_pose(model, limits: MotionLimits, rng: np.random.Generator, previous=N
         if _statically_fine(model, q if previous is None else previous, q, limits):
             return q
     raise RobofdiError(
-        f"motion design: found no {what} inside the usable ranges where gravity uses less than "
-        f"{_GRAVITY_SHARE:.0%} of torque_fraction × limit after {_MAX_TRIES} draws; raise 'torque_fraction'"
+        f"motion design: found no {what} inside the usable ranges, clear of self-collision, where gravity uses less "
+        f"than {_GRAVITY_SHARE:.0%} of torque_fraction × limit after {_MAX_TRIES} draws; raise 'torque_fraction'"
     )
 
 
@@ -437,7 +487,7 @@ def _low_velocity(model, limits: MotionLimits, rng, total: float, fraction: floa
             break
     else:
         raise RobofdiError(
-            "calibration_motions: found no low-velocity sweep where gravity leaves torque for motion; "
+            "calibration_motions: found no low-velocity sweep clear of self-collision where gravity leaves torque for motion; "
             "lower 'sweep_fraction' or raise 'torque_fraction'"
         )
     need = fit_duration(model, a, b, limits, floor=1e-3)
@@ -466,9 +516,48 @@ def _far_pose(model, limits: MotionLimits, rng, chosen: list, candidates: int) -
     return best
 
 
+def _collides_at_all(model) -> bool:
+    path, names = getattr(model, "path", None), getattr(model, "joint_names", None)
+    return path is not None and names is not None and _self_collision(str(path), tuple(names)).active
+
+
+def _reach(model, limits: MotionLimits, centre: np.ndarray, i: int, end: float) -> np.ndarray:
+    """The pose farthest from ``centre`` towards joint i's ``end`` (joint i alone, in tenths of the way) whose
+    path from the centre is statically fine (:func:`_statically_fine`)."""
+    best = centre.copy()
+    for f in np.linspace(0.1, 1.0, 10):
+        q = centre.copy()
+        q[i] = centre[i] + f * (end - centre[i])
+        if not _statically_fine(model, centre, q, limits, samples=9):
+            break
+        best = q
+    return best
+
+
+def _partial_sweeps(model, limits: MotionLimits, rng, least: float = 0.5, tries: int = 40):
+    """Fallback of :func:`_top_speed` when no centre lets every joint sweep its whole usable range (self-collision
+    or gravity in the way): from the first centre (the middle of the ranges, then random ones) where every joint
+    can sweep at least ``least`` of its usable width, each joint sweeps as far as it can each way (in tenths)."""
+    lo, hi = limits.usable_lower, limits.usable_upper
+    centre = 0.5 * (lo + hi)
+    for attempt in range(tries):
+        if attempt:
+            centre = rng.uniform(lo, hi)
+        if not _statically_fine(model, centre, centre, limits):
+            continue
+        sweeps = [(_reach(model, limits, centre, i, lo[i]), _reach(model, limits, centre, i, hi[i])) for i in range(limits.n)]
+        if all(b[i] - a[i] >= least * (hi[i] - lo[i]) for i, (a, b) in enumerate(sweeps)):
+            return centre, sweeps
+    raise RobofdiError(f"calibration_motions: found no centre pose from which every joint can sweep {least:.0%} of its "
+                       f"usable range clear of self-collision with gravity leaving torque for motion after {tries} "
+                       "draws; raise 'torque_fraction' or lower 'range_margin'")
+
+
 def _top_speed(model, limits: MotionLimits, rng, factor: float) -> Sequence:
     """Each joint in turn sweeps its whole usable range and back, alone, at ``factor`` × the shortest admissible
-    duration, from a centre pose where gravity leaves torque for the motion (the others hold it)."""
+    duration, from a centre pose where gravity leaves torque for the motion (the others hold it) and nothing
+    collides; if no such centre is found (an arm folding into itself), each joint sweeps as much of its range as
+    it can, at least half (:func:`_partial_sweeps`)."""
     lo, hi = limits.usable_lower, limits.usable_upper
     centre = 0.5 * (lo + hi)
 
@@ -477,17 +566,17 @@ def _top_speed(model, limits: MotionLimits, rng, factor: float) -> Sequence:
         a[i], b[i] = lo[i], hi[i]
         return a, b
 
-    for attempt in range(_MAX_TRIES):
+    tries = _MAX_TRIES if not _collides_at_all(model) else _MAX_TRIES // 20
+    for attempt in range(tries):
         if attempt:
             centre = rng.uniform(lo, hi)
         if all(_statically_fine(model, *ends(centre, i), limits, samples=33) for i in range(limits.n)):
+            sweeps = [ends(centre, i) for i in range(limits.n)]
             break
     else:
-        raise RobofdiError("calibration_motions: found no centre pose from which every joint can sweep its usable "
-                           "range with gravity leaving torque for motion; raise 'torque_fraction'")
+        centre, sweeps = _partial_sweeps(model, limits, rng)
     path = [centre]
-    for i in range(limits.n):
-        a, b = ends(centre, i)
+    for a, b in sweeps:
         path += [a, b, centre]
     durations = [float(np.ceil(factor * fit_duration(model, p, q, limits) * 1000.0 - 1e-6) / 1000.0)
                  for p, q in zip(path[:-1], path[1:])]
