@@ -143,7 +143,7 @@ def check_planned_motions(path, seed: int) -> None:
     budget = 0.6 * model.torque_limit * (1 + 1e-3)          # MotionLimits' default torque_fraction
     motions = {"motion": sc.motion, **calibration_trajectories(sc, sim, model)}
     for name, motion in motions.items():
-        for t in np.arange(0.0, motion.end, 0.01):
+        for t in np.arange(0.0, motion.end, 0.02):
             q, v, a = motion(t)
             assert np.all((q >= lo) & (q <= hi)), (name, t, q)
             assert np.all(np.abs(v) <= speed * (1 + 1e-9)), (name, t, v)
