@@ -380,9 +380,13 @@ class _SelfCollision:
         return True
 
 
-@functools.lru_cache(maxsize=16)
 def _self_collision(path: str, joint_names: tuple) -> _SelfCollision:
-    return _SelfCollision(Path(path), joint_names)
+    return _self_collision_of(path, Path(path).stat().st_mtime_ns, joint_names)
+
+
+@functools.lru_cache(maxsize=16)
+def _self_collision_of(path: str, mtime_ns: int, joint_names: tuple) -> _SelfCollision:
+    return _SelfCollision(Path(path), joint_names)          # keyed on the file's mtime: an edited file is re-read
 
 
 def _collision_free(model, q0, q1) -> bool:
