@@ -154,7 +154,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--seed", type=int, default=0, help="the run's seed: the same seed gives the same results (default: 0)")
     run.add_argument("--quiet", action="store_true", help=QUIET_HELP)
     arm = run.add_argument_group("options of `run arm` (--fault also of `run robosuite-lift` and of systems)")
-    arm.add_argument("--robot", help="the arm's MJCF file (default: the shipped arm6.xml)")
+    arm.add_argument("--robot", help="the arm's MJCF or URDF file (default: the shipped arm6.xml)")
     arm.add_argument("--fault", dest="faults", action="append", metavar="SPEC",
                      help="KIND:TARGET:MAGNITUDE@ONSET[-END][~PROFILE][;NAME=VALUE], repeatable; PROFILE: "
                           f"{PROFILE_HELP}; e.g. actuator_additive:joint2:20@1.0 or "

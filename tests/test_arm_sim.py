@@ -6,7 +6,8 @@ import pytest
 
 from robofdi import ASSETS, RobofdiError
 from robofdi.control import ComputedTorque
-from robofdi.models import ManipulatorModel, compile_arm
+from robofdi.mjcf import compile_arm
+from robofdi.models import ManipulatorModel
 from robofdi.protocols import Simulator
 from robofdi.sims import ArmSimulator, SensorModel, StribeckFriction, TorqueRipple
 from robofdi.sims.arm import add_point_mass, full_mass_matrix

@@ -7,7 +7,8 @@ import pinocchio as pin
 import pytest
 
 from robofdi import ASSETS, RobofdiError
-from robofdi.models import ManipulatorModel, ModelMismatch, compile_arm
+from robofdi.mjcf import compile_arm
+from robofdi.models import ManipulatorModel, ModelMismatch
 from robofdi.sims.arm import full_mass_matrix
 
 INCLUDED_LINK = """<mujocoinclude>

@@ -58,7 +58,7 @@ def build_auv_replay(vis: meshcat.Visualizer, record, diagnoser: str | None = No
     """Draw the vehicle of ``record`` (its MJCF in ``record.meta["mjcf"]``) and animate it at ``fps``; thrusters
     turn red when ``diagnoser`` (default: the run's health source, else its first diagnoser) isolates them."""
     from robofdi.models.auv import thruster_layout
-    from robofdi.models.manipulator import resolve_asset
+    from robofdi.mjcf import resolve_asset
 
     if not isinstance(fps, int) or fps <= 0:
         raise RobofdiError(f"fps: expected a positive integer, got {fps!r}")

@@ -64,7 +64,7 @@ import mujoco
 from robofdi.errors import RobofdiError, all_finite
 from robofdi.faults import Fault, FaultInjector, parse_fault_spec
 from robofdi.loop import DiagnosisBank, Recorder
-from robofdi.models.manipulator import actuator_kind, is_torque_motor
+from robofdi.mjcf import actuator_kind, is_torque_motor
 from robofdi.protocols import HEALTHY
 from robofdi.record import FaultLabels, Record
 from robofdi.seeding import stream

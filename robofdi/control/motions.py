@@ -14,7 +14,8 @@ The worst-case calibration motions follow Caccavale & Villani, "Fault Diagnosis 
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+import functools
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -32,6 +33,10 @@ SPEEDS = {"fast": (1.0, 1.0), "normal": (1.3, 2.0), "slow": (2.5, 4.0)}
 # way to them: the rest is left for acceleration, so segment durations stay short.
 _GRAVITY_SHARE = 0.8
 _MAX_TRIES = 400
+# Self-collision is checked along straight joint paths every this many rad of the largest joint displacement.
+_COLLISION_STEP = 0.05
+#: One turn [rad]: the widest working range of a joint (MotionLimits).
+TURN = 2 * np.pi
 # The duration is fitted to (1 − this) × the budget at the sampled path points, to cover the torque between them
 # (at 257 samples the excess between samples is of the order of 1e-5 of the budget).
 _SAMPLING_HEADROOM = 1e-3
@@ -52,11 +57,20 @@ class MotionLimits:
     """What a designed motion must respect, per joint.
 
     lower, upper: joint position range [rad] (from the MJCF: :func:`joint_ranges` or :meth:`from_model`);
+    −inf/+inf for a continuous (unlimited) joint;
     torque_limit: motor torque limit [N·m] (> 0, may be inf);
-    range_margin: fraction of each range kept clear at *each* end, in [0, 0.5);
+    range_margin: fraction of each *working* range kept clear at *each* end, in [0, 0.5);
     torque_fraction: fraction of the torque limit the nominal feed-forward may use, in (0, 1]; the rest is
     left to the feedback and to the model error;
-    max_speed: optional joint speed limit [rad/s], one value or one per joint, > 0.
+    max_speed: optional joint speed limit [rad/s], one value or one per joint, > 0 (inf: none);
+    centre: optional centre [rad] of the working range of the joints whose range spans more than one turn, one
+    value or one per joint (default: the middle of a finite range, 0 — the file's reference — of an unlimited one).
+
+    The working range (:attr:`working_lower`, :attr:`working_upper`) is where motions are designed: the joint
+    range itself when it spans at most one turn (2π); otherwise — continuous joints, and ranges such as ±2π —
+    the one turn [centre − π, centre + π], moved inside the range if needed. One turn is enough: the rigid-body
+    dynamics of a revolute joint (gravity, inertia, Coulomb and viscous terms) are 2π-periodic in its angle,
+    so every pose the joint can take is covered (a slide joint's range in m wider than 2π is windowed alike).
     """
 
     lower: tuple
@@ -65,6 +79,7 @@ class MotionLimits:
     range_margin: float = 0.1
     torque_fraction: float = 0.6
     max_speed: tuple | None = None
+    centre: tuple | None = None
 
     def __post_init__(self):
         lower = _vector("lower", self.lower)
@@ -75,8 +90,10 @@ class MotionLimits:
         object.__setattr__(self, "upper", upper)
         object.__setattr__(self, "torque_limit", torque)
         lo, hi = np.array(lower), np.array(upper)
-        if not (np.all(np.isfinite(lo)) and np.all(np.isfinite(hi)) and np.all(lo < hi)):
-            raise RobofdiError(f"MotionLimits: fields 'lower' < 'upper' must be finite joint ranges [rad], got {lower}, {upper}")
+        bad = np.flatnonzero(~(lo < hi) | (lo == np.inf) | (hi == -np.inf))       # also NaN
+        if bad.size:
+            raise RobofdiError(f"MotionLimits: fields 'lower' < 'upper' must be joint ranges [rad] (−inf/+inf for a "
+                               f"continuous joint), got joints {bad.tolist()} (0-based): {lower}, {upper}")
         if not np.all(np.array(torque) > 0):  # also rejects NaN
             raise RobofdiError(f"MotionLimits: field 'torque_limit' must be > 0 N·m per joint (inf allowed), got {torque}")
         if not (np.isfinite(self.range_margin) and 0.0 <= self.range_margin < 0.5):
@@ -85,9 +102,14 @@ class MotionLimits:
             raise RobofdiError(f"MotionLimits: field 'torque_fraction' must be in (0, 1], got {self.torque_fraction!r}")
         if self.max_speed is not None:
             speed = _vector("max_speed", self.max_speed, n)
-            if not all(np.isfinite(v) and v > 0 for v in speed):
-                raise RobofdiError(f"MotionLimits: field 'max_speed' must be finite and > 0 rad/s, got {speed}")
+            if not all(v > 0 for v in speed):                  # also rejects NaN
+                raise RobofdiError(f"MotionLimits: field 'max_speed' must be > 0 rad/s (inf: none), got {speed}")
             object.__setattr__(self, "max_speed", speed)
+        if self.centre is not None:
+            centre = _vector("centre", self.centre, n)
+            if not np.all(np.isfinite(centre)):
+                raise RobofdiError(f"MotionLimits: field 'centre' must be finite angles [rad], got {centre}")
+            object.__setattr__(self, "centre", centre)
 
     @classmethod
     def from_ranges(cls, lower, upper, torque_limit, **kwargs) -> MotionLimits:
@@ -96,24 +118,52 @@ class MotionLimits:
 
     @classmethod
     def from_model(cls, model, **kwargs) -> MotionLimits:
-        """From a :class:`~robofdi.models.ManipulatorModel`: the ranges of its MJCF and its motor torque limits."""
-        lower, upper = joint_ranges(model.path, model.joint_names)
+        """From a :class:`~robofdi.models.ManipulatorModel`: the joint ranges of its file (±inf where unlimited),
+        its motor torque limits and, where the file gives them, its velocity limits (``max_speed``)."""
+        lower, upper = np.asarray(model.joint_range, dtype=float).T
+        speed = np.asarray(getattr(model, "velocity_limit", np.full(model.n, np.inf)), dtype=float)
+        if "max_speed" not in kwargs and np.any(np.isfinite(speed)):
+            kwargs["max_speed"] = tuple(speed)
         return cls.from_ranges(lower, upper, model.torque_limit, **kwargs)
 
     @property
     def n(self) -> int:
         return len(self.lower)
 
+    def _working(self) -> tuple[np.ndarray, np.ndarray]:
+        lo, hi = np.array(self.lower), np.array(self.upper)
+        wide = ~(hi - lo <= TURN)                       # more than one turn, or unlimited
+        if not wide.any():
+            return lo, hi
+        if self.centre is not None:
+            c = np.array(self.centre)
+        else:
+            with np.errstate(invalid="ignore"):         # inf − inf where unlimited: replaced below
+                c = np.where(np.isfinite(lo) & np.isfinite(hi), 0.5 * (lo + hi),
+                             np.where(np.isfinite(lo), lo + np.pi, np.where(np.isfinite(hi), hi - np.pi, 0.0)))
+        c = np.clip(c, lo + np.pi, hi - np.pi)          # the whole turn inside the range
+        return np.where(wide, c - np.pi, lo), np.where(wide, c + np.pi, hi)
+
+    @property
+    def working_lower(self) -> np.ndarray:
+        """Lower end of the working range [rad] (class docstring): ``lower``, or centre − π for a wide joint."""
+        return self._working()[0]
+
+    @property
+    def working_upper(self) -> np.ndarray:
+        """Upper end of the working range [rad] (class docstring): ``upper``, or centre + π for a wide joint."""
+        return self._working()[1]
+
     @property
     def usable_lower(self) -> np.ndarray:
-        """Lowest position a motion may reach [rad]: lower + range_margin · (upper − lower)."""
-        lo, hi = np.array(self.lower), np.array(self.upper)
+        """Lowest position a motion may reach [rad]: the working range's lower end + range_margin · its width."""
+        lo, hi = self._working()
         return lo + self.range_margin * (hi - lo)
 
     @property
     def usable_upper(self) -> np.ndarray:
-        """Highest position a motion may reach [rad]: upper − range_margin · (upper − lower)."""
-        lo, hi = np.array(self.lower), np.array(self.upper)
+        """Highest position a motion may reach [rad]: the working range's upper end − range_margin · its width."""
+        lo, hi = self._working()
         return hi - self.range_margin * (hi - lo)
 
     @property
@@ -128,7 +178,7 @@ def joint_ranges(mjcf: str | Path, joint_names=None) -> tuple[np.ndarray, np.nda
     Raises RobofdiError naming the joint if it is missing or unlimited."""
     import mujoco
 
-    from robofdi.models.manipulator import resolve_asset
+    from robofdi.mjcf import resolve_asset
 
     path = resolve_asset(mjcf)
     try:
@@ -195,9 +245,22 @@ def _check_pose(name: str, q, limits: MotionLimits) -> np.ndarray:
     return q
 
 
-def _check_model(model, limits: MotionLimits) -> None:
+def _check_model(model, limits: MotionLimits) -> MotionLimits:
+    """``limits`` checked against the model, with the model's own velocity limits (``model.velocity_limit``
+    [rad/s], inf = none; e.g. a URDF's ``<limit velocity>``) added to ``max_speed`` — the tighter one wins."""
     if model.n != limits.n:
         raise RobofdiError(f"motion design: the model has {model.n} joints but the MotionLimits {limits.n}")
+    speed = getattr(model, "velocity_limit", None)
+    if speed is None:
+        return limits
+    speed = np.asarray(speed, dtype=float)
+    if speed.shape != (limits.n,) or not np.any(np.isfinite(speed)):
+        return limits
+    if limits.max_speed is not None:
+        speed = np.minimum(speed, limits.max_speed)
+        if np.array_equal(speed, limits.max_speed):
+            return limits
+    return replace(limits, max_speed=tuple(speed))
 
 
 def _min_duration(model, q0, q1, limits: MotionLimits, samples: int) -> float:
@@ -245,7 +308,7 @@ def fit_duration(model, q_start, q_end, limits: MotionLimits, *, floor: float = 
     Raises RobofdiError if gravity alone exceeds the budget somewhere on the path, or if the duration would
     exceed ``max_duration``.
     """
-    _check_model(model, limits)
+    limits = _check_model(model, limits)
     if not (np.isfinite(floor) and floor > 0):
         raise RobofdiError(f"fit_duration: field 'floor' must be > 0 s, got {floor!r}")
     if not (np.isfinite(max_duration) and max_duration >= floor):
@@ -290,10 +353,60 @@ def _generator(seed, *names: str) -> np.random.Generator:
     return seeded_rng(seed, "motion", *names)
 
 
+class _SelfCollision:
+    """Contacts of the arm's own geometry at given joint positions: MuJoCo's collision detection
+    (``mj_kinematics`` + ``mj_collision``: the file's contype/conaffinity, parent filter and excludes) on the
+    model file the belief was read from (never the running simulator); the other joints at their reference."""
+
+    def __init__(self, path: Path, joint_names: tuple):
+        import mujoco
+
+        self._mujoco = mujoco
+        self.m = mujoco.MjModel.from_xml_path(str(path))
+        m = self.m
+        self.active = bool(np.any((m.geom_contype != 0) | (m.geom_conaffinity != 0)))
+        self.d = mujoco.MjData(m)
+        self.qadr = np.array([m.jnt_qposadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j)] for j in joint_names])
+
+    def free(self, poses: np.ndarray) -> bool:
+        m, d = self.m, self.d
+        for q in poses:
+            d.qpos[:] = m.qpos0
+            d.qpos[self.qadr] = q
+            self._mujoco.mj_kinematics(m, d)
+            self._mujoco.mj_collision(m, d)
+            if d.ncon:
+                return False
+        return True
+
+
+def _self_collision(path: str, joint_names: tuple) -> _SelfCollision:
+    return _self_collision_of(path, Path(path).stat().st_mtime_ns, joint_names)
+
+
+@functools.lru_cache(maxsize=16)
+def _self_collision_of(path: str, mtime_ns: int, joint_names: tuple) -> _SelfCollision:
+    return _SelfCollision(Path(path), joint_names)          # keyed on the file's mtime: an edited file is re-read
+
+
+def _collision_free(model, q0, q1) -> bool:
+    """No self-contact on the straight joint path q0 → q1, sampled every _COLLISION_STEP rad of the largest joint
+    displacement (always true for a model without a file, or a file with no colliding geom)."""
+    path, names = getattr(model, "path", None), getattr(model, "joint_names", None)
+    if path is None or names is None:
+        return True
+    check = _self_collision(str(path), tuple(names))
+    if not check.active:
+        return True
+    steps = max(2, int(np.ceil(np.max(np.abs(q1 - q0)) / _COLLISION_STEP)) + 1)
+    return check.free(q0 + np.linspace(0.0, 1.0, steps)[:, None] * (q1 - q0))
+
+
 def _statically_fine(model, q0, q1, limits: MotionLimits, samples: int = 17) -> bool:
-    """Gravity within _GRAVITY_SHARE of the budget on the whole straight path q0 → q1."""
+    """Gravity within _GRAVITY_SHARE of the budget on the whole straight path q0 → q1, and no self-collision on it
+    (the arm's own geometry, :class:`_SelfCollision`: a motion into itself would be blocked, not tracked)."""
     _, g = _gravity_along(model, q0, q1, samples)
-    return bool(np.all(np.abs(g) <= _GRAVITY_SHARE * limits.torque_budget))
+    return bool(np.all(np.abs(g) <= _GRAVITY_SHARE * limits.torque_budget)) and _collision_free(model, q0, q1)
 
 
 def _draw_pose(model, limits: MotionLimits, rng: np.random.Generator, previous=None, what: str = "pose") -> np.ndarray:
@@ -303,8 +416,8 @@ def _draw_pose(model, limits: MotionLimits, rng: np.random.Generator, previous=N
         if _statically_fine(model, q if previous is None else previous, q, limits):
             return q
     raise RobofdiError(
-        f"motion design: found no {what} inside the usable ranges where gravity uses less than "
-        f"{_GRAVITY_SHARE:.0%} of torque_fraction × limit after {_MAX_TRIES} draws; raise 'torque_fraction'"
+        f"motion design: found no {what} inside the usable ranges, clear of self-collision, where gravity uses less "
+        f"than {_GRAVITY_SHARE:.0%} of torque_fraction × limit after {_MAX_TRIES} draws; raise 'torque_fraction'"
     )
 
 
@@ -341,7 +454,7 @@ def random_point_to_point(model, limits: MotionLimits, seed, n_segments: int = 1
     [>= 0] at every waypoint reached. seed: an int >= 0 (stream ``robofdi.seeding.rng(seed, "motion")``),
     a SeedSequence, or a numpy Generator. The same seed gives the same motion.
     """
-    _check_model(model, limits)
+    limits = _check_model(model, limits)
     if isinstance(n_segments, bool) or int(n_segments) != n_segments or n_segments < 1:
         raise RobofdiError(f"random_point_to_point: field 'n_segments' must be an integer >= 1, got {n_segments!r}")
     if not (np.isfinite(dwell) and dwell >= 0):
@@ -378,7 +491,7 @@ def _low_velocity(model, limits: MotionLimits, rng, total: float, fraction: floa
             break
     else:
         raise RobofdiError(
-            "calibration_motions: found no low-velocity sweep where gravity leaves torque for motion; "
+            "calibration_motions: found no low-velocity sweep clear of self-collision where gravity leaves torque for motion; "
             "lower 'sweep_fraction' or raise 'torque_fraction'"
         )
     need = fit_duration(model, a, b, limits, floor=1e-3)
@@ -407,9 +520,48 @@ def _far_pose(model, limits: MotionLimits, rng, chosen: list, candidates: int) -
     return best
 
 
+def _collides_at_all(model) -> bool:
+    path, names = getattr(model, "path", None), getattr(model, "joint_names", None)
+    return path is not None and names is not None and _self_collision(str(path), tuple(names)).active
+
+
+def _reach(model, limits: MotionLimits, centre: np.ndarray, i: int, end: float) -> np.ndarray:
+    """The pose farthest from ``centre`` towards joint i's ``end`` (joint i alone, in tenths of the way) whose
+    path from the centre is statically fine (:func:`_statically_fine`)."""
+    best = centre.copy()
+    for f in np.linspace(0.1, 1.0, 10):
+        q = centre.copy()
+        q[i] = centre[i] + f * (end - centre[i])
+        if not _statically_fine(model, centre, q, limits, samples=9):
+            break
+        best = q
+    return best
+
+
+def _partial_sweeps(model, limits: MotionLimits, rng, least: float = 0.5, tries: int = 40):
+    """Fallback of :func:`_top_speed` when no centre lets every joint sweep its whole usable range (self-collision
+    or gravity in the way): from the first centre (the middle of the ranges, then random ones) where every joint
+    can sweep at least ``least`` of its usable width, each joint sweeps as far as it can each way (in tenths)."""
+    lo, hi = limits.usable_lower, limits.usable_upper
+    centre = 0.5 * (lo + hi)
+    for attempt in range(tries):
+        if attempt:
+            centre = rng.uniform(lo, hi)
+        if not _statically_fine(model, centre, centre, limits):
+            continue
+        sweeps = [(_reach(model, limits, centre, i, lo[i]), _reach(model, limits, centre, i, hi[i])) for i in range(limits.n)]
+        if all(b[i] - a[i] >= least * (hi[i] - lo[i]) for i, (a, b) in enumerate(sweeps)):
+            return centre, sweeps
+    raise RobofdiError(f"calibration_motions: found no centre pose from which every joint can sweep {least:.0%} of its "
+                       f"usable range clear of self-collision with gravity leaving torque for motion after {tries} "
+                       "draws; raise 'torque_fraction' or lower 'range_margin'")
+
+
 def _top_speed(model, limits: MotionLimits, rng, factor: float) -> Sequence:
     """Each joint in turn sweeps its whole usable range and back, alone, at ``factor`` × the shortest admissible
-    duration, from a centre pose where gravity leaves torque for the motion (the others hold it)."""
+    duration, from a centre pose where gravity leaves torque for the motion (the others hold it) and nothing
+    collides; if no such centre is found (an arm folding into itself), each joint sweeps as much of its range as
+    it can, at least half (:func:`_partial_sweeps`)."""
     lo, hi = limits.usable_lower, limits.usable_upper
     centre = 0.5 * (lo + hi)
 
@@ -418,17 +570,17 @@ def _top_speed(model, limits: MotionLimits, rng, factor: float) -> Sequence:
         a[i], b[i] = lo[i], hi[i]
         return a, b
 
-    for attempt in range(_MAX_TRIES):
+    tries = _MAX_TRIES if not _collides_at_all(model) else _MAX_TRIES // 20
+    for attempt in range(tries):
         if attempt:
             centre = rng.uniform(lo, hi)
         if all(_statically_fine(model, *ends(centre, i), limits, samples=33) for i in range(limits.n)):
+            sweeps = [ends(centre, i) for i in range(limits.n)]
             break
     else:
-        raise RobofdiError("calibration_motions: found no centre pose from which every joint can sweep its usable "
-                           "range with gravity leaving torque for motion; raise 'torque_fraction'")
+        centre, sweeps = _partial_sweeps(model, limits, rng)
     path = [centre]
-    for i in range(limits.n):
-        a, b = ends(centre, i)
+    for a, b in sweeps:
         path += [a, b, centre]
     durations = [float(np.ceil(factor * fit_duration(model, p, q, limits) * 1000.0 - 1e-6) / 1000.0)
                  for p, q in zip(path[:-1], path[1:])]
@@ -452,7 +604,7 @@ def calibration_motions(model, limits: MotionLimits, seed, *, low_velocity_time:
     Each motion starts at rest at its ``start_pose``; seed (an int >= 0 or a
     SeedSequence) gives each motion its own stream ``rng(seed, "motion", "calibration", <name>)``.
     """
-    _check_model(model, limits)
+    limits = _check_model(model, limits)
     if not (np.isfinite(low_velocity_time) and low_velocity_time > 0):
         raise RobofdiError(f"calibration_motions: field 'low_velocity_time' must be > 0 s, got {low_velocity_time!r}")
     if not (np.isfinite(sweep_fraction) and 0 < sweep_fraction <= 1):

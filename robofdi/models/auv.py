@@ -276,7 +276,7 @@ class AuvModel:
     def from_mjcf(cls, mjcf: str | Path = "auv.xml", mismatch: AuvModelMismatch | None = None) -> AuvModel:
         """The belief for a vehicle file: thruster geometry from the file; parameters :data:`ODIN_LIKE` /
         :data:`ODIN_THRUSTER` with ``mismatch`` (default :class:`AuvModelMismatch`) applied."""
-        from robofdi.models.manipulator import resolve_asset
+        from robofdi.mjcf import resolve_asset
 
         m = mujoco.MjModel.from_xml_path(str(resolve_asset(mjcf)))
         names, P, D = thruster_layout(m)

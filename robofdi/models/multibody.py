@@ -14,9 +14,8 @@ import mujoco
 import numpy as np
 
 from robofdi.errors import RobofdiError
-from robofdi.models.manipulator import (
-    _JOINT_KINDS, _JOINT_TRANSMISSIONS, ManipulatorModel, ModelMismatch, actuator_kind, is_torque_motor, _name, pinocchio_model,
-)
+from robofdi.mjcf import _JOINT_KINDS, _JOINT_TRANSMISSIONS, _name, actuator_kind, is_torque_motor
+from robofdi.models.manipulator import ManipulatorModel, ModelMismatch, pinocchio_model
 
 __all__ = ["MultibodyModel", "actuation_matrix"]
 

@@ -41,9 +41,8 @@ import mujoco
 import numpy as np
 
 from robofdi.errors import RobofdiError, all_finite
-from robofdi.models.manipulator import (
-    CompiledArm, ManipulatorModel, ModelMismatch, compile_arm, sensor_channel_names,
-)
+from robofdi.mjcf import CompiledArm, compile_arm
+from robofdi.models.manipulator import ManipulatorModel, ModelMismatch, sensor_channel_names
 from robofdi.seeding import stream
 from robofdi.sims.noise import ChannelNoise
 

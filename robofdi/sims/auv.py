@@ -39,7 +39,7 @@ from robofdi.models.auv import (
     ODIN_LIKE, ODIN_THRUSTER, AuvModel, AuvModelMismatch, FossenParameters, ThrusterParameters, euler_from_rotation,
     thruster_layout,
 )
-from robofdi.models.manipulator import resolve_asset
+from robofdi.mjcf import resolve_asset
 from robofdi.seeding import stream
 from robofdi.sims.noise import ChannelNoise
 

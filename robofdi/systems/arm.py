@@ -186,9 +186,15 @@ def _check_inside_limits(name: str, record: Record, sim: ArmSimulator) -> None:
     q = record.truth_state[:, :sim.n]
     lo, hi = sim.joint_range.T
     if np.any(q < lo) or np.any(q > hi):
-        raise RobofdiError(f"calibration motion {name!r} leaves the joint range; thresholds would be meaningless")
+        i = int(np.argmax(np.maximum(lo - q, q - hi).max(axis=0)))
+        err = float(np.abs(q[:, i] - record.signals["reference"][:, i]).max())
+        raise RobofdiError(f"calibration motion {name!r} leaves the joint range of {sim.joint_names[i]!r} "
+                           f"[{lo[i]:.4g}, {hi[i]:.4g}] (reached {q[:, i].min():.4g} .. {q[:, i].max():.4g}, tracking "
+                           f"error up to {err:.3g}); thresholds would be meaningless")
     if np.any(np.abs(record.signals["u_cmd"]) >= sim.torque_limit):
-        raise RobofdiError(f"calibration motion {name!r} saturates the motors; thresholds would be meaningless")
+        i = int(np.argmax((np.abs(record.signals["u_cmd"]) / sim.torque_limit).max(axis=0)))
+        raise RobofdiError(f"calibration motion {name!r} saturates the motor of {sim.joint_names[i]!r} (limit "
+                           f"{sim.torque_limit[i]:.4g}); thresholds would be meaningless")
 
 
 def calibration_records(scenario: ArmScenario, progress: Callable[[int], None] | None = None) -> dict[str, Record]:

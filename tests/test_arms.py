@@ -1,0 +1,193 @@
+"""Any arm a user has: the fixed-base arms robosuite ships (their robot.xml, servos turned into torque motors) and
+robofdi's own URDF arm, laid out like a ROS description package. Their calibration motions must stay inside the
+joint ranges, velocity and torque limits (checked on the planned motions with the nominal model), the URDF must
+be read as ROS ships it (package:// meshes, motors from the effort limits), and a closed-loop diagnosis must find
+a torque step on the second joint."""
+from __future__ import annotations
+
+import importlib.util
+import shutil
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+from robofdi import ASSETS, RobofdiError
+from robofdi.control import MotionLimits
+from robofdi.mjcf import compile_arm, find_package_root, urdf_to_mjcf
+from robofdi.scenarios.arm import arm_scenario, calibration_trajectories
+from robofdi.sims import ArmSimulator
+from robofdi.sims.arm import full_mass_matrix
+
+URDF = ASSETS / "urdf" / "robofdi_arm4_description" / "urdf" / "robofdi_arm4.urdf"
+ROBOSUITE_ARMS = ("iiwa", "jaco", "kinova3", "panda", "ur5e", "spot_arm")
+
+
+def robosuite_arm(name: str) -> Path:
+    spec = importlib.util.find_spec("robosuite")
+    if spec is None:
+        pytest.skip("robosuite is not installed (pip install -e '.[robosuite]')")
+    return Path(spec.origin).parent / "models" / "assets" / "robots" / name / "robot.xml"
+
+
+@pytest.fixture(autouse=True)
+def _own_cache(tmp_path_factory, monkeypatch):
+    monkeypatch.setenv("ROBOFDI_CACHE", str(tmp_path_factory.getbasetemp() / "cache"))
+
+
+def urdf_joints(path: Path) -> dict[str, dict]:
+    """The URDF's movable joints read straight from the XML (type, limits), independently of robofdi."""
+    out = {}
+    for j in ET.parse(path).getroot().findall("joint"):
+        if j.get("type") == "fixed":
+            continue
+        lim = j.find("limit")
+        out[j.get("name")] = {"type": j.get("type"), **{k: float(v) for k, v in lim.attrib.items()}}
+    return out
+
+
+# ----------------------------------------------------------------------------------------------------------
+# MotionLimits: working ranges of continuous and wide joints
+# ----------------------------------------------------------------------------------------------------------
+def test_working_range_is_one_turn_for_continuous_and_wide_joints():
+    inf = np.inf
+    limits = MotionLimits.from_ranges([-inf, -2 * np.pi, 0.0, -3.14, -1.0], [inf, 2 * np.pi, 10.0, 3.14, 2.0],
+                                      [1.0] * 5, range_margin=0.0)
+    np.testing.assert_allclose(limits.working_lower, [-np.pi, -np.pi, 5 - np.pi, -3.14, -1.0])
+    np.testing.assert_allclose(limits.working_upper, [np.pi, np.pi, 5 + np.pi, 3.14, 2.0])
+    moved = MotionLimits.from_ranges([-inf, 0.0], [inf, 10.0], [1.0, 1.0], centre=(1.0, 9.5), range_margin=0.1)
+    np.testing.assert_allclose(moved.working_lower, [1 - np.pi, 10 - 2 * np.pi])      # the turn kept inside [0, 10]
+    np.testing.assert_allclose(moved.usable_upper, [1 + np.pi - 0.2 * np.pi, 10 - 0.2 * np.pi])
+    with pytest.raises(RobofdiError, match="'lower' < 'upper'.*joints \\[1\\]"):
+        MotionLimits.from_ranges([0.0, 1.0], [1.0, np.nan], [1.0, 1.0])
+    with pytest.raises(RobofdiError, match="'max_speed' must be > 0"):
+        MotionLimits.from_ranges([0.0], [1.0], [1.0], max_speed=0.0)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# URDF as ROS description packages ship it
+# ----------------------------------------------------------------------------------------------------------
+def test_urdf_arm_compiles_with_package_meshes_and_effort_motors():
+    joints = urdf_joints(URDF)
+    arm = compile_arm(URDF)
+    m = arm.model
+    assert arm.system == ET.parse(URDF).getroot().get("name")
+    assert arm.joint_names == list(joints)
+    np.testing.assert_array_equal(arm.torque_limit, [j["effort"] for j in joints.values()])
+    assert m.nmesh == 5
+    package = URDF.parents[1]
+    files = [Path(e.get("file")) for e in ET.parse(arm.path).getroot().iter("mesh")]
+    assert len(files) == 5 and all(f.parent == package / "meshes" for f in files)   # package://robofdi_arm4_description/...
+    for name, j in joints.items():
+        k = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, name)
+        if j["type"] == "continuous":
+            assert not m.jnt_limited[k]
+        else:
+            np.testing.assert_array_equal(m.jnt_range[k], [j["lower"], j["upper"]])
+    sim = ArmSimulator(URDF)
+    model = sim.nominal_model()
+    np.testing.assert_array_equal(model.velocity_limit, [j["velocity"] for j in joints.values()])
+    assert sim.physics_dt == 1e-3 and model.path == sim.path == arm.path
+
+
+def test_urdf_belief_is_read_from_the_same_file_as_the_plant():
+    sim = ArmSimulator(URDF)
+    model = sim.nominal_model()                       # no mismatch: the belief equals the file's rigid body
+    m, d = sim.model, mujoco.MjData(sim.model)
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        q = rng.uniform(-1.5, 1.5, sim.n)
+        d.qpos[:], d.qvel[:] = q, 0.0
+        mujoco.mj_forward(m, d)
+        np.testing.assert_allclose(model.mass_matrix(q), full_mass_matrix(m, d), rtol=1e-9, atol=1e-12)
+        np.testing.assert_allclose(model.gravity(q), d.qfrc_bias, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(model.damping, m.dof_damping)
+
+
+def test_package_found_through_ros_package_path(tmp_path, monkeypatch):
+    lonely = tmp_path / "robot.urdf"                  # no package.xml above it: only $ROS_PACKAGE_PATH can help
+    shutil.copy(URDF, lonely)
+    monkeypatch.delenv("ROS_PACKAGE_PATH", raising=False)
+    with pytest.raises(RobofdiError, match=r"robot\.urdf.*'robofdi_arm4_description'.*ROS_PACKAGE_PATH"):
+        urdf_to_mjcf(lonely)
+    monkeypatch.setenv("ROS_PACKAGE_PATH", str(URDF.parents[2]))
+    assert find_package_root("robofdi_arm4_description") == URDF.parents[1]
+    assert compile_arm(lonely).model.nmesh == 5
+
+
+@pytest.mark.parametrize("text, expected", [
+    ("<robot name='x'><link name='a'>", "not well-formed XML.*expected a URDF <robot>"),
+    ("<mujoco/>", "root element <mujoco>; expected <robot>"),
+    ("<robot name='x'><link name='a'><visual><geometry><mesh filename='meshes/none.stl'/></geometry></visual></link></robot>",
+     "mesh 'meshes/none.stl' resolves to .*none.stl', which does not exist"),
+])
+def test_malformed_urdf_gives_one_line_naming_the_file(tmp_path, text, expected):
+    path = tmp_path / "broken.urdf"
+    path.write_text(text)
+    with pytest.raises(RobofdiError, match=expected) as err:
+        compile_arm(path)
+    assert "broken.urdf" in str(err.value) and "\n" not in str(err.value)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Calibration motions inside every limit (planned, nominal model)
+# ----------------------------------------------------------------------------------------------------------
+def check_planned_motions(path, seed: int) -> None:
+    sc = arm_scenario(path, seed=seed, torque_motors=True)
+    sim = sc.simulator()
+    model = sc.nominal_model(sim)
+    lo, hi = sim.joint_range.T
+    speed = model.velocity_limit
+    budget = 0.6 * model.torque_limit * (1 + 1e-3)          # MotionLimits' default torque_fraction
+    motions = {"motion": sc.motion, **calibration_trajectories(sc, sim, model)}
+    for name, motion in motions.items():
+        for t in np.arange(0.0, motion.end, 0.02):
+            q, v, a = motion(t)
+            assert np.all((q >= lo) & (q <= hi)), (name, t, q)
+            assert np.all(np.abs(v) <= speed * (1 + 1e-9)), (name, t, v)
+            assert np.all(np.abs(model.inverse_dynamics(q, v, a)) <= budget), (name, t)
+
+
+@pytest.mark.parametrize("seed", [3, 5, 11])
+@pytest.mark.parametrize("arm", ROBOSUITE_ARMS)
+def test_robosuite_arm_calibration_motions_fit_the_limits(arm, seed):
+    check_planned_motions(robosuite_arm(arm), seed)
+
+
+@pytest.mark.parametrize("seed", [3, 5, 11])
+def test_urdf_arm_calibration_motions_fit_the_limits(seed):
+    check_planned_motions(URDF, seed)
+
+
+# ----------------------------------------------------------------------------------------------------------
+# Closed-loop diagnosis: a 25 % torque step on the second joint at 1 s
+# ----------------------------------------------------------------------------------------------------------
+def diagnose_second_joint_step(path, seed: int, scheme: str = "momentum") -> dict:
+    from robofdi.evaluate import summarize
+    from robofdi.scenarios.arm import calibration, run_scenario
+
+    sim = ArmSimulator(path, torque_motors=True)
+    joint = sim.joint_names[1]
+    spec = f"actuator_additive:{joint}:{0.25 * sim.torque_limit[1]:.4g}@1.0"
+    sc = arm_scenario(path, faults=[spec], seed=seed, torque_motors=True, schemes=(scheme,))
+    cal, _ = calibration(sc)
+    summary = summarize(run_scenario(sc, cal), "arm", [f.to_dict() for f in sc.faults])
+    return joint, summary["diagnosers"][scheme]
+
+
+@pytest.mark.slow
+def test_urdf_arm_diagnoses_a_step_on_its_second_joint():
+    joint, result = diagnose_second_joint_step(URDF, 5)
+    assert result["false_alarms"] == 0
+    (detection,) = result["detections"]
+    assert detection["isolated"] == joint and 0 <= detection["delay"] < 0.1
+
+
+@pytest.mark.slow
+def test_robosuite_kinova3_with_continuous_joints_diagnoses_a_step_on_its_second_joint():
+    joint, result = diagnose_second_joint_step(robosuite_arm("kinova3"), 5)
+    assert result["false_alarms"] == 0
+    (detection,) = result["detections"]
+    assert detection["isolated"] == joint and 0 <= detection["delay"] < 0.1
