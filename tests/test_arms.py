@@ -17,7 +17,7 @@ import pytest
 from robofdi import ASSETS, RobofdiError
 from robofdi.control import MotionLimits
 from robofdi.mjcf import compile_arm, find_package_root, urdf_to_mjcf
-from robofdi.scenarios.arm import arm_scenario, calibration_trajectories
+from robofdi.systems.arm import arm_scenario, calibration_trajectories
 from robofdi.sims import ArmSimulator
 from robofdi.sims.arm import full_mass_matrix
 
@@ -166,7 +166,7 @@ def test_urdf_arm_calibration_motions_fit_the_limits(seed):
 # ----------------------------------------------------------------------------------------------------------
 def diagnose_second_joint_step(path, seed: int, scheme: str = "momentum") -> dict:
     from robofdi.evaluate import summarize
-    from robofdi.scenarios.arm import calibration, run_scenario
+    from robofdi.systems.arm import calibration, run_scenario
 
     sim = ArmSimulator(path, torque_motors=True)
     joint = sim.joint_names[1]
