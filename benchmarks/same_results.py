@@ -26,7 +26,7 @@ from pathlib import Path
 
 #: summary / table fields that measure the machine, not the result
 IGNORED = {"wall_time", "created", "elapsed", "calibration_seconds", "cached", "from_cache", "robofdi_version",
-           "calibration_cached", "calibration_wall_time", "path", "run_dir"}
+           "calibration_cached", "calibration_wall_time", "path", "run_dir", "execution"}
 
 
 def _campaign_specs() -> list[str]:
@@ -38,7 +38,7 @@ def collect(out: Path, robofdi: str, runs: int, only: list[str]) -> int:
     out.mkdir(parents=True, exist_ok=True)
     env = {**os.environ, "ROBOFDI_CACHE": str(out / "cache"), "MPLBACKEND": "Agg"}
     listing = subprocess.run([robofdi, "list"], capture_output=True, text=True, env=env, check=True).stdout
-    experiments = [line.split()[0] for line in listing.splitlines() if line.strip()]
+    experiments = [line.split()[0] for line in listing.split("\n\n")[0].splitlines() if line.strip()]   # not the systems
     jobs = [("run", e) for e in experiments] + [("campaign", c) for c in _campaign_specs()]
     if only:
         jobs = [j for j in jobs if j[1] in only]
