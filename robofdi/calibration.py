@@ -8,7 +8,7 @@ robot instance and reused by every later run, experiment and campaign worker::
 * **Key.** SHA-256 of the system name, a JSON description of everything the calibration depends on, and
   :func:`code_fingerprint` — robofdi's own source — so a changed algorithm never reuses a stale calibration.
 * **Format.** One ``.npz`` file per calibration: NumPy arrays stored as arrays, the rest as a JSON tree
-  (numbers, strings, lists, tuples, sets, dicts, dataclasses and plain objects of robofdi, NumPy, SciPy and
+  (numbers, strings, lists, tuples, sets, dicts, NumPy random states, dataclasses and plain objects of robofdi, NumPy, SciPy and
   scikit-learn). No pickle: loading a cache file imports only classes of those packages and executes no code
   from the file. A value that cannot be stored is kept in memory for this process only.
 * **Folder.** ``$ROBOFDI_CACHE``, else ``~/.cache/robofdi`` (:func:`cache_dir`); :func:`clear` empties it
@@ -23,6 +23,7 @@ import hashlib
 import io
 import json
 import os
+import warnings
 import zipfile
 from collections.abc import Callable, Mapping
 from importlib import import_module
@@ -81,8 +82,10 @@ def cached(system: str, description: Mapping, compute: Callable[[], Any], *, cac
     value = compute()
     try:
         data = dumps(value)
-    except TypeError:
-        _memory[key] = value                                # not storable: this process keeps it
+    except TypeError as exc:                                # not storable: this process keeps it, and says so
+        warnings.warn(f"{exc}; the {system} calibration is kept in memory only (recomputed by the next process)",
+                      stacklevel=2)
+        _memory[key] = value
         return value, False
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -157,6 +160,10 @@ def _encode(v, arrays: dict) -> Any:
         name = f"a{len(arrays)}"
         arrays[name] = np.asarray(v)
         return {"$array": name, "scalar": isinstance(v, np.generic)}
+    if isinstance(v, np.random.RandomState):             # e.g. a trained scikit-learn network's random state
+        return {"$random_state": _encode(v.get_state(legacy=True), arrays)}
+    if isinstance(v, np.random.Generator):
+        return {"$generator": type(v.bit_generator).__name__, "state": _encode(v.bit_generator.state, arrays)}
     if isinstance(v, (list, tuple)):
         items = [_encode(x, arrays) for x in v]
         return items if type(v) is list else {"$tuple": items}
@@ -182,6 +189,14 @@ def _decode(v, arrays: dict) -> Any:
     if "$array" in v:
         a = arrays[v["$array"]]
         return a[()] if v["scalar"] else a
+    if "$random_state" in v:
+        state = np.random.RandomState()
+        state.set_state(_decode(v["$random_state"], arrays))
+        return state
+    if "$generator" in v:
+        bit_generator = getattr(np.random, v["$generator"])()
+        bit_generator.state = _decode(v["state"], arrays)
+        return np.random.Generator(bit_generator)
     if "$tuple" in v:
         return tuple(_decode(x, arrays) for x in v["$tuple"])
     if "$set" in v:

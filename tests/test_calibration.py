@@ -51,6 +51,14 @@ def test_the_format_round_trips_data_and_library_objects_exactly():
     assert back["signature"] == value["signature"] and back["empty"].shape == (0, 4)
 
 
+def test_random_states_round_trip_and_go_on_with_the_same_numbers():
+    legacy, generator = np.random.RandomState(7), np.random.default_rng(7)
+    legacy.normal(size=3), generator.normal(size=3)
+    back = calibration.loads(calibration.dumps({"legacy": legacy, "generator": generator}))
+    np.testing.assert_array_equal(back["legacy"].normal(size=5), legacy.normal(size=5))
+    np.testing.assert_array_equal(back["generator"].normal(size=5), generator.normal(size=5))
+
+
 def test_the_format_refuses_what_it_would_have_to_pickle():
     class Local:
         pass
@@ -73,7 +81,8 @@ def test_a_torn_file_is_recomputed_and_an_unstorable_value_kept_in_memory(cache)
     path.write_bytes(path.read_bytes()[:40])                            # torn
     value, from_cache = calibration.cached("probe", {"n": 1}, lambda: {"v": np.zeros(3)})
     assert not from_cache and value["v"].sum() == 0
-    closure = calibration.cached("probe", {"n": 2}, lambda: (lambda: 7))
+    with pytest.warns(UserWarning, match="kept in memory only"):
+        closure = calibration.cached("probe", {"n": 2}, lambda: (lambda: 7))
     assert closure[1] is False and calibration.cached("probe", {"n": 2}, lambda: None)[0]() == 7
     assert calibration.is_cached("probe", {"n": 1}) and not calibration.is_cached("probe", {"n": 3})
 
@@ -83,3 +92,19 @@ def test_clear_empties_the_cache(cache):
         calibration.cached("probe", {"n": n}, lambda n=n: n)
     assert calibration.clear() == 3 and calibration.entries() == []
     assert not calibration.cached("probe", {"n": 0}, lambda: 0)[1]
+
+
+def test_a_trained_hydraulic_calibration_is_stored_and_predicts_the_same(cache):
+    """The hydraulic rig's calibration holds a trained scikit-learn network (and its random state): it is stored,
+    not kept in memory, and the loaded network predicts exactly what the trained one does."""
+    from robofdi.systems.hydraulic import HydraulicScenario, calibration as hydraulic_calibration
+
+    base = HydraulicScenario("probe", duration=3.0)
+    cal, cached = hydraulic_calibration(base, 2, 1000)
+    again, cached_again = hydraulic_calibration(base, 2, 1000)
+    assert (cached, cached_again) == (False, True) and len(calibration.entries()) == 1
+    calibration._memory.clear()
+    loaded = calibration.loads(calibration.entries()[0].read_bytes())
+    x = np.random.default_rng(0).normal(size=(40, cal.nnar.regressor_.n_features_in_))
+    np.testing.assert_array_equal(loaded.nnar.predict(x), cal.nnar.predict(x))
+    np.testing.assert_array_equal(loaded.thresholds["nlar"], cal.thresholds["nlar"])
