@@ -171,11 +171,13 @@ def _encode(v, arrays: dict) -> Any:
         return {"$set": sorted((_encode(x, arrays) for x in v), key=json.dumps), "frozen": isinstance(v, frozenset)}
     if isinstance(v, dict) and type(v) is dict:
         return {"$dict": [[_encode(k, arrays), _encode(x, arrays)] for k, x in v.items()]}
-    if dataclasses.is_dataclass(v) and not isinstance(v, type):
-        state = {f.name: getattr(v, f.name) for f in dataclasses.fields(v)}
-        return {"$object": _class_path(v), "state": _encode(state, arrays), "dataclass": True}
-    if hasattr(v, "__dict__") and not isinstance(v, type):
+    if isinstance(v, type):
+        raise TypeError(f"calibration cache: cannot store the class {v.__module__}.{v.__qualname__}")
+    if hasattr(v, "__dict__"):                               # the whole instance state, as pickle would keep it
         return {"$object": _class_path(v), "state": _encode(dict(vars(v)), arrays)}
+    if dataclasses.is_dataclass(v):                          # a slotted dataclass: its fields are its state
+        state = {f.name: getattr(v, f.name) for f in dataclasses.fields(v)}
+        return {"$object": _class_path(v), "state": _encode(state, arrays), "slots": True}
     raise TypeError(f"calibration cache: cannot store a {type(v).__module__}.{type(v).__qualname__}")
 
 
@@ -213,7 +215,7 @@ def _decode(v, arrays: dict) -> Any:
             cls = getattr(cls, part)
         obj = cls.__new__(cls)
         state = _decode(v["state"], arrays)
-        if v.get("dataclass"):
+        if v.get("slots"):
             for k, x in state.items():
                 object.__setattr__(obj, k, x)
         else:

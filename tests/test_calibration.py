@@ -59,6 +59,18 @@ def test_random_states_round_trip_and_go_on_with_the_same_numbers():
     np.testing.assert_array_equal(back["generator"].normal(size=5), generator.normal(size=5))
 
 
+def test_an_object_comes_back_with_its_whole_state_and_works():
+    """Not only a dataclass's fields: what __post_init__ derived too (a decision's signature map, its counters)."""
+    from robofdi.decision import ThresholdDecision
+
+    decision = ThresholdDecision(["a", "b"], np.array([1.0, 1.0]), [Signature("f", frozenset({"a"}))], confirm=2)
+    back = calibration.loads(calibration.dumps(decision))
+    for r in ([0.1, 0.0], [2.0, 0.0], [2.0, 0.1], [2.0, 0.0]):
+        ours, theirs = decision.update(np.array(r)), back.update(np.array(r))
+        assert ours.isolated == theirs.isolated and np.array_equal(ours.alarm, theirs.alarm)
+    assert back.update(np.array([2.0, 0.0])).isolated == ("f",)
+
+
 def test_the_format_refuses_what_it_would_have_to_pickle():
     class Local:
         pass
