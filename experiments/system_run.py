@@ -15,6 +15,7 @@ from robofdi.errors import RobofdiError
 from robofdi.evaluate import summarize
 from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, write_run_folder
 from robofdi.faults import parse_fault_specs
+from robofdi.progress import Progress
 from robofdi.seeding import rng
 from robofdi.systems import fault_limit, get_system
 
@@ -41,20 +42,19 @@ def run_system(name: str, out: str | Path = "runs", seed: int = 0, progress: boo
     label = name.rsplit(":", 1)[-1] if ":" in name else name
     run_dir = prepare_run_dir(out, label, seed)
     t0 = time.perf_counter()
-    if progress:
-        print(f"{label}: calibrating (robot {key}) …", flush=True)
-    calibration, cached = system.calibrate(options, key, diagnosers)
+    progress = Progress.of(progress, label)
     mission = system.mission(options, key, rng(seed, "mission"))
     for f in faults:
         if f.onset >= mission.duration:
             raise RobofdiError(f"--fault {f.name!r}: onset {f.onset} s is not inside the run ({mission.duration:g} s)")
-    if progress:
-        print(f"{label}: running {mission.duration:g} s …", flush=True)
-    with keep_partial(run_dir):
+    with progress.stage(f"calibration (robot {key})"):
+        calibration, cached = system.calibrate(options, key, diagnosers)
+    with keep_partial(run_dir), progress.stage(f"run: {mission.duration:g} s"):
         record = system.run(options, calibration, key, mission, faults, seed, diagnosers)
     summary = summarize(record, label, [f.to_dict() for f in faults], calibration_cached=cached,
                         mission=mission.description, wall_time=round(time.perf_counter() - t0, 3))
-    write_run_folder(run_dir, record, summary, replay=False)
+    with progress.stage("run folder: record, figures"):
+        write_run_folder(run_dir, record, summary, replay=False)
     return summary, run_dir
 
 

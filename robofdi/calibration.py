@@ -77,7 +77,7 @@ def cached(system: str, description: Mapping, compute: Callable[[], Any], *, cac
     if path.is_file():
         try:
             return loads(path.read_bytes()), True
-        except (OSError, ValueError, KeyError, TypeError, zipfile.BadZipFile, json.JSONDecodeError):
+        except (OSError, ValueError, KeyError, TypeError, AttributeError, ImportError, zipfile.BadZipFile):
             pass                                            # a torn or foreign file is recomputed
     value = compute()
     try:
