@@ -40,6 +40,7 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from robofdi.checks import is_number
 from robofdi.errors import RobofdiError, all_finite
 from robofdi.mjcf import CompiledArm, compile_arm
 from robofdi.models.manipulator import ManipulatorModel, ModelMismatch, sensor_channel_names
@@ -52,12 +53,8 @@ __all__ = ["TorqueRipple", "StribeckFriction", "SensorModel", "ArmSettings", "Ar
 _RIPPLE_MODES = ("physical", "low", "off")
 
 
-def _is_number(v) -> bool:
-    return not isinstance(v, bool) and isinstance(v, (int, float, np.floating, np.integer)) and bool(np.isfinite(v))
-
-
 def _check_fraction(owner: str, name: str, v, upper: float = np.inf) -> None:
-    if not (_is_number(v) and 0 <= v <= upper):
+    if not (is_number(v) and 0 <= v <= upper):
         raise RobofdiError(f"{owner}: field {name!r} must be a finite number in [0, {upper}], got {v!r}")
 
 
@@ -316,7 +313,7 @@ class ArmSimulator:
                 raise RobofdiError(f"ArmSimulator: field {name!r} must be a {cls.__name__}, got {getattr(self, name)!r}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or self.seed < 0:
             raise RobofdiError(f"ArmSimulator: field 'seed' must be an integer >= 0, got {self.seed!r}")
-        if not (_is_number(self.payload) and self.payload >= 0):
+        if not (is_number(self.payload) and self.payload >= 0):
             raise RobofdiError(f"ArmSimulator: field 'payload' must be a finite mass >= 0 kg, got {self.payload!r}")
         arm = compile_arm(self.mjcf, self.joints, self.torque_motors)
         m = self.model = arm.model
@@ -412,7 +409,7 @@ class ArmSimulator:
         if control_dt is None:
             k = max(1, int(round(1e-3 / dt)))
             return k * dt, k
-        ok = _is_number(control_dt) and control_dt > 0
+        ok = is_number(control_dt) and control_dt > 0
         ratio = control_dt / dt if ok else np.nan
         if not (ok and round(ratio) >= 1 and abs(ratio - round(ratio)) <= 1e-9 * max(1.0, ratio)):
             raise RobofdiError(f"ArmSimulator: field 'control_dt' must be a positive integer multiple of the physics "
