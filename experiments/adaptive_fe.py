@@ -1,6 +1,6 @@
 """The adaptive-FE paper — "adaptive fault estimation observer for discrete-time linear systems" (F-16 vertical dynamics
 example). The seed's equations, model, noise table and fault profiles are lost in the extraction: this experiment
-runs the digest's clearly labelled reconstruction (spec_linear_papers.md C.2 [RECON]) on a documented vertical-plane
+runs robofdi's clearly labelled reconstruction on a documented vertical-plane
 aircraft model (AIRC, Maciejowski 1989 — not claimed to be the seed's ref. [16]). What is the paper's: the class of
 method (adaptive observer, state + fault estimates, discrete time, constant and ramp faults, a Lyapunov condition
 on an augmented error system) and the printed numbers checked structurally (the 5×5 "learning rate" matrix is

@@ -2,7 +2,7 @@
 the first fault-tolerant control — compensation of the identified actuator fault after isolation.
 
     robofdi run arm [--robot MJCF] [--fault SPEC ...] [--joints J1,J2,...] [--torque-motors]
-                    [--seed N] [--out DIR]
+                    [--drive-inertia S2] [--seed N] [--out DIR]
 
 SPEC = KIND:TARGET:MAGNITUDE@ONSET[-END][~PROFILE][;NAME=VALUE] (see :mod:`robofdi.faults.spec`), e.g.
 ``actuator_additive:joint2:20@1.0``. Without ``--fault``: a step of 25 % of the motor torque limit on a seeded
@@ -35,7 +35,7 @@ EXPERIMENTS = {"arm": "Any MJCF arm (--robot, --fault SPEC): seeded motion, all 
 HEALTH_SOURCE = "consistency"
 #: The three runs, as summary.json["recovery"] names them.
 RECOVERY_VARIANTS = ("no accommodation", "compensation", "oracle compensation")
-OPTIONS = ("robot", "faults", "joints", "torque_motors")
+OPTIONS = ("robot", "faults", "joints", "torque_motors", "drive_inertia")
 
 
 def tracking_rms(record: Record, since: float) -> float:
@@ -47,10 +47,11 @@ def tracking_rms(record: Record, since: float) -> float:
 
 
 def run(name: str = "arm", out: str | Path = "runs", seed: int = 0, progress: bool = True, replay: bool = True,
-        robot: str | Path | None = None, faults=(), joints=None, torque_motors: bool = False, **overrides):
+        robot: str | Path | None = None, faults=(), joints=None, torque_motors: bool = False,
+        drive_inertia: float = 0.0, **overrides):
     """Calibrate (cached), run without and with compensation, evaluate, plot; returns (summary, run folder)."""
     robot = robot or "arm6.xml"
-    sc = arm_scenario(robot, faults or (), seed, joints, torque_motors, **overrides)
+    sc = arm_scenario(robot, faults or (), seed, joints, torque_motors, drive_inertia, **overrides)
     run_dir = prepare_run_dir(out, sc.name, seed)
     progress = Progress.of(progress, sc.name)
     sim = sc.simulator()

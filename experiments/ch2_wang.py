@@ -31,7 +31,7 @@ SEEDS = 20
 
 
 def noise_free_checks() -> tuple[list[dict], object]:
-    """The digest's static and noise-free checks (spec_wang_nongaussian.md B.7 items 1–8)."""
+    """The digest's static and noise-free checks (the refiner example's numbers, items 1–8)."""
     m = chip_refiner()
     L, K = CHIP_REFINER["L"], CHIP_REFINER["K"]
     obs = GainFaultObserver(m, L, F_H)

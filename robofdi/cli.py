@@ -19,7 +19,8 @@ from robofdi import RobofdiError, __version__
 from robofdi.faults.spec import PROFILE_HELP
 
 # options of `robofdi run` that only some experiments take (module attribute OPTIONS lists them)
-EXPERIMENT_OPTIONS = {"robot": "--robot", "faults": "--fault", "joints": "--joints", "torque_motors": "--torque-motors"}
+EXPERIMENT_OPTIONS = {"robot": "--robot", "faults": "--fault", "joints": "--joints", "torque_motors": "--torque-motors",
+                      "drive_inertia": "--drive-inertia"}
 
 
 def _experiments() -> dict[str, tuple[str, object]]:
@@ -162,6 +163,8 @@ def build_parser() -> argparse.ArgumentParser:
     arm.add_argument("--joints", help="comma-separated arm joints (default: every joint driven by a motor)")
     arm.add_argument("--torque-motors", action="store_true",
                      help="replace the arm's position/velocity servos by torque motors (limit: their forcerange)")
+    arm.add_argument("--drive-inertia", type=float, metavar="S2",
+                     help="rotor inertia floor per N·m of torque limit [s²] for files without armature (e.g. 0.002)")
     run.set_defaults(func=_cmd_run)
     demo = sub.add_parser("demo", help="the chapter-3 actuator-fault experiment (= run ch3-actuator)")
     demo.add_argument("--out", default="runs")

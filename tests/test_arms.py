@@ -150,6 +150,22 @@ def check_planned_motions(path, seed: int) -> None:
             assert np.all(np.abs(model.inverse_dynamics(q, v, a)) <= budget), (name, t)
 
 
+def test_drive_inertia_gives_plant_and_belief_the_same_rotor_inertia_floor():
+    """The URDF has no armature; a floor of 0.002 s² per N·m of torque limit lands in the plant and the belief, and
+    a joint that already has more keeps its own (arm6's shoulder: 9 kg·m² > 0.002 · 400)."""
+    raw, floored = ArmSimulator(URDF), ArmSimulator(URDF, drive_inertia=0.002)
+    np.testing.assert_array_equal(raw.model.dof_armature, 0.0)
+    dofs = [d.dof for d in floored.drives]
+    np.testing.assert_allclose(floored.model.dof_armature[dofs], 0.002 * floored.torque_limit, rtol=1e-12)
+    np.testing.assert_allclose(floored.nominal_model().model.armature, 0.002 * floored.torque_limit, rtol=1e-12)
+    arm6 = compile_arm("arm6.xml", drive_inertia=0.002)
+    np.testing.assert_allclose(arm6.model.dof_armature, [9.0, 9.0, 2.88, 0.32, 0.32, 0.108])   # all above the floor
+    np.testing.assert_allclose(compile_arm("arm6.xml", drive_inertia=0.01).model.dof_armature[5], 0.5)
+    for bad in (-1e-3, float("nan"), True, "0.002"):
+        with pytest.raises(RobofdiError, match="drive_inertia: expected a finite armature"):
+            compile_arm(URDF, drive_inertia=bad)
+
+
 @pytest.mark.parametrize("seed", [3, 5, 11])
 @pytest.mark.parametrize("arm", ROBOSUITE_ARMS)
 def test_robosuite_arm_calibration_motions_fit_the_limits(arm, seed):

@@ -120,7 +120,7 @@ class FossenParameters:
         return self.mass * self.g
 
 
-#: The plant's hydrodynamic parameters (spec_ch4_auv.md §6.1, in FLU).
+#: The plant's hydrodynamic parameters (ODIN-like, after Antonelli's book ch. 4 and its refs.; FLU axes).
 ODIN_LIKE = FossenParameters()
 
 

@@ -5,8 +5,8 @@
     chip_refiner()     Wang, book ch. 2 (Caccavale & Villani eds., 2003), Sec. 10.2: TMP chip-refiner motor load
     f16_vertical()     the seed-004 example class: a documented F-16-class vertical-plane model (see its docstring)
 
-Every matrix is copied from the digest of the paper (../shared/specs/spec_linear_papers.md and
-spec_wang_nongaussian.md); each function says which entries are repaired and why.
+Every matrix is copied from the printed paper (Jiang & Chowdhury 2005; Guo et al. 2008; Wang, book ch. 2), repaired
+where the printed text is damaged; each function says which entries are repaired and why.
 """
 from __future__ import annotations
 
@@ -52,7 +52,7 @@ def aircraft_lateral() -> LinearModel:
     """Continuous aircraft model of Guo, Jiang, Zhang & Wang (2008) Sec. 4 (their ref. [13]).
 
     A is the digest's reconstruction (the extraction split thin-space digit groups into cells: one spurious 0 per
-    row removed — spec_linear_papers.md B.3 [RECON]); B, C, E are as printed. Labels repaired from the matrix
+    row removed, a reconstruction); B, C, E are as printed. Labels repaired from the matrix
     structure: states (u, w, q, v, p, r) [ft/s, ft/s, rad/s, ft/s, rad/s, rad/s], inputs (δ_EL, δ_ER, δ_AL, δ_AR,
     δ_R) [deg], outputs (q, p_s, r_s, α, β, w-rate) in deg / deg/s as C's 57.3 factors imply, the last one the raw w.
     E (``AIRCRAFT_DISTURBANCE``) is the model's unknown input.
@@ -104,7 +104,7 @@ def chip_refiner() -> LinearModel:
 def f16_vertical() -> LinearModel:
     """A 5-state / 3-input / 3-output vertical-plane aircraft model (the class of the seed-004 example).
 
-    The seed's own F-16 model (its ref. [16]) is lost in the extraction (spec_linear_papers.md C.1). This is the
+    The seed's own F-16 model (its ref. [16]) is lost in the extraction of the paper. This is the
     AIRC vertical-plane aircraft model of Maciejowski, *Multivariable Feedback Design* (Addison-Wesley 1989), the
     book's running example (continuous time):
     states (altitude [m], forward speed [m/s], pitch [rad], pitch rate [rad/s], vertical speed [m/s]),

@@ -132,18 +132,18 @@ def _velocity_limit(m: mujoco.MjModel, n: int, path: Path) -> np.ndarray:
 class ManipulatorModel:
     """M̂(q), n̂(q, q̇) of an n-joint arm — the nominal model of eq. (3) (Caccavale & Villani).
 
-    ``joints`` and ``torque_motors`` select the arm exactly as :class:`robofdi.sims.ArmSimulator` does. q is in
+    ``joints``, ``torque_motors`` and ``drive_inertia`` read the arm exactly as :class:`robofdi.sims.ArmSimulator` does. q is in
     the file's joint coordinates [rad or m], velocities in rad/s or m/s, torques in N·m or N. ``joint_range``
     (n, 2) [rad or m] is ±inf where a joint is unlimited; ``velocity_limit`` (n,) [rad/s or m/s] is inf where the
     file gives none (a URDF's ``<limit velocity>``, see :func:`robofdi.mjcf.urdf_to_mjcf`).
     """
 
     def __init__(self, mjcf: str | Path, mismatch: ModelMismatch | None = None,
-                 joints: Sequence[str] | None = None, torque_motors: bool = False):
+                 joints: Sequence[str] | None = None, torque_motors: bool = False, drive_inertia: float = 0.0):
         mismatch = mismatch or ModelMismatch()
         if not isinstance(mismatch, ModelMismatch):
             raise RobofdiError(f"mismatch: expected a ModelMismatch, got {type(mismatch).__name__}")
-        arm = compile_arm(mjcf, joints, torque_motors)
+        arm = compile_arm(mjcf, joints, torque_motors, drive_inertia)
         m = arm.model
         self.path = arm.path
         self.system = arm.system

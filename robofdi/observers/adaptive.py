@@ -1,5 +1,5 @@
 """Adaptive fault-estimation observer for discrete-time linear systems — the seed-004 paper's class (F-16 vertical
-dynamics example), in the digest's reconstruction (spec_linear_papers.md C.2 [RECON]: the seed's equation bodies
+dynamics example), in robofdi's reconstruction (the paper's equation bodies
 are lost in the extraction; this is the standard discrete adaptive fault-estimation observer, NOT its exact text):
 
     x̂(k+1) = A x̂(k) + B u(k) + E f̂(k) + L (y(k) − C x̂(k))

@@ -3,18 +3,19 @@ model with the chapter's experimental settings (Sec. 7) as defaults; and the con
 (:mod:`robofdi.observers.consistency`), which needs a design learnt from fault-free runs."""
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
 
 from robofdi import RobofdiError
 from robofdi.models.manipulator import ManipulatorModel
-from robofdi.observers.consistency import ConsistencyDesign, ConsistencyResidual
+from robofdi.observers.consistency import ConsistencyDesign, ConsistencyResidual, design_consistency
 from robofdi.observers.kinematic import WINDOWS
 from robofdi.observers.diagnostic import Adaptive, DiagnosticObserver, Recursive, RippleModel, TimeDelayed
 from robofdi.observers.momentum import MomentumObserver
 
-__all__ = ["ArmSchemeSettings", "SCHEMES", "BOOK_SCHEMES", "arm_schemes"]
+__all__ = ["ArmSchemeSettings", "SCHEMES", "BOOK_SCHEMES", "arm_schemes", "SchemeCalibration", "scheme_calibration"]
 
 #: The book's schemes (ch. 3) and the momentum baseline.
 BOOK_SCHEMES = ("simple", "time_delayed", "recursive", "adaptive", "position_only", "momentum")
@@ -47,13 +48,15 @@ class ArmSchemeSettings:
 
 def arm_schemes(model: ManipulatorModel, settings: ArmSchemeSettings = ArmSchemeSettings(),
                 theta0: np.ndarray | None = None, schemes=BOOK_SCHEMES,
-                consistency: ConsistencyDesign | None = None) -> dict:
+                consistency: ConsistencyDesign | None = None, designs: Mapping[str, object] | None = None) -> dict:
     """Fresh diagnosers by name (``schemes`` a subset of :data:`SCHEMES`); ``theta0`` initialises the adaptive
-    ripple model (see :func:`robofdi.observers.spectral.ripple_initial_parameters`); ``consistency`` is the
-    consistency scheme's design (:func:`robofdi.observers.consistency.design_consistency`)."""
+    ripple model (see :func:`robofdi.observers.spectral.ripple_initial_parameters`); ``designs``: the learnt
+    designs by scheme name (:class:`SchemeCalibration` ``design``), e.g. the consistency scheme's
+    (:func:`robofdi.observers.consistency.design_consistency`), which ``consistency`` may also give."""
     unknown = [s for s in schemes if s not in SCHEMES]
     if unknown:
         raise RobofdiError(f"arm_schemes: unknown scheme(s) {unknown}; expected a subset of {list(SCHEMES)}")
+    consistency = consistency if consistency is not None else (designs or {}).get("consistency")
     if "consistency" in schemes and consistency is None:
         raise RobofdiError("arm_schemes: scheme 'consistency' needs its design (field 'consistency'), learnt from "
                            "fault-free runs by robofdi.observers.consistency.design_consistency")
@@ -72,3 +75,39 @@ def arm_schemes(model: ManipulatorModel, settings: ArmSchemeSettings = ArmScheme
         "consistency": lambda: ConsistencyResidual(model, consistency),
     }
     return {name: build[name]() for name in schemes}
+
+
+@dataclass(frozen=True)
+class SchemeCalibration:
+    """How a scheme is calibrated on fault-free runs (:func:`robofdi.systems.arm.calibrate` follows it for every
+    scheme alike).
+
+    ``design``: None, or ``design(model, inputs, settings, skip)`` → the scheme's design, learnt from the design
+    runs' diagnoser inputs (then the scheme's thresholds come from held-out runs the design never saw);
+    ``thresholds``: "margin" (ρ_i = margin · max |r_i| over the runs, Caccavale & Villani Sec. 6) or
+    "false_alarm_rate" (extreme-value thresholds for ``settings.consistency_false_alarm_rate`` per hour, and
+    evidence levels for the discriminating rows: their largest fault-free value, at least 1);
+    ``confirm``: the isolation confirmation window [samples] of its decision; ``random_motions`` and ``top_speed``:
+    what the calibration suite must hold for it (random motions, half of them held out; the top-speed motion)."""
+
+    design: Callable | None = None
+    thresholds: str = "margin"
+    confirm: int = 0
+    random_motions: int = 0
+    top_speed: bool = False
+
+
+def _design_consistency(model, inputs, settings: ArmSchemeSettings, skip: int) -> ConsistencyDesign:
+    return design_consistency(model, inputs, settings.T, settings.consistency_gain, skip, settings.consistency_windows)
+
+
+def scheme_calibration(name: str, settings: ArmSchemeSettings = ArmSchemeSettings()) -> SchemeCalibration:
+    """The calibration rule of scheme ``name``: the book's margin rule for the book's schemes and the momentum
+    baseline; a learnt design, held-out thresholds for a false-alarm rate, and a confirmation window for the
+    consistency scheme (:mod:`robofdi.observers.consistency`)."""
+    if name not in SCHEMES:
+        raise RobofdiError(f"scheme_calibration: unknown scheme {name!r}; expected one of {list(SCHEMES)}")
+    if name == "consistency":
+        return SchemeCalibration(_design_consistency, "false_alarm_rate", settings.consistency_confirm,
+                                 random_motions=6, top_speed=True)
+    return SchemeCalibration()

@@ -1,5 +1,5 @@
 """Bank of extended Kalman filters on the horizontal motion — the Roby 2 scheme of Antonelli's survey (Sec. 4,
-refs. [2, 3]; digest spec_ch4_auv.md §3.1): one EKF per hypothesis (H_0 nominal, H_j thruster j's thrust replaced
+refs. [2, 3]): one EKF per hypothesis (H_0 nominal, H_j thruster j's thrust replaced
 by 0), each fed the thrust demands through the nominal thruster model (as in [19]); the hypothesis whose
 innovations stay white wins.
 

@@ -10,7 +10,7 @@ measured rows, a Kalman filter estimates x₁ from the derived measurement λ, a
 
     f̂(k−1) = E₃⁻¹ [y₂(k) − A₃ x̂(k−1) − B₃ u(k−1) − D₃ ζ̂(k−1)]                                     (28), (41)
 
-The covariances (16)–(19) of the reduced filter are garbled in the paper (spec_linear_papers.md A.2 [ERRATUM]):
+The covariances (16)–(19) of the reduced filter are garbled in the printed paper (an erratum):
 ``covariance_mode`` "as_printed" uses them literally, "swapped" exchanges the two names (T₁ maps the process noise
 of x₁, T₂ the derived measurement noise), "corrected" uses the noise vector [ω(k); v(k); v(k+1)] (cross term
 ignored). Noise-free, the estimate is exact once x̂₁ has converged, whatever the mode.
@@ -168,7 +168,7 @@ def reduced_order_covariances(design: ReducedOrderDesign, process_noise, measure
     process_noise S (n×n, or n variances) on x, measurement_noise Q (p×p, or p variances) on y, both positive
     definite (eq. (4)). ``mode``: "as_printed" (eqs. (16)–(19) literally: S̄ = T₁ΣT₁ᵀ, Q̄ = T₂ΣT₂ᵀ), "swapped"
     (the two names exchanged), "corrected" (η = [ω(k); v(k); v(k+1)], Q_w = G_wΣG_wᵀ, R_v = G_vΣG_vᵀ;
-    spec_linear_papers.md A.2 [DERIVED]).
+    derived from the paper's noise model, checked numerically).
     """
     where = "reduced_order_covariances"
     if mode not in COVARIANCE_MODES:

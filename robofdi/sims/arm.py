@@ -293,7 +293,9 @@ class ArmSimulator:
     docstring. payload [kg]: a constant point mass at the payload point. joints: the arm joints (None = every
     hinge/slide joint driven by a motor-type actuator; with torque_motors, by any joint actuator, so pass
     ``joints`` to leave a servo-driven gripper out). torque_motors: convert the arm joints' servos into motors
-    (torque limit: the servo's forcerange, else the joint's actuatorfrcrange). seed: the robot's own
+    (torque limit: the servo's forcerange, else the joint's actuatorfrcrange). drive_inertia [s²]: an armature
+    floor per unit torque limit for files without rotor inertia (:func:`robofdi.mjcf.compile_arm`; the nominal
+    model gets the same). seed: the robot's own
     randomness (ripple phases); each run's sensor noise is seeded in ``reset``.
     """
 
@@ -305,6 +307,7 @@ class ArmSimulator:
     friction: StribeckFriction = field(default_factory=StribeckFriction)
     joints: Sequence[str] | None = None
     torque_motors: bool = False
+    drive_inertia: float = 0.0
     seed: int = 0
 
     def __post_init__(self):
@@ -315,7 +318,7 @@ class ArmSimulator:
             raise RobofdiError(f"ArmSimulator: field 'seed' must be an integer >= 0, got {self.seed!r}")
         if not (is_number(self.payload) and self.payload >= 0):
             raise RobofdiError(f"ArmSimulator: field 'payload' must be a finite mass >= 0 kg, got {self.payload!r}")
-        arm = compile_arm(self.mjcf, self.joints, self.torque_motors)
+        arm = compile_arm(self.mjcf, self.joints, self.torque_motors, self.drive_inertia)
         m = self.model = arm.model
         self.path, self.system, self.drives = arm.path, arm.system, arm.drives
         self.joint_names = arm.joint_names
@@ -617,7 +620,8 @@ class ArmSimulator:
     def nominal_model(self, mismatch: ModelMismatch | None = None) -> ManipulatorModel:
         """The belief: a Pinocchio model compiled afresh from the same file (never from this simulator's model,
         so no payload or component fault leaks in), with deliberate parameter errors ``mismatch``."""
-        model = ManipulatorModel(self.path, mismatch or ModelMismatch(), self.joint_names, self.torque_motors)
+        model = ManipulatorModel(self.path, mismatch or ModelMismatch(), self.joint_names, self.torque_motors,
+                                 self.drive_inertia)
         model.check_joints(self.joint_names)
         return model
 

@@ -1,7 +1,7 @@
 """MuJoCo AUV with explicit hydrodynamics, thruster motors and navigation/telemetry sensors (the truth).
 
 MuJoCo's fluid models are off (``density = viscosity = 0``; they apply no buoyancy and an incomplete added mass —
-spec_ch4_auv.md §6.2). What MuJoCo integrates, exactly for a sphere (§6.3):
+checked against the analytic sphere). What MuJoCo integrates, exactly for a sphere:
 
 * rigid body + translational added mass (a point mass welded at the centre of buoyancy, whose rigid-body Coriolis
   term equals Fossen's C_A(ν)ν for isotropic translational added mass);

@@ -1,6 +1,6 @@
 """The aircraft of Guo, Jiang, Zhang & Wang (2008) Sec. 4 as a scenario: UIO bank + switching index under a gust.
 
-Harness (spec_linear_papers.md B.4 [HARNESS]; the paper omits these): open loop, u = 0.5 on every surface from
+Harness (robofdi's choice; the paper omits these): open loop, u = 0.5 on every surface from
 t = 0; disturbance ξ = sin(t) through E from 10 s; the right elevator (input 2, the labels erratum) locked at
 ū = 1 from 15 s — in robofdi's vocabulary a hard-over to 1 (the lock value differs from the command);
 σ = 3 (F = −3I), Q = I, γᵢ = 50, projection [−2, 2], c = (1, 1, 1), W = I; 30 s. Plant: exact ZOH at ``dt``.

@@ -29,7 +29,7 @@ import mujoco
 import numpy as np
 
 from robofdi.calibration import cached
-from robofdi.checks import check_fields, is_int
+from robofdi.checks import check_fields, is_int, is_number
 from robofdi.control import ComputedTorque, MotionLimits, calibration_motions, random_point_to_point
 from robofdi.decision import (
     STARTUP_BLANKING,
@@ -44,8 +44,7 @@ from robofdi.ftc import FaultCompensation
 from robofdi.loop import ORACLE, ClosedLoop, Diagnosis, Rates, diagnose_record, diagnoser_inputs
 from robofdi.models import ManipulatorModel, ModelMismatch
 from robofdi.observers import DiagnosticObserver
-from robofdi.observers.arm_schemes import BOOK_SCHEMES, SCHEMES, ArmSchemeSettings, arm_schemes
-from robofdi.observers.consistency import ConsistencyDesign, design_consistency
+from robofdi.observers.arm_schemes import BOOK_SCHEMES, SCHEMES, ArmSchemeSettings, arm_schemes, scheme_calibration
 from robofdi.observers.spectral import ripple_initial_parameters
 from robofdi.protocols import Mission, TargetLimit
 from robofdi.record import Record
@@ -57,9 +56,6 @@ __all__ = ["ArmScenario", "arm_scenario", "Calibration", "calibration_trajectori
            "calibration", "run_scenario", "build_loop", "check_scenario"]
 
 ACCOMMODATIONS = (None, "compensation")
-#: Random motions added to the derived calibration suite when the consistency scheme runs: the first half
-#: designs it (with the worst-case motions), the second half, never seen by the design, sets its thresholds.
-CONSISTENCY_RANDOM_MOTIONS = 6
 #: Schemes whose thresholds are also calibrated in the book's state space (reported next to the book's).
 STATE_SPACE_SCHEMES = ("time_delayed", "recursive")
 
@@ -74,8 +70,9 @@ class ArmScenario:
     record. ``rates`` None: control at the simulator's control period (≈ 1 kHz, a multiple of the physics step
     of the file), diagnosis at 500 Hz where that divides the control rate, else at the control rate.
     ``calibration``: fault-free calibration motions by name; None derives them from the robot.
-    ``accommodation``: None or "compensation" (subtract the identified actuator fault after isolation) with
-    health from ``health_source`` (a scheme name or "oracle").
+    ``drive_inertia`` [s²]: armature floor per unit torque limit, for files without rotor inertia
+    (:func:`robofdi.mjcf.compile_arm`). ``accommodation``: None or "compensation" (subtract the identified
+    actuator fault after isolation) with health from ``health_source`` (a scheme name or "oracle").
     """
 
     name: str
@@ -86,6 +83,7 @@ class ArmScenario:
     mjcf: str = "arm6.xml"
     joints: tuple | None = None
     torque_motors: bool = False
+    drive_inertia: float = 0.0
     seed: int = 0
     rates: Rates | None = None
     schemes: tuple = BOOK_SCHEMES
@@ -138,7 +136,7 @@ class ArmScenario:
         control_dt = None if self.rates is None else 1.0 / self.rates.control_hz
         return ArmSimulator(self.mjcf, joints=self.joints, control_dt=control_dt,
                             ripple=TorqueRipple(self.ripple_mode), sensors=self.sensors, payload=self.payload,
-                            seed=self.seed, torque_motors=self.torque_motors)
+                            seed=self.seed, torque_motors=self.torque_motors, drive_inertia=self.drive_inertia)
 
     def nominal_model(self, sim: ArmSimulator) -> ManipulatorModel:
         """The diagnosers' belief: the same file read into Pinocchio, with this scenario's seeded errors."""
@@ -164,14 +162,15 @@ def calibration_trajectories(scenario: ArmScenario, sim: ArmSimulator | None = N
     sim = sim or scenario.simulator()
     model = model or scenario.nominal_model(sim)
     limits = MotionLimits.from_ranges(sim.joint_range[:, 0], sim.joint_range[:, 1], model.torque_limit)
-    consistency = "consistency" in scenario.schemes
-    return calibration_motions(model, limits, scenario.seed, n_random=CONSISTENCY_RANDOM_MOTIONS if consistency else 0,
-                               top_speed=consistency)
+    rules = [scheme_calibration(s, scenario.settings) for s in scenario.schemes]
+    return calibration_motions(model, limits, scenario.seed, n_random=max((r.random_motions for r in rules), default=0),
+                               top_speed=any(r.top_speed for r in rules))
 
 
-def consistency_split(names) -> tuple[list[str], list[str]]:
-    """Calibration motions that design the consistency scheme, and those held out to set its thresholds: the
-    second half of the ``random_*`` motions (none held out when there are fewer than two)."""
+def design_split(names) -> tuple[list[str], list[str]]:
+    """Calibration motions that design the schemes with a learnt design (:class:`SchemeCalibration`), and those
+    held out to set their thresholds: the second half of the ``random_*`` motions (none held out when there are
+    fewer than two)."""
     names = list(names)
     randoms = [k for k in names if k.startswith("random_")]
     held = randoms[len(randoms) // 2:] if len(randoms) >= 2 else []
@@ -214,22 +213,23 @@ def calibration_records(scenario: ArmScenario, progress: Callable[[int], None] |
 @dataclass
 class Calibration:
     """Calibrated thresholds per scheme (residual space of the scheme), the adaptive model's θ₀, the start-up
-    blanking [samples] used for both, the consistency scheme's design (None when it does not run) and evidence
-    levels per scheme (:class:`~robofdi.decision.ThresholdDecision`; absent: the thresholds)."""
+    blanking [samples] used for both, the learnt designs by scheme (:class:`SchemeCalibration` ``design``; e.g.
+    the consistency scheme's) and evidence levels per scheme (:class:`~robofdi.decision.ThresholdDecision`;
+    absent: the thresholds)."""
 
     thresholds: dict[str, np.ndarray]
     theta0: np.ndarray
     blanking: int
     state_thresholds: dict[str, np.ndarray] = field(default_factory=dict)
-    consistency: ConsistencyDesign | None = None
+    designs: dict[str, Any] = field(default_factory=dict)
     evidence: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 def calibrate(scenario: ArmScenario, records: dict[str, Record],
               progress: Callable[[int], None] | None = None) -> Calibration:
-    """θ₀ from the first calibration run's simple residual, the consistency design (when it runs) from its design
-    motions (:func:`consistency_split`), then thresholds per scheme (blanked start-up skipped; the consistency
-    scheme's on its held-out motions)."""
+    """θ₀ from the first calibration run's simple residual, the learnt designs from the design motions
+    (:func:`design_split`), then thresholds per scheme by its rule (:func:`scheme_calibration`; blanked start-up
+    skipped; a designed scheme's on the held-out motions)."""
     sim = scenario.simulator()
     model = scenario.nominal_model(sim)
     rates = scenario.loop_rates(sim)
@@ -240,26 +240,27 @@ def calibrate(scenario: ArmScenario, records: dict[str, Record],
     simple = diagnose_record(first, Diagnosis(DiagnosticObserver(model, T, residual_space="state")), rates, progress)
     theta0 = ripple_initial_parameters(first.signals["y_meas"][::rates.ratio][skip:, :n], simple.residual[skip:, n:])
 
-    design = None
-    if "consistency" in scenario.schemes:
-        designing, held = consistency_split(records)
-        design = design_consistency(model, [diagnoser_inputs(records[k], rates) for k in designing], T,
-                                    settings.consistency_gain, skip, settings.consistency_windows)
+    rules = {name: scheme_calibration(name, settings) for name in scenario.schemes}
+    designing, held = design_split(records)
+    designs = {}
+    if any(r.design for r in rules.values()):
+        inputs = [diagnoser_inputs(records[k], rates) for k in designing]
+        designs = {name: r.design(model, inputs, settings, skip) for name, r in rules.items() if r.design}
 
     evidence = {}
 
     def thresholds(scheme_settings, names):
         out = {}
         for name in names:
-            runs = [records[k] for k in (consistency_split(records)[1] or records)] if name == "consistency" \
-                else records.values()
-            diagnoser = arm_schemes(model, scheme_settings, theta0, [name], design)[name]
+            rule = rules[name]
+            runs = [records[k] for k in (held or records)] if rule.design else records.values()
+            diagnoser = arm_schemes(model, scheme_settings, theta0, [name], designs=designs)[name]
             residuals = [diagnose_record(rec, Diagnosis(diagnoser), rates, progress).residual for rec in runs]
-            if name == "consistency":       # on motions the design never saw, for a false-alarm rate per hour
+            if rule.thresholds == "false_alarm_rate":       # on motions the design never saw, a rate per hour
                 out[name] = extreme_value_thresholds(residuals, T, settings.consistency_false_alarm_rate, skip=skip)
                 # discriminating rows: evidence from their largest fault-free value, designed (1) or held out
                 largest = np.maximum(calibrate_thresholds(residuals, 1.0, skip), 1.0)
-                chosen = np.isin(diagnoser.components, diagnoser.discriminating)
+                chosen = np.isin(diagnoser.components, getattr(diagnoser, "discriminating", ()))
                 evidence[name] = np.where(chosen, np.minimum(largest, out[name]), out[name])
             else:
                 out[name] = calibrate_thresholds(residuals, scenario.threshold_margin, skip)
@@ -267,7 +268,7 @@ def calibrate(scenario: ArmScenario, records: dict[str, Record],
 
     state_schemes = [s for s in STATE_SPACE_SCHEMES if s in scenario.schemes]
     return Calibration(thresholds(settings, scenario.schemes), theta0, skip,
-                       thresholds(replace(settings, residual_space="state"), state_schemes), design, evidence)
+                       thresholds(replace(settings, residual_space="state"), state_schemes), designs, evidence)
 
 
 def calibration_steps(scenario: ArmScenario, records_duration: float, rates: Rates,
@@ -275,14 +276,15 @@ def calibration_steps(scenario: ArmScenario, records_duration: float, rates: Rat
     """Progress units of :func:`calibration`: control ticks simulated plus ticks replayed per scheme — exact when
     the calibration ``motions`` are given (each run ticks once per sample, both ends; the consistency scheme
     replays only its held-out motions), else estimated from their total duration."""
+    designed = {s for s in scenario.schemes if scheme_calibration(s, scenario.settings).design}
     replays = 1 + len(scenario.schemes) + len([s for s in STATE_SPACE_SCHEMES if s in scenario.schemes])
     if motions is None:
         return int(records_duration * rates.control_hz) * (1 + replays)
     ticks = {k: int(round(m.end * rates.control_hz)) + 1 for k, m in motions.items()}
-    every, held = sum(ticks.values()), sum(ticks[k] for k in consistency_split(ticks)[1])
+    every, held = sum(ticks.values()), sum(ticks[k] for k in design_split(ticks)[1])
     first = next(iter(ticks.values()), 0)
     schemes = [*scenario.schemes, *(s for s in STATE_SPACE_SCHEMES if s in scenario.schemes)]
-    return every + first + sum(held or every if s == "consistency" else every for s in schemes)
+    return every + first + sum(held or every if s in designed else every for s in schemes)
 
 
 def _calibration_description(scenario: ArmScenario, sim: ArmSimulator, trajectories: Mapping) -> dict:
@@ -295,7 +297,7 @@ def _calibration_description(scenario: ArmScenario, sim: ArmSimulator, trajector
         "mismatch": repr(scenario.mismatch), "rates": repr(scenario.loop_rates(sim)), "settings": repr(scenario.settings),
         "schemes": list(scenario.schemes), "margin": scenario.threshold_margin, "blanking": scenario.startup_blanking,
         "motions": {k: repr(v) for k, v in trajectories.items()},
-    }
+    } | ({"drive_inertia": float(scenario.drive_inertia)} if scenario.drive_inertia else {})
 
 
 def calibration(scenario: ArmScenario, progress: Callable[[int], None] | None = None,
@@ -313,10 +315,10 @@ def calibration(scenario: ArmScenario, progress: Callable[[int], None] | None = 
 
 def _diagnoses(scenario: ArmScenario, model: ManipulatorModel, cal: Calibration, settings: ArmSchemeSettings) -> dict:
     diagnoses = {}
-    for name, diagnoser in arm_schemes(model, settings, cal.theta0, scenario.schemes, cal.consistency).items():
-        confirm = settings.consistency_confirm if name == "consistency" else 0
+    for name, diagnoser in arm_schemes(model, settings, cal.theta0, scenario.schemes, designs=cal.designs).items():
         decision = ThresholdDecision(diagnoser.components, cal.thresholds[name], diagnoser.signatures(),
-                                     blanking=cal.blanking, confirm=confirm, evidence=cal.evidence.get(name))
+                                     blanking=cal.blanking, confirm=scheme_calibration(name, settings).confirm,
+                                     evidence=cal.evidence.get(name))
         diagnoses[name] = Diagnosis(diagnoser, decision)
     return diagnoses
 
@@ -376,7 +378,7 @@ def _default_fault(joint_names, torque_limit: np.ndarray, motion_end: float, see
 
 
 def arm_scenario(robot: str | Path = "arm6.xml", faults=(), seed: int = 0, joints=None, torque_motors: bool = False,
-                 **overrides) -> ArmScenario:
+                 drive_inertia: float = 0.0, **overrides) -> ArmScenario:
     """Any MJCF arm on a seeded point-to-point motion inside its joint ranges and torque limits, faults injected
     online. ``faults``: Fault objects or SPEC strings (:mod:`robofdi.faults.spec`); none = a step of 25 % of the
     torque limit on a seeded random joint at 40 % of the motion. Every scheme runs (the book's, the momentum
@@ -386,14 +388,14 @@ def arm_scenario(robot: str | Path = "arm6.xml", faults=(), seed: int = 0, joint
     faults = tuple(faults)
     if faults and all(isinstance(f, str) for f in faults):
         faults = parse_fault_specs(faults)
-    sim = ArmSimulator(robot, joints=joints, torque_motors=torque_motors, seed=seed)
+    sim = ArmSimulator(robot, joints=joints, torque_motors=torque_motors, drive_inertia=drive_inertia, seed=seed)
     model = sim.nominal_model()          # the catalogue model plans the motion (belief, never the plant)
     limits = MotionLimits.from_ranges(sim.joint_range[:, 0], sim.joint_range[:, 1], model.torque_limit)
     motion = random_point_to_point(model, limits, seed)
     if not faults:
         faults = (_default_fault(sim.joint_names, model.torque_limit, motion.end, seed),)
     sc = ArmScenario(f"arm-{sim.system}", motion=motion, faults=faults, mjcf=str(robot), joints=tuple(sim.joint_names),
-                     torque_motors=torque_motors, seed=seed, **overrides)
+                     torque_motors=torque_motors, drive_inertia=drive_inertia, seed=seed, **overrides)
     check_scenario(sc)
     return sc
 
@@ -403,7 +405,7 @@ def arm_scenario(robot: str | Path = "arm6.xml", faults=(), seed: int = 0, joint
 class ArmOptions:
     """The ``[system]`` table of an arm campaign.
 
-    robot: MJCF file (default the shipped arm6.xml); joints / torque_motors: as :class:`ArmScenario`;
+    robot: MJCF file (default the shipped arm6.xml); joints / torque_motors / drive_inertia: as :class:`ArmScenario`;
     robot_seeds: one robot instance per seed (ripple phases, nominal-model errors), one calibration each, runs
     cycle through them; speed: "fast" | "normal" | "slow" or a factor >= 1 (:data:`robofdi.control.SPEEDS`);
     segments: point-to-point segments per motion; tail: time after the motion's end [s]; injection: "online" |
@@ -412,6 +414,7 @@ class ArmOptions:
     robot: str = "arm6.xml"
     joints: tuple | None = None
     torque_motors: bool = False
+    drive_inertia: float = 0.0
     robot_seeds: tuple = (0,)
     speed: Any = "normal"
     segments: int = 1
@@ -433,16 +436,17 @@ class ArmOptions:
             ("tail", isinstance(self.tail, (int, float)) and 0 <= self.tail < 60, "a time in [0, 60) s"),
             ("injection", self.injection in ("online", "offline"), "'online' or 'offline'"),
             ("torque_motors", isinstance(self.torque_motors, bool), "true or false"),
+            ("drive_inertia", is_number(self.drive_inertia) and self.drive_inertia >= 0, "a number >= 0 [s²]"),
         ])
 
 
 @functools.lru_cache(maxsize=8)
-def _arm(robot: str, joints, torque_motors: bool):
+def _arm(robot: str, joints, torque_motors: bool, drive_inertia: float):
     """(simulator, catalogue model, motion limits) of a robot, once per process (the catalogue model plans motions)."""
     from robofdi.control import MotionLimits
     from robofdi.sims import ArmSimulator
 
-    sim = ArmSimulator(robot, joints=joints, torque_motors=torque_motors)
+    sim = ArmSimulator(robot, joints=joints, torque_motors=torque_motors, drive_inertia=drive_inertia)
     model = sim.nominal_model()
     return sim, model, MotionLimits.from_ranges(sim.joint_range[:, 0], sim.joint_range[:, 1], model.torque_limit)
 
@@ -457,7 +461,7 @@ class ArmSystem(RobotInstances):
 
     def _base(self, options: ArmOptions):
         try:
-            return _arm(options.robot, options.joints, options.torque_motors)
+            return _arm(options.robot, options.joints, options.torque_motors, options.drive_inertia)
         except RobofdiError as exc:
             raise RobofdiError(f"system.robot: {exc}") from None
 
@@ -486,7 +490,8 @@ class ArmSystem(RobotInstances):
             motion = self.mission(options, key, rng(key, "campaign", "calibration-placeholder")).plan
         return ArmScenario("campaign-arm", motion=motion, duration=duration, faults=tuple(faults),
                            injection=options.injection, mjcf=options.robot, joints=tuple(sim.joint_names),
-                           torque_motors=options.torque_motors, seed=int(key), schemes=tuple(diagnosers))
+                           torque_motors=options.torque_motors, drive_inertia=options.drive_inertia, seed=int(key),
+                           schemes=tuple(diagnosers))
 
     def calibrate(self, options, key, diagnosers):
 

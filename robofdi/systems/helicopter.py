@@ -1,6 +1,6 @@
 """The helicopter of Jiang & Chowdhury (2005) Sec. V as a closed-loop scenario: configuration → calibrated loop → run.
 
-Harness (spec_linear_papers.md A.7 [HARNESS]; the paper gives no controller, initial state or reference): LQR on
+Harness (robofdi's choice; the paper gives no controller, initial state or reference): LQR on
 (A, B) with Q = I₄, R = I₂, fed by the fault-decoupled state estimate x̂ = col(x̂₁, y) of a
 :class:`KalmanFaultEstimator`; u = −K x̂ + [sin πt, cos 0.6πt]; x(0) = [1, 0.5, 0, 0]; 10 s at T = 0.01 s.
 Faults: r₁ = 0.4 on the collective from 4 s, r₂ = 0.5 + 0.3 sin πt on the cyclic from 2 s (eq. (29), E = −B).

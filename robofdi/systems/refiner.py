@@ -8,7 +8,7 @@ its own loop with the engine's parts: the :class:`FaultInjector` (faults and lab
 identification (the diagnoser is told u(k), the input of its own sample), the :class:`GainCompensation`
 accommodation fed by the diagnosed health one sample late, and a :class:`~robofdi.loop.Recorder` → :class:`Record`.
 
-Numbers (spec_wang_nongaussian.md B.2–B.4): f_H = 10, K = [0.175 0.245], L = [0.533; 0.467], r = 30, N = 10,
+Numbers (Wang, book ch. 2, the refiner example): f_H = 10, K = [0.175 0.245], L = [0.533; 0.467], r = 30, N = 10,
 λ = 8; step fault f = 8 on 50 ≤ k < 100; drift ±0.005 f_H per sample on 200 ≤ k < 300 (peak 12.5 at k = 249).
 [HARNESS] 400 samples, x₀ = 0; ω, μ truncated Gaussian (±3σ) of std ``sigma`` (the chapter gives none).
 """
