@@ -7,11 +7,12 @@ from the joints' effort limits), turned into one MJCF file that both sides then 
 """
 from __future__ import annotations
 
+import copy
 import hashlib
 import os
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import mujoco
@@ -276,6 +277,30 @@ def compile_arm(mjcf: str | Path, joints: Sequence[str] | None = None, torque_mo
             or not (np.isfinite(drive_inertia) and drive_inertia >= 0):
         raise RobofdiError(f"drive_inertia: expected a finite armature per unit torque limit >= 0 s², "
                            f"got {drive_inertia!r}")
+    try:
+        key = (str(path.resolve()), path.stat().st_mtime_ns, path.stat().st_size,
+               None if joints is None else tuple(joints), torque_motors, float(drive_inertia))
+        hash(key)
+    except (OSError, TypeError):
+        key = None                               # not cacheable (e.g. unhashable joints): compiled, then checked
+    if key is None:
+        return _compile_arm(path, joints, torque_motors, float(drive_inertia))
+    template = _COMPILED.get(key)
+    if template is None:
+        template = _compile_arm(path, joints, torque_motors, float(drive_inertia))
+        if len(_COMPILED) >= _COMPILED_SIZE:
+            _COMPILED.pop(next(iter(_COMPILED)))
+        _COMPILED[key] = template
+    return replace(template, model=copy.copy(template.model))     # each caller its own MjModel (faults change it)
+
+
+#: Compiled arms by (file, its mtime and size, joints, torque_motors, drive_inertia): a file is compiled once per
+#: process (a robosuite arm with meshes takes seconds), and every caller gets its own copy of the MjModel.
+_COMPILED: dict[tuple, CompiledArm] = {}
+_COMPILED_SIZE = 16
+
+
+def _compile_arm(path: Path, joints, torque_motors: bool, drive_inertia: float) -> CompiledArm:
     try:
         spec = mujoco.MjSpec.from_file(str(path))
     except Exception as exc:
