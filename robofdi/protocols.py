@@ -22,7 +22,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 __all__ = ["Simulator", "Controller", "Reference", "Accommodation", "Diagnoser", "Decision", "Identifier", "Health",
-           "System", "TargetLimit", "Mission"]
+           "System", "TargetLimit", "Mission", "Parts"]
 
 
 @runtime_checkable
@@ -166,6 +166,45 @@ class Mission:
     description: dict = field(default_factory=dict)
 
 
+@dataclass
+class Parts:
+    """One run's parts, built once by :meth:`System.build`: ``loop`` wires them — the plant (truth), the controller,
+    the diagnoses (each diagnoser, built on the nominal model, with its decision) and the accommodation
+    (:class:`robofdi.loop.ClosedLoop`, or an adapter's loop with the same ``run`` signature) — and the rest says
+    how this run goes: ``duration`` [s], ``initial_state`` (None: the plant's default), ``seed``, ``run_key``,
+    ``scenario`` label and record ``meta``. ``run()`` closes the loop → Record; inspect or change the parts first
+    (e.g. add a diagnosis of your own to ``diagnoses``)."""
+
+    loop: Any
+    duration: float
+    initial_state: Any = None
+    seed: int = 0
+    run_key: str = "campaign"
+    scenario: str = ""
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def simulator(self) -> Any:
+        return getattr(self.loop, "simulator", None)
+
+    @property
+    def controller(self) -> Any:
+        return getattr(self.loop, "controller", None)
+
+    @property
+    def diagnoses(self) -> Mapping[str, Any]:
+        return getattr(self.loop, "diagnoses", {})
+
+    @property
+    def accommodation(self) -> Any:
+        return getattr(self.loop, "accommodation", None)
+
+    def run(self, progress=None) -> Any:
+        """Simulate the run → :class:`robofdi.record.Record` (``progress``: called with the ticks done)."""
+        return self.loop.run(self.duration, self.initial_state, seed=self.seed, run_key=self.run_key,
+                             scenario=self.scenario, meta=dict(self.meta or {}), progress=progress)
+
+
 @runtime_checkable
 class System(Protocol):
     """A plant family as experiments, campaigns and the command line use it (:mod:`robofdi.systems`).
@@ -173,7 +212,8 @@ class System(Protocol):
     ``options_type``: the system's configuration, a validated frozen dataclass (a campaign spec's ``[system]``
     table). Every function is deterministic in its arguments: a run's result depends only on (options,
     calibration, calibration key, mission, faults, run seed), so the same seed gives the same record wherever it
-    runs. Truth stays inside ``run``: the diagnosers it builds get nominal models, commands and measurements.
+    runs. Truth stays inside the parts ``build`` wires: the diagnosers get nominal models, commands and
+    measurements.
     """
 
     name: str
@@ -194,5 +234,10 @@ class System(Protocol):
     def mission(self, options, key, generator: np.random.Generator) -> Mission:
         """A mission drawn from ``generator`` (the campaign face)."""
 
+    def build(self, options, calibration, key, mission: Mission, faults, seed: int, diagnosers) -> Parts:
+        """The parts of one closed-loop run of ``mission`` with ``faults`` and every named diagnoser online, each
+        built once (:class:`Parts`); nothing is simulated yet."""
+
     def run(self, options, calibration, key, mission: Mission, faults, seed: int, diagnosers) -> Any:
-        """One closed-loop run of ``mission`` with ``faults``, every named diagnoser online → a Record."""
+        """One closed-loop run → a Record: ``build(...).run()`` (:class:`robofdi.systems.RobotInstances` says so
+        once for every system that derives from it)."""

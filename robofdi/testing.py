@@ -47,7 +47,7 @@ import numpy as np
 
 from robofdi.errors import RobofdiError
 from robofdi.loop import protocol_members
-from robofdi.protocols import Decision, Diagnoser, Simulator, System, TargetLimit
+from robofdi.protocols import Decision, Diagnoser, Parts, Simulator, System, TargetLimit
 
 __all__ = ["ConformanceError", "check_simulator", "check_diagnoser", "check_decision", "check_system",
            "find_simulators"]
@@ -494,8 +494,10 @@ def check_record(rec, part: str = "record") -> None:
 def check_system(system, options=None, seed: int = 0, faults=()) -> None:
     """Check a :class:`~robofdi.protocols.System` on ``options`` (default: its options type's defaults — pass
     cheap ones): the protocol, fault targets with limits, a calibration, a mission drawn twice from the same seed
-    alike, and one run (``faults``, default none) twice with ``seed``: identical record arrays, units and
-    columns on every dataset. Calibration goes through the system's own (cached) calibration."""
+    alike, its built parts (:class:`~robofdi.protocols.Parts`: a loop to run, a diagnosis per diagnoser), and one
+    run (``faults``, default none) twice with ``seed`` — the built parts run, and ``run`` on the second mission:
+    identical record arrays, units and columns on every dataset. Calibration goes through the system's own
+    (cached) calibration."""
     part = f"system {getattr(system, 'name', type(system).__name__)}"
     _protocol(part, system, System)
     options = system.options_type() if options is None else options
@@ -518,7 +520,15 @@ def check_system(system, options=None, seed: int = 0, faults=()) -> None:
     m2 = system.mission(options, key, np.random.default_rng(seed))
     if not _same(m1.description, m2.description) or m1.duration != m2.duration:
         _fail(part, "same seed", "two missions drawn from the same seed differ")
-    runs = [system.run(options, calibration, key, m, list(faults), seed, names) for m in (m1, m2)]
+    parts = system.build(options, calibration, key, m1, list(faults), seed, names)
+    if not isinstance(parts, Parts):
+        _fail(part, "protocol", f"build must return robofdi.protocols.Parts, got {type(parts).__name__}")
+    if not callable(getattr(parts.loop, "run", None)):
+        _fail(part, "protocol", "build: Parts.loop has no run method")
+    missing = [n for n in names if n not in parts.diagnoses]
+    if parts.diagnoses and missing:
+        _fail(part, "protocol", f"build: the parts hold no diagnosis for {missing}")
+    runs = [parts.run(), system.run(options, calibration, key, m2, list(faults), seed, names)]
     for rec in runs:
         check_record(rec, part)
         missing = [n for n in names if n not in rec.diagnosers]

@@ -12,8 +12,14 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 @pytest.fixture(scope="session", autouse=True)
 def _calibration_cache(tmp_path_factory):
     """The suite's calibrations are cached in a folder of its own (never the user's ~/.cache/robofdi); CLI
-    subprocesses inherit it."""
-    os.environ["ROBOFDI_CACHE"] = str(tmp_path_factory.mktemp("robofdi-cache"))
+    subprocesses inherit it. Parallel workers (``pytest -n``, pytest-xdist) share one folder, so a calibration
+    is computed once per suite run (the cache's writes are atomic; tests that need a cold cache use their own)."""
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        folder = tmp_path_factory.getbasetemp().parent / "robofdi-cache"
+        folder.mkdir(exist_ok=True)
+    else:
+        folder = tmp_path_factory.mktemp("robofdi-cache")
+    os.environ["ROBOFDI_CACHE"] = str(folder)
 
 
 @pytest.fixture(scope="session")

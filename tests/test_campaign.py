@@ -66,8 +66,9 @@ def _same(a: pd.DataFrame, b: pd.DataFrame) -> None:
     pd.testing.assert_frame_equal(a.drop(columns="wall_time"), b.drop(columns="wall_time"))
 
 
-def test_arm_table_is_identical_in_process_on_two_workers_and_on_a_dask_cluster(tmp_path):
+def test_arm_table_is_identical_in_process_on_two_workers_and_on_a_dask_cluster(tmp_path, monkeypatch):
     distributed = pytest.importorskip("dask.distributed")
+    monkeypatch.setenv("ROBOFDI_CACHE", str(tmp_path / "cache"))      # a cold cache of its own: calibrated once here
     spec = load_spec(ARM)
     one = run_campaign(spec, tmp_path / "w1", workers=1, progress=False)
     two = run_campaign(spec, tmp_path / "w2", workers=2, progress=False)

@@ -22,7 +22,7 @@ from robofdi.checks import check_fields, check_robot_seeds, is_positive
 from robofdi.decision import Signature, ThresholdDecision, calibrate_thresholds
 from robofdi.loop import ClosedLoop, Diagnosis
 from robofdi.observers.residual import Residual, check_measurement
-from robofdi.protocols import Mission, TargetLimit
+from robofdi.protocols import Mission, Parts, TargetLimit
 from robofdi.seeding import rng
 from robofdi.systems import register_system
 
@@ -155,9 +155,11 @@ class TankSystem:
         setpoint = float(generator.uniform(5, 15))
         return Mission(float(options.duration), setpoint, {"setpoint": setpoint, "unit": "K"})
 
+    def build(self, options, calibration, key, mission, faults, seed, diagnosers):
+        return Parts(self._loop(mission.plan, faults, calibration), mission.duration, None, seed, "campaign", "toy-tank")
+
     def run(self, options, calibration, key, mission, faults, seed, diagnosers):
-        return self._loop(mission.plan, faults, calibration).run(mission.duration, seed=seed, run_key="campaign",
-                                                                  scenario="toy-tank")
+        return self.build(options, calibration, key, mission, faults, seed, diagnosers).run()
 
 
 def _robofdi(*args, cwd):

@@ -14,6 +14,7 @@ forward-Euler discretisation).
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
@@ -34,7 +35,7 @@ from robofdi.observers.residual import Residual, check_measurement
 from robofdi.record import FaultLabels
 from robofdi.seeding import rng
 
-__all__ = ["suite_model", "cartpole_measurement", "CartpoleDiagnoser", "ExcitationPolicy", "run_episode",
+__all__ = ["CartpoleLoop", "suite_model", "cartpole_measurement", "CartpoleDiagnoser", "ExcitationPolicy", "run_episode",
            "calibrate_cartpole", "cartpole_record", "MEASUREMENTS"]
 
 os.environ.setdefault("MUJOCO_GL", "egl")
@@ -186,3 +187,26 @@ def cartpole_record(faults, seed: int, diagnoser: CartpoleDiagnoser, decision: T
                            "signals/u_cmd": env.actuators, "signals/y_meas": list(MEASUREMENTS)},
                   units={"truth/state": ["m", "rad", "m/s", "rad/s"], "truth/u_applied": ["1"],
                          "signals/u_cmd": ["1"], "signals/y_meas": list(MEASUREMENT_UNITS)})
+
+
+@dataclass
+class CartpoleLoop:
+    """One cartpole episode, built (the loop of :meth:`robofdi.protocols.System.build`): ``diagnoser`` with its
+    ``decision`` under ``name``, the ``faults``, ``steps`` control steps of 10 ms, the policy's seed. ``run`` has
+    :meth:`robofdi.loop.ClosedLoop.run`'s signature; the episode's length is ``steps`` (``duration`` is not used)."""
+
+    diagnoser: CartpoleDiagnoser
+    decision: ThresholdDecision
+    faults: tuple = ()
+    steps: int = 200
+    policy_seed: int | None = None
+    name: str = "momentum"
+
+    @property
+    def diagnoses(self) -> dict:
+        return {self.name: Diagnosis(self.diagnoser, self.decision)}
+
+    def run(self, duration=None, initial_state=None, *, seed: int = 0, run_key: str = "campaign",
+            scenario: str = "dm_control-cartpole", meta: dict | None = None, progress=None):
+        return cartpole_record(self.faults, seed, self.diagnoser, self.decision, self.steps, self.policy_seed,
+                               self.name, scenario)

@@ -44,7 +44,7 @@ from robofdi.loop import Diagnosis, DiagnosisBank, Rates
 from robofdi.observers.residual import Residual
 from robofdi.seeding import rng
 
-__all__ = ["arm_model", "RobotDiagnoser", "LossIdentification", "substep_rates", "LiftScript", "make_lift",
+__all__ = ["LiftLoop", "arm_model", "RobotDiagnoser", "LossIdentification", "substep_rates", "LiftScript", "make_lift",
            "run_lift_episode", "Episode",
            "LiftCalibration", "calibrate_lift", "lift_calibration", "run_lift", "DIAGNOSERS", "BELIEF", "EPISODE_STEPS",
            "PHASES", "CALIBRATION_SEEDS"]
@@ -365,3 +365,30 @@ def run_lift(calibration: LiftCalibration, faults=(), seed: int = 0, accommodati
         if env is None:
             raw.close()
     return ep, record
+
+
+@dataclass
+class LiftLoop:
+    """One scripted Lift episode, built (the loop of :meth:`robofdi.protocols.System.build`): the calibrated
+    diagnosers, ``faults``, the accommodation switch and its health source, the robosuite ``env`` (the simulator) to
+    reuse, ``steps`` and the script's seed. ``run`` has :meth:`robofdi.loop.ClosedLoop.run`'s signature and
+    returns :func:`run_lift`'s record (the episode's length is ``steps``; ``duration`` is not used)."""
+
+    calibration: LiftCalibration
+    faults: tuple = ()
+    accommodation: bool = False
+    health_source: str = "momentum"
+    diagnosers: tuple | None = None
+    env: object = None
+    steps: int = EPISODE_STEPS
+    policy_seed: int | None = None
+
+    @property
+    def simulator(self):
+        return self.env
+
+    def run(self, duration=None, initial_state=None, *, seed: int = 0, run_key: str = "campaign",
+            scenario: str = "robosuite-lift", meta: dict | None = None, progress=None):
+        return run_lift(self.calibration, self.faults, seed, accommodation=self.accommodation,
+                        health_source=self.health_source, diagnosers=self.diagnosers, env=self.env, steps=self.steps,
+                        scenario=scenario, meta=meta, policy_seed=self.policy_seed)[1]

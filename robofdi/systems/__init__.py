@@ -34,10 +34,10 @@ from types import ModuleType
 
 from robofdi.errors import RobofdiError
 from robofdi.faults import FAULT_KINDS
-from robofdi.protocols import Mission, System, TargetLimit
+from robofdi.protocols import Mission, Parts, System, TargetLimit
 
 __all__ = ["SYSTEMS", "RobotInstances", "register_system", "get_system", "system_names", "fault_limit", "TargetLimit", "Mission",
-           "System", "ENTRY_POINT_GROUP"]
+           "Parts", "System", "ENTRY_POINT_GROUP"]
 
 #: The entry-point group through which an installed package adds systems.
 ENTRY_POINT_GROUP = "robofdi.systems"
@@ -49,10 +49,14 @@ _discovered = False
 
 class RobotInstances:
     """Base of a system whose options have ``robot_seeds``: one robot instance (its seeded plant effects and
-    nominal-model errors) and one calibration per seed; a campaign's runs cycle through them."""
+    nominal-model errors) and one calibration per seed; a campaign's runs cycle through them. A run is its
+    :meth:`~robofdi.protocols.System.build`'s parts run."""
 
     def calibration_keys(self, options) -> list:
         return list(options.robot_seeds)
+
+    def run(self, options, calibration, key, mission, faults, seed, diagnosers):
+        return self.build(options, calibration, key, mission, faults, seed, diagnosers).run()
 
 
 def register_system(system):
@@ -61,7 +65,7 @@ def register_system(system):
     instance = system() if isinstance(system, type) else system
     if not isinstance(instance, System):
         missing = [a for a in ("name", "options_type", "diagnosers", "targets", "calibration_keys", "calibrate",
-                               "mission", "run") if not hasattr(instance, a)]
+                               "mission", "build", "run") if not hasattr(instance, a)]
         raise RobofdiError(f"register_system: {system!r} does not implement the System protocol (missing: "
                            f"{', '.join(missing)})")
     SYSTEMS[instance.name] = instance

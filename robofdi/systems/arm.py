@@ -46,7 +46,7 @@ from robofdi.models import ManipulatorModel, ModelMismatch
 from robofdi.observers import DiagnosticObserver
 from robofdi.observers.arm_schemes import BOOK_SCHEMES, SCHEMES, ArmSchemeSettings, arm_schemes, scheme_calibration
 from robofdi.observers.spectral import ripple_initial_parameters
-from robofdi.protocols import Mission, TargetLimit
+from robofdi.protocols import Mission, Parts, TargetLimit
 from robofdi.record import Record
 from robofdi.seeding import rng
 from robofdi.sims import ArmSimulator, SensorModel, TorqueRipple
@@ -506,8 +506,7 @@ class ArmSystem(RobotInstances):
         return Mission(float(motion.end) + float(options.tail), motion,
                        {"start_pose": [round(float(v), 6) for v in start], "motion_end": float(motion.end)})
 
-    def run(self, options, calibration, key, mission, faults, seed, diagnosers):
-
+    def build(self, options, calibration, key, mission, faults, seed, diagnosers):
         sc = self._scenario(options, key, diagnosers, mission.plan, mission.duration, faults)
-        return build_loop(sc, calibration).run(sc.run_duration, sc.start_pose, seed=seed, run_key="campaign",
-                                               scenario=sc.name, meta={"robot_seed": int(key)})
+        return Parts(build_loop(sc, calibration), sc.run_duration, sc.start_pose, seed, "campaign", sc.name,
+                     {"robot_seed": int(key)})

@@ -46,7 +46,7 @@ from robofdi.observers.auv import (
 )
 from robofdi.observers.ekf_bank import EkfBank, calibrate_process_noise
 from robofdi.protocols import Mission as CampaignMission
-from robofdi.protocols import TargetLimit
+from robofdi.protocols import Parts, TargetLimit
 from robofdi.record import Record
 from robofdi.seeding import rng
 from robofdi.sims.auv import AuvSensors, AuvSimulator
@@ -438,12 +438,16 @@ def run_scenario(scenario: AuvScenario, cal: AuvCalibration, progress: Callable[
                  run_key: str = "run") -> Record:
     """One run → its record (:func:`robofdi.evaluate.summarize` gives its summary). The same seed and run_key give
     the same noise whatever the variant, so variants differ only by their accommodation."""
-    loop = build_loop(scenario, cal)
+    return parts(scenario, cal, run_key).run(progress)
+
+
+def parts(scenario: AuvScenario, cal: AuvCalibration, run_key: str = "run") -> Parts:
+    """The scenario's run, built (:class:`~robofdi.protocols.Parts`): its closed loop (:func:`build_loop`), start
+    pose, seed and record metadata."""
     meta = {"mjcf": scenario.mjcf, "variant": scenario.variant, "allocation": scenario.allocation,
             "current": list(scenario.current), "mission": scenario.mission, "thrust_limit": scenario.thrust_limit}
-    record = loop.run(scenario.duration, scenario.start_pose, seed=scenario.seed, run_key=run_key,
-                      scenario=scenario.name, meta=meta, progress=progress)
-    return record
+    return Parts(build_loop(scenario, cal), scenario.duration, scenario.start_pose, scenario.seed, run_key,
+                 scenario.name, meta)
 
 
 def with_variant(scenario: AuvScenario, variant: str) -> AuvScenario:
@@ -531,7 +535,5 @@ class AuvSystem(RobotInstances):
         seed = int(generator.integers(2**31))
         return CampaignMission(float(options.duration), draw_mission(seed, float(options.duration)), {"mission_seed": seed})
 
-    def run(self, options, calibration, key, mission, faults, seed, diagnosers):
-
-        sc = options.scenario(seed, diagnosers, mission.plan, faults)
-        return run_scenario(sc, calibration, run_key="campaign")
+    def build(self, options, calibration, key, mission, faults, seed, diagnosers):
+        return parts(options.scenario(seed, diagnosers, mission.plan, faults), calibration, "campaign")

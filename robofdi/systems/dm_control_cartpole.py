@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from robofdi.adapters import adapter
 from robofdi.calibration import cached
 from robofdi.checks import check_fields, check_robot_seeds, is_int
-from robofdi.protocols import Mission, TargetLimit
+from robofdi.protocols import Mission, Parts, TargetLimit
 from robofdi.systems import RobotInstances, register_system
 
 __all__ = []
@@ -71,7 +71,7 @@ class CartpoleSystem(RobotInstances):
         policy = int(generator.integers(2**31))
         return Mission(options.steps * 0.01, policy, {"policy_seed": policy})
 
-    def run(self, options, calibration, key, mission, faults, seed, diagnosers):
+    def build(self, options, calibration, key, mission, faults, seed, diagnosers):
         dc, diagnoser = self._diagnoser(options, key)
-        return dc.cartpole_record(faults, seed, diagnoser, calibration, options.steps, policy_seed=mission.plan,
-                                  scenario="campaign-dm_control-cartpole")
+        loop = dc.CartpoleLoop(diagnoser, calibration, tuple(faults), options.steps, policy_seed=mission.plan)
+        return Parts(loop, mission.duration, None, seed, "campaign", "campaign-dm_control-cartpole")

@@ -34,7 +34,7 @@ from robofdi.loop import ClosedLoop, Diagnosis, replay
 from robofdi.models.linear import LinearMismatch, perturbed
 from robofdi.models.linear_examples import HELICOPTER_NOISE, helicopter
 from robofdi.observers.kalman import COVARIANCE_MODES, KalmanFaultEstimator
-from robofdi.protocols import Mission, TargetLimit
+from robofdi.protocols import Mission, Parts, TargetLimit
 from robofdi.record import Record
 from robofdi.sims.linear import LinearPlant
 from robofdi.systems import RobotInstances, register_system
@@ -244,8 +244,7 @@ class HelicopterSystem(RobotInstances):
     def mission(self, options, key, generator):
         return Mission(float(options.duration), None, {"excitation": "sin(pi t), cos(0.6 pi t)"})
 
-    def run(self, options, calibration, key, mission, faults, seed, diagnosers):
-
+    def build(self, options, calibration, key, mission, faults, seed, diagnosers):
         sc = options.scenario(key, faults)
-        return build_loop(sc, calibration).run(sc.duration, seed=seed, run_key="campaign", scenario="campaign-helicopter",
-                                               meta={"noise": sc.noise, "robot_seed": int(key)})
+        return Parts(build_loop(sc, calibration), sc.duration, None, seed, "campaign", "campaign-helicopter",
+                     {"noise": sc.noise, "robot_seed": int(key)})

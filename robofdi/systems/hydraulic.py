@@ -34,7 +34,7 @@ from robofdi.errors import RobofdiError
 from robofdi.faults import Fault, FaultInjector
 from robofdi.loop import ClosedLoop, Diagnosis, Rates, diagnose_record
 from robofdi.models.hydraulic import CATALOGUE, HydraulicParameters, hydraulic_domain, hydraulic_model, with_variants
-from robofdi.protocols import Mission, TargetLimit
+from robofdi.protocols import Mission, Parts, TargetLimit
 from robofdi.record import Record
 from robofdi.redundancy.baselines import NNARResidual, linear_ar_residual, plar_residual, train_nnar
 from robofdi.redundancy.derivatives import SavitzkyGolay, estimate_derivatives
@@ -202,11 +202,18 @@ def build_loop(sc: HydraulicScenario, cal: HydraulicCalibration | None, diagnose
 def run_scenario(sc: HydraulicScenario, cal: HydraulicCalibration | None, run_key: str = "run",
                  progress: Callable[[int], None] | None = None, diagnosers: Sequence[str] | None = None) -> Record:
     """One closed-loop run with the scenario's faults and seed (every diagnoser and decision online)."""
+    return parts(sc, cal, run_key, diagnosers).run(progress)
+
+
+def parts(sc: HydraulicScenario, cal: HydraulicCalibration | None, run_key: str = "run",
+          diagnosers: Sequence[str] | None = None) -> Parts:
+    """The scenario's run, built (:class:`~robofdi.protocols.Parts`): its closed loop (:func:`build_loop`), seed
+    and record metadata."""
     loop = build_loop(sc, cal, diagnosers)
     meta = {"mjcf": loop.simulator.path, "profile": sc.profile(), "derivative_filter": asdict(sc.filter()),
             "derivative_delay": sc.filter().delay, "rig": asdict(sc.rig), "primary_diagnoser": "nlar",
             "joint_names": ["motor_shaft"]}
-    return loop.run(sc.duration, seed=sc.seed, run_key=run_key, scenario=sc.name, meta=meta, progress=progress)
+    return Parts(loop, sc.duration, None, sc.seed, run_key, sc.name, meta)
 
 
 def fit_pressure_parameters(records: Sequence[Record], flt: SavitzkyGolay,
@@ -352,7 +359,6 @@ class HydraulicSystem(RobotInstances):
         profile = operating_profile(int(generator.integers(2**31)))
         return Mission(float(options.duration), profile, dict(profile))
 
-    def run(self, options, calibration, key, mission, faults, seed, diagnosers):
-
+    def build(self, options, calibration, key, mission, faults, seed, diagnosers):
         sc = options.scenario(faults=tuple(faults), seed=int(seed), diagnosers=tuple(diagnosers), **mission.plan)
-        return run_scenario(sc, calibration, run_key="campaign")
+        return parts(sc, calibration, "campaign")

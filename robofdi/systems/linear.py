@@ -34,7 +34,7 @@ from robofdi.errors import RobofdiError
 from robofdi.loop import ClosedLoop, Diagnosis, Rates
 from robofdi.models.linear import LinearMismatch, LinearModel, discretize
 from robofdi.observers.linear import ObserverResidual, observer_gain_kalman
-from robofdi.protocols import Mission, TargetLimit
+from robofdi.protocols import Mission, Parts, TargetLimit
 from robofdi.record import Record
 from robofdi.seeding import rng
 from robofdi.sims.linear import LinearPlant
@@ -151,12 +151,18 @@ def run_linear(mission: WheelSpeedMission, faults, thresholds: np.ndarray, robot
                settings: LinearSettings = LinearSettings(), run_key: str = "run") -> Record:
     """One closed-loop run of ``settings.duration`` s with the calibrated observer residual and its threshold
     decision in the loop (noise from ``seed``, the belief's errors from ``robot_seed``)."""
+    return linear_parts(mission, faults, thresholds, robot_seed, seed, settings, run_key).run()
+
+
+def linear_parts(mission: WheelSpeedMission, faults, thresholds: np.ndarray, robot_seed: int, seed: int,
+                 settings: LinearSettings = LinearSettings(), run_key: str = "run") -> Parts:
+    """:func:`run_linear`'s run, built (:class:`~robofdi.protocols.Parts`)."""
     plant, belief, L, controller = _parts(robot_seed, settings)
     observer = ObserverResidual(belief, L)
     decision = ThresholdDecision(observer.components, thresholds, observer.signatures(scale=thresholds),
                                  blanking=settings.blanking_samples)
-    return _loop(plant, controller, observer, mission, faults, decision).run(settings.duration, seed=seed,
-                                                                            run_key=run_key, scenario="diff-drive")
+    return Parts(_loop(plant, controller, observer, mission, faults, decision), settings.duration, None, seed, run_key,
+                 "diff-drive", {})
 
 
 # ---------------------------------------------------------------------------------------------------- the system
@@ -208,6 +214,5 @@ class LinearSystem(RobotInstances):
         mission = draw_mission(generator)
         return Mission(float(options.duration), mission, {k: list(v) for k, v in mission.__dict__.items()})
 
-    def run(self, options, calibration, key, mission, faults, seed, diagnosers):
-
-        return run_linear(mission.plan, faults, calibration, int(key), seed, options.settings, run_key="campaign")
+    def build(self, options, calibration, key, mission, faults, seed, diagnosers):
+        return linear_parts(mission.plan, faults, calibration, int(key), seed, options.settings, run_key="campaign")

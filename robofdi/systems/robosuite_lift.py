@@ -9,7 +9,7 @@ import numpy as np
 
 from robofdi.adapters import adapter
 from robofdi.checks import check_fields, check_robot_seeds, is_int
-from robofdi.protocols import Mission, TargetLimit
+from robofdi.protocols import Mission, Parts, TargetLimit
 from robofdi.systems import RobotInstances, register_system
 
 __all__ = []
@@ -78,9 +78,8 @@ class RobosuiteLiftSystem(RobotInstances):
         script = int(generator.integers(2**31))
         return Mission(options.episode_steps / 20.0, script, {"script_seed": script})
 
-    def run(self, options, calibration, key, mission, faults, seed, diagnosers):
+    def build(self, options, calibration, key, mission, faults, seed, diagnosers):
         rd = adapter("robofdi.adapters.robosuite_diagnosis", "robosuite")
-        return rd.run_lift(calibration, faults, seed, accommodation=options.accommodation,
-                           health_source=options.health_source, diagnosers=tuple(diagnosers), env=_lift_env(),
-                           steps=options.episode_steps, scenario="campaign-robosuite-lift", policy_seed=mission.plan,
-                           meta={"robot_seed": int(key)})[1]
+        loop = rd.LiftLoop(calibration, tuple(faults), options.accommodation, options.health_source, tuple(diagnosers),
+                           _lift_env(), options.episode_steps, mission.plan)
+        return Parts(loop, mission.duration, None, seed, "campaign", "campaign-robosuite-lift", {"robot_seed": int(key)})
