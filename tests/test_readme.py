@@ -39,7 +39,7 @@ def test_readme_quick_start_is_two_lines_in_a_venv():
     assert len(block) == 2
     assert block[0].startswith("python3 -m venv .venv && . .venv/bin/activate && pip install -e . ")
     # .ci/run greps this line and runs it in its own fresh venv
-    assert block[1] == ". .venv/bin/activate && pip install -e '.[test]' && pytest"
+    assert block[1] == ". .venv/bin/activate && pip install -e '.[test]' && pytest -n auto --dist loadfile"
     assert len(README.splitlines()) <= 200
 
 
