@@ -14,7 +14,7 @@ from pathlib import Path
 from robofdi.errors import RobofdiError
 from robofdi.evaluate import summarize
 from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, write_run_folder
-from robofdi.faults import parse_fault_specs
+from robofdi.faults import check_faults, parse_fault_specs
 from robofdi.progress import Progress
 from robofdi.seeding import rng
 from robofdi.systems import fault_limit, get_system
@@ -44,9 +44,7 @@ def run_system(name: str, out: str | Path = "runs", seed: int = 0, progress: boo
     t0 = time.perf_counter()
     progress = Progress.of(progress, label)
     mission = system.mission(options, key, rng(seed, "mission"))
-    for f in faults:
-        if f.onset >= mission.duration:
-            raise RobofdiError(f"--fault {f.name!r}: onset {f.onset} s is not inside the run ({mission.duration:g} s)")
+    check_faults(faults, duration=mission.duration, label="--fault")
     with progress.stage(f"calibration (robot {key})"):
         calibration, cached = system.calibrate(options, key, diagnosers)
     with keep_partial(run_dir), progress.stage(f"run: {mission.duration:g} s"):

@@ -468,3 +468,23 @@ def test_component_faults_give_their_change_and_labels():
     assert inj.components(2.5)[0] == ("component_friction", "joint3", 0.0) and inj.labels["fr"] == (False, 0.0)
     with pytest.raises(RobofdiError, match="'link9'.*link6, payload"):
         FaultInjector([Fault("x", "component_mass", "link9", onset=0.0)], JOINTS, SENSORS, component_kinds=kinds)
+
+
+def test_check_faults_refuses_what_a_run_cannot_carry_in_one_line():
+    """One check for every scenario and the command line: the onset inside the run, targets the plant has,
+    kinds offline injection can emulate."""
+    from robofdi.faults import check_faults
+    from robofdi.systems.linear import wheel_speed_plant
+
+    plant = wheel_speed_plant()
+    ok = Fault("bias", "sensor_bias", plant.sensor_channels[0], onset=1.0, magnitude=0.1)
+    check_faults([ok], plant, duration=2.0)
+    with pytest.raises(RobofdiError, match=r"--fault 'bias': onset 3 s is not inside the run \(duration 2 s\)"):
+        check_faults([Fault("bias", "sensor_bias", plant.sensor_channels[0], onset=3.0, magnitude=0.1)],
+                     duration=2.0, label="--fault")
+    with pytest.raises(RobofdiError, match="nowhere"):
+        check_faults([Fault("x", "actuator_additive", "nowhere", onset=1.0, magnitude=1.0)], plant)
+    with pytest.raises(RobofdiError, match="cannot be emulated offline"):
+        check_faults([Fault("f", "actuator_float", plant.actuators[0], onset=1.0)], plant, injection="offline")
+    with pytest.raises(RobofdiError, match="expected Fault objects"):
+        check_faults(["sensor_bias:encL:0.1@1"])

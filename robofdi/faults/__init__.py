@@ -1,6 +1,6 @@
 """Fault models: time profiles, fault descriptions and the injector that applies them to u, y and plant components."""
 from robofdi.faults.fault import FAULT_KINDS, Fault, FaultKind
-from robofdi.faults.injector import FaultInjector
+from robofdi.faults.injector import FaultInjector, check_faults
 from robofdi.faults.spec import SPEC_FORMAT, parse_fault_spec, parse_fault_specs
 from robofdi.faults.profiles import (
     PROFILE_TYPES,
@@ -28,6 +28,7 @@ __all__ = [
     "FAULT_KINDS",
     "FaultKind",
     "FaultInjector",
+    "check_faults",
     "SPEC_FORMAT",
     "parse_fault_spec",
     "parse_fault_specs",

@@ -11,7 +11,7 @@ from robofdi.faults.effects import Effect, make_effect
 from robofdi.faults.fault import FAULT_KINDS, Fault
 from robofdi.seeding import stream
 
-__all__ = ["FaultInjector"]
+__all__ = ["FaultInjector", "check_faults"]
 
 
 def _channel_names(field_name: str, names: Sequence[str]) -> tuple[str, ...]:
@@ -191,3 +191,24 @@ class FaultInjector:
         if not all_finite(out):
             raise RobofdiError(f"FaultInjector: field '{field_name}' must be finite, got {out.tolist()}")
         return out
+
+
+def check_faults(faults: Sequence[Fault], simulator=None, duration: float | None = None, injection: str = "online",
+                 label: str = "Fault") -> None:
+    """Refuse, before anything runs, faults a run cannot carry — the one check every scenario and the command
+    line use: an onset outside a run of ``duration`` s; with a ``simulator`` (its ``actuators``,
+    ``sensor_channels`` and ``component_kinds``), an unknown target or a kind it cannot take (the injector's own
+    checks); with ``injection`` "offline", a fault that needs the closed loop. ``label`` starts each message (e.g.
+    "--fault" at the command line)."""
+    faults = tuple(faults)
+    for f in faults:
+        if not isinstance(f, Fault):
+            raise RobofdiError(f"{label}: expected Fault objects, got {f!r}")
+        if duration is not None and f.onset >= duration:
+            raise RobofdiError(f"{label} {f.name!r}: onset {f.onset:g} s is not inside the run (duration "
+                               f"{duration:g} s)")
+    if simulator is not None:
+        injector = FaultInjector(faults, simulator.actuators, simulator.sensor_channels, 0,
+                                 component_kinds=simulator.component_kinds)
+        if injection == "offline":
+            injector.check_offline()

@@ -39,7 +39,7 @@ from robofdi.decision import (
     startup_samples,
 )
 from robofdi.errors import RobofdiError
-from robofdi.faults import Fault, FaultInjector, parse_fault_specs
+from robofdi.faults import Fault, check_faults, parse_fault_specs
 from robofdi.ftc import FaultCompensation
 from robofdi.loop import ORACLE, ClosedLoop, Diagnosis, Rates, diagnose_record, diagnoser_inputs
 from robofdi.models import ManipulatorModel, ModelMismatch
@@ -118,10 +118,7 @@ class ArmScenario:
         if self.accommodation and self.health_source not in (*self.schemes, ORACLE):
             raise RobofdiError(f"ArmScenario: field 'health_source' must be one of {[*self.schemes, ORACLE]} for "
                                f"accommodation, got {self.health_source!r}")
-        for f in self.faults:
-            if f.onset >= self.run_duration:
-                raise RobofdiError(f"Fault {f.name!r}: onset {f.onset} s is not inside the run "
-                                   f"(duration {self.run_duration:g} s)")
+        check_faults(self.faults, duration=self.run_duration)
 
     @property
     def run_duration(self) -> float:
@@ -347,9 +344,7 @@ def check_scenario(scenario: ArmScenario) -> None:
         if size != (sim.n,):
             raise RobofdiError(f"ArmScenario: {name} gives {size[0] if size else 0} joint positions, the robot "
                                f"{sim.system} has {sim.n} joints {list(sim.joint_names)}")
-    injector = FaultInjector(scenario.faults, sim.actuators, sim.sensor_channels, 0, component_kinds=sim.component_kinds)
-    if scenario.injection == "offline":
-        injector.check_offline()
+    check_faults(scenario.faults, sim, scenario.run_duration, scenario.injection)
 
 
 def run_scenario(scenario: ArmScenario, cal: Calibration, progress: Callable[[int], None] | None = None,

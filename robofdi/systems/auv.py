@@ -29,7 +29,7 @@ from robofdi.control.auv import POSE_NAMES, MissionLimits, TaskSpaceAuvControl, 
 from robofdi.control.trajectory import Sequence as Mission
 from robofdi.decision import NisBankDecision, ThresholdDecision, calibrate_thresholds, startup_samples
 from robofdi.errors import RobofdiError
-from robofdi.faults import Fault, FaultInjector
+from robofdi.faults import Fault, check_faults
 from robofdi.ftc.allocation import ALLOCATORS, ThrustReallocation
 from robofdi.loop import ORACLE, ClosedLoop, Diagnosis, diagnose_record, diagnoser_inputs
 from robofdi.models.auv import AuvModel, AuvModelMismatch
@@ -384,8 +384,7 @@ def build_loop(scenario: AuvScenario, cal: AuvCalibration) -> ClosedLoop:
 
 def check_scenario(scenario: AuvScenario) -> None:
     """Raise before any calibration if a fault names an unknown target or kind for this vehicle."""
-    sim = scenario.simulator()
-    FaultInjector(scenario.faults, sim.actuators, sim.sensor_channels, 0, component_kinds=sim.component_kinds)
+    check_faults(scenario.faults, scenario.simulator(), scenario.duration)
 
 
 def tracking_rms(record: Record, since: float = 0.0) -> float:

@@ -31,7 +31,7 @@ from robofdi.checks import check_fields, check_robot_seeds, is_int, is_positive
 from robofdi.control.speed import RPM, SpeedPID, SpeedRamp
 from robofdi.decision import Signature, ThresholdDecision, calibrate_thresholds
 from robofdi.errors import RobofdiError
-from robofdi.faults import Fault, FaultInjector
+from robofdi.faults import Fault, check_faults
 from robofdi.loop import ClosedLoop, Diagnosis, Rates, diagnose_record
 from robofdi.models.hydraulic import CATALOGUE, HydraulicParameters, hydraulic_domain, hydraulic_model, with_variants
 from robofdi.protocols import Mission, Parts, TargetLimit
@@ -104,11 +104,7 @@ class HydraulicScenario:
             if getattr(self, k) not in ("corrected", "as_printed"):
                 raise RobofdiError(f"HydraulicScenario: field {k!r} must be 'corrected' or 'as_printed', "
                                    f"got {getattr(self, k)!r}")
-        for f in self.faults:
-            if f.onset >= self.duration:
-                raise RobofdiError(f"Fault {f.name!r}: onset {f.onset} s is not inside the run ({self.duration} s)")
-        sim = self.simulator()
-        FaultInjector(self.faults, sim.actuators, sim.sensor_channels, 0, component_kinds=sim.component_kinds)
+        check_faults(self.faults, self.simulator(), self.duration)
 
     def simulator(self) -> HydraulicRig:
         return HydraulicRig(replace(self.rig, throttle_area=self.throttle_area), self.sensors)
