@@ -180,14 +180,15 @@ def test_urdf_arm_calibration_motions_fit_the_limits(seed):
 # ----------------------------------------------------------------------------------------------------------
 # Closed-loop diagnosis: a 25 % torque step on the second joint at 1 s
 # ----------------------------------------------------------------------------------------------------------
-def diagnose_second_joint_step(path, seed: int, scheme: str = "momentum") -> dict:
+def diagnose_second_joint_step(path, seed: int, scheme: str = "momentum", drive_inertia: float = 0.0) -> dict:
     from robofdi.evaluate import summarize
     from robofdi.systems.arm import calibration, run_scenario
 
-    sim = ArmSimulator(path, torque_motors=True)
+    sim = ArmSimulator(path, torque_motors=True, drive_inertia=drive_inertia)
     joint = sim.joint_names[1]
     spec = f"actuator_additive:{joint}:{0.25 * sim.torque_limit[1]:.4g}@1.0"
-    sc = arm_scenario(path, faults=[spec], seed=seed, torque_motors=True, schemes=(scheme,))
+    sc = arm_scenario(path, faults=[spec], seed=seed, torque_motors=True, drive_inertia=drive_inertia,
+                      schemes=(scheme,))
     cal, _ = calibration(sc)
     summary = summarize(run_scenario(sc, cal), "arm", [f.to_dict() for f in sc.faults])
     return joint, summary["diagnosers"][scheme]
@@ -204,6 +205,18 @@ def test_urdf_arm_diagnoses_a_step_on_its_second_joint():
 @pytest.mark.slow
 def test_robosuite_kinova3_with_continuous_joints_diagnoses_a_step_on_its_second_joint():
     joint, result = diagnose_second_joint_step(robosuite_arm("kinova3"), 5)
+    assert result["false_alarms"] == 0
+    (detection,) = result["detections"]
+    assert detection["isolated"] == joint and 0 <= detection["delay"] < 0.1
+
+
+@pytest.mark.slow
+def test_robosuite_jaco_with_a_drive_inertia_floor_diagnoses_a_step_on_its_second_joint():
+    """jaco's raw file gives its wrist 1e-6 kg·m² and no rotor: refused as it is (the wrist leaves its range on
+    the calibration motions), diagnosed with the rotor inertia of a geared drive (0.002 s² per N·m)."""
+    with pytest.raises(RobofdiError, match="leaves the joint range"):
+        diagnose_second_joint_step(robosuite_arm("jaco"), 3)
+    joint, result = diagnose_second_joint_step(robosuite_arm("jaco"), 3, drive_inertia=0.002)
     assert result["false_alarms"] == 0
     (detection,) = result["detections"]
     assert detection["isolated"] == joint and 0 <= detection["delay"] < 0.1
