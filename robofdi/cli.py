@@ -131,6 +131,47 @@ def _cmd_campaign(args) -> int:
     return 1 if summary["runs"]["errors"] else 0
 
 
+def _segment(text: str) -> tuple[float, float]:
+    t0, sep, t1 = str(text).partition(":")
+    try:
+        if not sep:
+            raise ValueError
+        return float(t0), float(t1)
+    except ValueError:
+        raise RobofdiError(f"--fault-free: {text!r} is not T0:T1 (seconds from the log's start)") from None
+
+
+def _cmd_diagnose(args) -> int:
+    import json
+
+    from robofdi.evaluate.run_folder import keep_partial, write_run_folder
+    from robofdi.logs import LOG_SCHEMES, diagnose_log, print_table
+
+    columns = args.columns
+    if columns and columns.endswith(".json"):
+        try:
+            loaded = json.loads(Path(columns).read_text())
+        except (OSError, ValueError) as exc:
+            raise RobofdiError(f"--columns: cannot read the JSON file {columns!r} ({exc})") from None
+        columns = loaded.get("columns", loaded) if isinstance(loaded, dict) else None
+        if not isinstance(columns, dict):
+            raise RobofdiError(f"--columns: {args.columns!r} holds no mapping of log names to robofdi names")
+    schemes = tuple(s.strip() for s in args.diagnosers.split(",") if s.strip()) if args.diagnosers else LOG_SCHEMES
+    joints = [j.strip() for j in args.joints.split(",") if j.strip()] if args.joints else None
+    record, summary = diagnose_log(args.log, args.robot, _segment(args.fault_free), columns=columns, rate=args.rate,
+                                   schemes=schemes, margin=args.margin, joints=joints,
+                                   torque_motors=args.torque_motors, drive_inertia=args.drive_inertia or 0.0)
+    run_dir = Path(args.out) / f"diagnose-{Path(args.log).name.split('.')[0]}"
+    run_dir.mkdir(parents=True, exist_ok=True)
+    with keep_partial(run_dir):
+        write_run_folder(run_dir, record, summary, replay=not args.no_replay)
+    print(print_table(summary))
+    log = summary["log"]
+    print(f"\nlog: {log['rows']} rows at {log['rate_hz']:g} Hz ({log['dropouts']} dropouts, longest "
+          f"{1e3 * log['longest_gap_s']:.1f} ms; jitter {1e6 * log['jitter_s']:.0f} µs)\nrun folder: {run_dir}")
+    return 0
+
+
 #: progress: bars on a terminal, a few lines in a pipe or log (robofdi.progress; ROBOFDI_PROGRESS=bar|plain|off)
 QUIET_HELP = "no progress output (otherwise: a bar per stage on a terminal, a few lines in a pipe or a log)"
 
@@ -180,6 +221,22 @@ def build_parser() -> argparse.ArgumentParser:
                       help="whose detections light up the joints (default: the run's lead diagnoser, as in the table)")
     view.add_argument("--no-browser", action="store_true")
     view.set_defaults(func=_cmd_view)
+    diag = sub.add_parser("diagnose", help="diagnose a real robot's log (CSV or Parquet of q, q̇, commanded τ)")
+    diag.add_argument("log", metavar="LOG", help="a .csv, .csv.gz or .parquet file: time [s], <joint>_q [rad], "
+                                                 "<joint>_qd [rad/s], <joint>_tau [N·m] (see --columns)")
+    diag.add_argument("--robot", required=True, metavar="FILE", help="the robot's MJCF or URDF (the nominal model)")
+    diag.add_argument("--fault-free", required=True, metavar="T0:T1",
+                      help="a segment of the log [s] known to be fault-free: the thresholds are calibrated on it")
+    diag.add_argument("--columns", metavar="MAP", help="LOG_NAME=NAME,... or a JSON file with such a mapping")
+    diag.add_argument("--rate", type=float, metavar="HZ", help="resample to this rate (default: the log's median)")
+    diag.add_argument("--diagnosers", metavar="A,B", help="default: momentum,recursive,simple,time_delayed,position_only")
+    diag.add_argument("--margin", type=float, default=1.2, help="threshold = margin × the segment's max |r| (1.2)")
+    diag.add_argument("--joints", metavar="J1,J2,...", help="the arm joints (default: every motor-driven joint)")
+    diag.add_argument("--torque-motors", action="store_true", help="as for robofdi run arm")
+    diag.add_argument("--drive-inertia", type=float, metavar="S2", help="as for robofdi run arm")
+    diag.add_argument("--out", default="runs", metavar="DIR")
+    diag.add_argument("--no-replay", action="store_true", help="no Meshcat replay of the logged motion")
+    diag.set_defaults(func=_cmd_diagnose)
     camp = sub.add_parser("campaign", help="many seeded fault scenarios, locally or on a Dask cluster")
     camp.add_argument("spec", metavar="SPEC",
                       help="a campaign TOML file, or a shipped one by name (arm, auv, helicopter, hydraulic, linear, "

@@ -154,6 +154,7 @@ class ManipulatorModel:
         self.model = model
         self.data = model.createData()
         self.joint_names = arm.joint_names
+        self.joint_kinds = tuple(d.kind for d in arm.drives)            # "hinge" [rad, N·m] or "slide" [m, N]
         self.n = model.nv
         self.damping = np.array(model.damping, dtype=float)
         self.torque_limit = arm.torque_limit
