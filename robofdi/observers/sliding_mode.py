@@ -318,7 +318,7 @@ class RouthVerdict:
     def require(self, where: str) -> None:
         if not self.stable:
             raise RobofdiError(f"{where}: a boundary-layer (sat) cascade with these gains is unstable: Routh–Hurwitz needs "
-                               f"{self.condition}, got {self.lhs:,.6g} vs {self.rhs:,.6g}; use sign switching with a "
+                               f"{self.condition}, got {self.lhs:,.0f} vs {self.rhs:,.0f}; use sign switching with a "
                                "low-pass equivalent control, or other gains")
 
 
@@ -419,14 +419,15 @@ class CascadeSMO:
     ``residual_names``, default the stage names) — the SMFO residuals r_k of eq. (71) and the SMOO r_eq; estimate:
     none unless ``estimate`` (indices of stages whose z is a fault estimate, e.g. r1 = f_a2). ``state_estimate``:
     x̂ (mapped by ``output_map`` when the observer runs in other coordinates, x = Γ1 x̄). ``mean_injection`` /
-    ``peak``: the interval mean of λψ and the max |z| inside the last interval."""
+    ``peak``: the interval mean of λψ and the max |z| inside the last interval; ``history`` (with
+    ``keep_history``): x (``state_estimate``) after every update since the last reset."""
 
     def __init__(self, n: int, affine: Callable, stages: Sequence[Stage], settings: SMOSettings,
                  inputs: Sequence[str], measurements: Sequence[str], x0=None, state_names: Sequence[str] | None = None,
                  residual_names: Sequence[str] | None = None, residual_units: Sequence[str] | None = None,
                  estimate: Sequence[int] = (), estimate_names: Sequence[str] = (), estimate_units: Sequence[str] = (),
                  output_map: np.ndarray | None = None, signatures: Sequence = (), where: str = "CascadeSMO",
-                 initial: Callable[[np.ndarray], np.ndarray] | None = None):
+                 initial: Callable[[np.ndarray], np.ndarray] | None = None, keep_history: bool = False):
         self.where = where
         self.n, self.settings, self.affine = int(n), settings, affine
         self.inputs, self.measurements = list(inputs), list(measurements)
@@ -490,6 +491,7 @@ class CascadeSMO:
         self.output_map = None if output_map is None else np.array(output_map, dtype=float)
         self._signatures = list(signatures)
         self.initial = initial
+        self.keep_history = bool(keep_history)
         self.reset()
 
     def _routh_guard(self) -> None:
@@ -517,6 +519,7 @@ class CascadeSMO:
         self.k = -1
         self.mean_injection = np.zeros(len(self.stages))
         self.peak = np.zeros(len(self.stages))
+        self.history: list[np.ndarray] = []
 
     def signatures(self) -> list:
         return list(self._signatures)
@@ -571,6 +574,8 @@ class CascadeSMO:
             if not (np.all(np.isfinite(self.x)) and np.all(np.isfinite(self.z))):
                 raise RobofdiError(f"{self.where}: the observer diverged at t = {self.time:.4g} s (non-finite state); "
                                    "check the gains, the substep and the filter constant")
+        if self.keep_history:
+            self.history.append(self.state_estimate)
         return Residual(self.z.copy(), self.z[self.estimate_index].copy())
 
 
