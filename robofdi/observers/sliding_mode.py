@@ -415,8 +415,11 @@ class CascadeSMO:
     """Diagnoser protocol: a sub-stepped sliding-mode observer (module docstring, :mod:`robofdi.observers.smo_kernel`).
 
     ``affine(y, u) -> (M, c)``: the observer's known dynamics x̂' = M(y) x̂ + c(y, u) (no injection); ``stages``:
-    the switching stages in order. Residual components: each stage's equivalent control (the LPF z_j, named by
-    ``residual_names``, default the stage names) — the SMFO residuals r_k of eq. (71) and the SMOO r_eq; estimate:
+    the switching stages in order. Residual components: each stage's equivalent control at the diagnosis rate, the
+    mean of λ_j ψ(ē_j) over the sample interval (named by ``residual_names``, default the stage names) — the SMFO
+    residuals r_k of eq. (71) and the SMOO r_eq. (The cascade itself uses the low-pass z_j; sampling z_j instead
+    aliases its switching ripple: measured on Example 5, 2 s means of r2 of 0.68–1.89 for f_a2 = 1 against
+    0.93–1.01 for the interval means.) Estimate:
     none unless ``estimate`` (indices of stages whose z is a fault estimate, e.g. r1 = f_a2). ``state_estimate``:
     x̂ (mapped by ``output_map`` when the observer runs in other coordinates, x = Γ1 x̄). ``mean_injection`` /
     ``peak``: the interval mean of λψ and the max |z| inside the last interval; ``history`` (with
@@ -576,7 +579,8 @@ class CascadeSMO:
                                    "check the gains, the substep and the filter constant")
         if self.keep_history:
             self.history.append(self.state_estimate)
-        return Residual(self.z.copy(), self.z[self.estimate_index].copy())
+        r = self.mean_injection.copy()
+        return Residual(r, r[self.estimate_index].copy())
 
 
 # ----------------------------------------------------------------------------------------------------- factories
