@@ -250,6 +250,8 @@ def _system_options():
         "dm_control-cartpole": dict(calibration_episodes=2, steps=40, blanking=5),
         "robosuite-lift": dict(calibration_episodes=2, episode_steps=20),
         "arm": dict(),
+        "flexible-joint": dict(duration=0.3, substep=1e-6, tau=1e-4),
+        "motor": dict(duration=0.3, substep=1e-6, tau=1e-4),
     }
     out = {}
     for name, kw in cheap.items():

@@ -251,3 +251,31 @@ def test_cascade_stage_validation():
     with pytest.raises(RobofdiError, match="after"):
         CascadeSMO(1, lambda y, u: (np.zeros((1, 1)), np.zeros(1)), [Stage(1.0, 0, after=0)],
                    SMOSettings(1e-3, 1e-5, 1e-4), ["u"], ["y"])
+
+
+def test_ch1_simulators_and_systems_conform():
+    from robofdi.systems import get_system
+    from robofdi.systems.cart_pendulum import CartPendulumPlant
+    from robofdi.systems.motor import MotorPlant
+    from robofdi.testing import check_simulator, check_system
+
+    check_simulator(lambda: FlexibleJointArm())
+    check_simulator(lambda: MotorPlant("x1x3", False))
+    check_simulator(lambda: CartPendulumPlant())
+    for name in ("flexible-joint", "motor"):
+        system = get_system(name)
+        check_system(system, system.options_type(duration=0.2, substep=1e-6, tau=1e-4))
+
+
+def test_e43_sin_guard_and_e44_decay():
+    """E4.3: stage 3's gain 1/(−A2 sin y1) is held at 0 where |sin y1| < the guard; E4.4: the Case 2 open-loop x̂3
+    error decays at D1 = 0.3222 s⁻¹."""
+    from robofdi.experiments.ch1_saif_xiong import motor_case2_decay
+    from robofdi.systems.motor import MOTOR, motor_smo
+
+    smo = motor_smo(SMOSettings(1e-3, 1e-6, 1e-4), sin_guard=0.05)
+    g3 = smo.stages[2].gain
+    assert g3(np.array([0.01])) == 0.0 and g3(np.array([np.pi + 0.02])) == 0.0
+    assert abs(g3(np.array([0.6])) - 1 / (-MOTOR["A2"] * np.sin(0.6))) < 1e-12
+    entry = motor_case2_decay()
+    assert entry["pass"] and abs(entry["ours"] - 0.3222) < 0.05 * 0.3222
