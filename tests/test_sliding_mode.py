@@ -279,3 +279,22 @@ def test_e43_sin_guard_and_e44_decay():
     assert abs(g3(np.array([0.6])) - 1 / (-MOTOR["A2"] * np.sin(0.6))) < 1e-12
     entry = motor_case2_decay()
     assert entry["pass"] and abs(entry["ours"] - 0.3222) < 0.05 * 0.3222
+
+
+def test_e11_engine_flow_function():
+    """E1.1 (synthetic engine): Ψ is continuous at the choke ratio and non-increasing on (0, P0)."""
+    from robofdi.systems.engine import ENGINE, psi
+
+    k = ENGINE["k"]
+    crit = (2 / (k + 1)) ** (k / (k - 1)) * ENGINE["P0"]
+    assert abs(psi(crit * (1 + 1e-9)) - psi(crit * (1 - 1e-9))) < 1e-6
+    vals = np.array([psi(x) for x in np.linspace(1e3, ENGINE["P0"] - 1, 2000)])
+    assert np.diff(vals).max() <= 1e-12 and psi(ENGINE["P0"]) == 0.0
+
+
+def test_pendulum_diagnoser_conforms():
+    from robofdi.systems.cart_pendulum import PendulumDiagnoser
+
+    t = np.arange(40) * 1e-3
+    y = np.column_stack([0.1 * np.sin(t), 0.05 * np.cos(3 * t), 0.1 * np.cos(t)])
+    check_diagnoser(lambda: PendulumDiagnoser(substep=2e-5, tau=1e-4), (y, np.zeros((40, 1))))
