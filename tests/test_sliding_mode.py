@@ -298,3 +298,27 @@ def test_pendulum_diagnoser_conforms():
     t = np.arange(40) * 1e-3
     y = np.column_stack([0.1 * np.sin(t), 0.05 * np.cos(3 * t), 0.1 * np.cos(t)])
     check_diagnoser(lambda: PendulumDiagnoser(substep=2e-5, tau=1e-4), (y, np.zeros((40, 1))))
+
+
+def test_motor_fdi_conforms_and_unit_vector_form():
+    from robofdi.systems.motor import MotorFDI
+
+    t = np.arange(40) * 1e-3
+    y = np.column_stack([0.8 + 0.1 * np.sin(t), 6.5 + 0.1 * t])
+    u = np.tile([36.19, 1.9333], (40, 1))
+    check_diagnoser(lambda: MotorFDI(SMOSettings(1e-3, 1e-5, 1e-4)), (y, u))
+    # W–Z with the unit-vector switching (17): same matched-uncertainty convergence as the sign form (G4)
+    T = 0.01
+    ts = np.arange(0, 8 + T / 2, T)
+    X = _simulate(lambda t, x: A_mp @ x + G_mp[:, 0] * 0.8 * np.sin(3 * t), [1.0, 1.0, -1.0], ts)
+    smo = walcott_zak_smo(A_mp, np.zeros((3, 1)), C_mp, G_mp, 1.0, SMOSettings(T, 1e-5, 1e-3, "unit"))
+    for k in range(len(ts)):
+        smo.update(C_mp @ X[k], [0.0])
+    assert np.linalg.norm(X[-1] - smo.state_estimate) < 0.01 * np.linalg.norm(X[0])
+
+
+def test_experiment_static_checks_pass():
+    from robofdi.experiments.ch1_saif_xiong import flexible_joint_static, pendulum_static
+
+    entries = flexible_joint_static() + pendulum_static()
+    assert all(e["pass"] for e in entries), [e["quantity"] for e in entries if not e["pass"]]
