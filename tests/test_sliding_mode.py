@@ -262,6 +262,11 @@ def test_ch1_simulators_and_systems_conform():
     check_simulator(lambda: FlexibleJointArm())
     check_simulator(lambda: MotorPlant("x1x3", False))
     check_simulator(lambda: CartPendulumPlant())
+    from robofdi.systems.cart_pendulum import CartPoleMujoco, mujoco_cart_pole_model
+
+    check_simulator(lambda: CartPoleMujoco())
+    lin = mujoco_cart_pole_model()                       # the upright is unstable, (A, C) observable, A − BK stable
+    assert np.max(np.linalg.eigvals(lin["A"]).real) > 1 and np.max(np.linalg.eigvals(lin["A"] - lin["B"] @ lin["K"]).real) < 0
     for name in ("flexible-joint", "motor"):
         system = get_system(name)
         check_system(system, system.options_type(duration=0.2, substep=1e-6, tau=1e-4))

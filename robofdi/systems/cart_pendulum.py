@@ -119,10 +119,11 @@ class CartPendulumPlant:
 
 
 class _ObserverController:
-    """u = −K x̂ with a Luenberger observer on the printed model (the chapter's [17] observer is not given)."""
+    """u = −K x̂ with a Luenberger observer on the (A, B) belief (the chapter's [17] observer is not given)."""
 
-    def __init__(self, dt: float):
-        A, C = PENDULUM["A"], PENDULUM["C"]
+    def __init__(self, dt: float, model=None):
+        self.model = model or PENDULUM
+        A, C = self.model["A"], self.model["C"]
         self.L = scipy.signal.place_poles(A.T, C.T, [-10.0, -11.0, -12.0, -13.0]).gain_matrix.T
         self.dt = dt
         self.reset()
@@ -132,7 +133,7 @@ class _ObserverController:
         self.u = np.zeros(1)
 
     def update(self, y, reference):
-        A, B, C, K = (PENDULUM[k] for k in ("A", "B", "C", "K"))
+        A, B, C, K = (self.model[k] for k in ("A", "B", "C", "K"))
         self.x = self.x + self.dt * (A @ self.x + B[:, 0] * (self.u[0] + reference[0]) + self.L @ (y - C @ self.x))
         self.u = -K @ self.x
         return self.u
@@ -143,17 +144,20 @@ class PendulumDiagnoser:
     (known, added to the amplifier input) through ``reference``."""
 
     def __init__(self, lam_smoo: float = 5.0, lam=(2000.0, 500.0), boundary: float = 0.02, sample_time: float = 1e-3,
-                 substep: float = 5e-6, tau: float = 5e-5, reference=None):
+                 substep: float = 5e-6, tau: float = 5e-5, reference=None, model=None):
         names = ["base_position", "pendulum_angle", "base_velocity"]
-        self.smoo = CascadeSMO(1, lambda y, u: (np.zeros((1, 1)), np.array([-1.399 * y[2]])),
+        A, B = (model or PENDULUM)["A"], (model or PENDULUM)["B"][:, 0]
+        a13 = float(A[0, 2])
+        self.smoo = CascadeSMO(1, lambda y, u: (np.zeros((1, 1)), np.array([a13 * y[2]])),
                                [Stage(lam_smoo, 0, Wy=[1.0, 0.0, 0.0], Cx=[1.0], name="r1")],
                                SMOSettings(sample_time, substep, tau), ["amplifier"], names,
                                initial=lambda y: y[:1], where="PendulumDiagnoser SMOO (54)")
         ref = reference or (lambda t: 0.0)
 
+        M = np.array([[0.0, 1.0], [A[3, 1], A[3, 3]]])
+
         def affine(y, u):
-            M = np.array([[0.0, 1.0], [21.7, -0.2902]])
-            return M, np.array([0.0, 6.236 * y[2] + 47.82 * u[0]])
+            return M, np.array([0.0, A[3, 0] * y[0] + A[3, 2] * y[2] + B[3] * u[0]])
 
         stages = [Stage(lam[0], 0, Wy=[0.0, 1.0, 0.0], Cx=[1.0, 0.0], name="r2"), Stage(lam[1], 1, after=0, name="s2")]
         self.smfo = CascadeSMO(2, affine, stages, SMOSettings(sample_time, substep, tau, "sat", boundary),
@@ -190,10 +194,82 @@ class PendulumDiagnoser:
         return Residual(np.array([r1[0], r2[0]]), np.zeros(0))
 
 
-def run_cart_pendulum(faults=(), duration: float = 10.0, seed: int = 0, run_key: str = "run", noise: float = 0.01):
-    plant = CartPendulumPlant(noise=noise)
-    diag = PendulumDiagnoser(reference=plant.r_ref)
-    ctrl = _ObserverController(plant.control_dt)
+@dataclass(eq=False)
+class CartPoleMujoco(CartPendulumPlant):
+    """Simulator protocol: ``assets/cart_pole.xml`` in MuJoCo (nonlinear, the rig of Example 3 in shape only), the
+    same sensors and r_ref as :class:`CartPendulumPlant`; its belief is its own linearisation at the upright
+    (:func:`mujoco_cart_pole_model`)."""
+
+    system = "cart_pole_mujoco"
+
+    def __post_init__(self):
+        import mujoco
+
+        from robofdi import ASSETS
+
+        self._mj = mujoco
+        self.model_mj = mujoco.MjModel.from_xml_path(str(ASSETS / "cart_pole.xml"))
+        self.data = mujoco.MjData(self.model_mj)
+        self.physics_dt = float(self.model_mj.opt.timestep)
+        super().__post_init__()
+
+    def reset(self, initial_state=None, seed=None):
+        y = super().reset(initial_state, seed)
+        mj, d = self._mj, self.data
+        mj.mj_resetData(self.model_mj, d)
+        d.qpos[:], d.qvel[:] = self.x[:2], self.x[2:]
+        mj.mj_forward(self.model_mj, d)
+        return y
+
+    def step(self, u):
+        u = np.asarray(u, dtype=float)
+        if u.shape != (1,) or not np.isfinite(u[0]):
+            raise RobofdiError(f"CartPoleMujoco: input 'u' must be one finite voltage, got {u!r}")
+        self.u_applied = self.saturate(u)
+        for _ in range(self._sub):
+            self.data.ctrl[0] = self.u_applied[0] + self.r_ref(self.t)
+            self._mj.mj_step(self.model_mj, self.data)
+            self.t += self.physics_dt
+        self.x = np.r_[self.data.qpos, self.data.qvel].astype(float)
+        return self._measure()
+
+    def nominal_model(self, mismatch=None):
+        return mujoco_cart_pole_model()
+
+
+def mujoco_cart_pole_model() -> dict:
+    """The MuJoCo cart-pole linearised at the upright by central differences of mj_forward's qacc (A, B), C as in
+    Example 3 (x1, x2, x3 measured), K an LQR gain (Q = diag(10, 10, 1, 1), R = 1; the chapter's K is its rig's)."""
+    import mujoco
+    import scipy.linalg
+
+    from robofdi import ASSETS
+
+    m = mujoco.MjModel.from_xml_path(str(ASSETS / "cart_pole.xml"))
+    d = mujoco.MjData(m)
+
+    def f(x, u):
+        d.qpos[:], d.qvel[:], d.ctrl[:] = x[:2], x[2:], u
+        mujoco.mj_forward(m, d)
+        return np.r_[x[2:], d.qacc]
+
+    e, I4 = 1e-6, np.eye(4)
+    A = np.column_stack([(f(e * I4[i], [0.0]) - f(-e * I4[i], [0.0])) / (2 * e) for i in range(4)])
+    B = ((f(np.zeros(4), [e]) - f(np.zeros(4), [-e])) / (2 * e))[:, None]
+    P = scipy.linalg.solve_continuous_are(A, B, np.diag([10.0, 10.0, 1.0, 1.0]), np.eye(1))
+    return {"A": A, "B": B, "K": B.T @ P, "C": np.eye(4)[:3], "G": PENDULUM["G"]}
+
+
+def run_cart_pendulum(faults=(), duration: float = 10.0, seed: int = 0, run_key: str = "run", noise: float = 0.01,
+                      plant: str = "printed"):
+    """One run on the printed linear model (``plant="printed"``) or the MuJoCo cart-pole ("mujoco") → (record,
+    diagnoser); the diagnoser and the controller use the plant's belief (the printed model, or the linearisation)."""
+    if plant not in ("printed", "mujoco"):
+        raise RobofdiError(f"run_cart_pendulum: field 'plant' must be 'printed' or 'mujoco', got {plant!r}")
+    model = PENDULUM if plant == "printed" else mujoco_cart_pole_model()
+    plant = CartPendulumPlant(noise=noise) if plant == "printed" else CartPoleMujoco(noise=noise)
+    diag = PendulumDiagnoser(reference=plant.r_ref, model=model)
+    ctrl = _ObserverController(plant.control_dt, model)
     loop = ClosedLoop(plant, ctrl, lambda t: np.array([plant.r_ref(t)]), faults=faults,
                       diagnoses={"smo": Diagnosis(diag)}, rates=Rates(1000.0, 1000.0, "first"),
                       reference_columns=["r_ref"], reference_units=["V"])
