@@ -250,6 +250,8 @@ def _system_options():
         "dm_control-cartpole": dict(calibration_episodes=2, steps=40, blanking=5),
         "robosuite-lift": dict(calibration_episodes=2, episode_steps=20),
         "arm": dict(),
+        "flexible-joint": dict(duration=0.3, substep=1e-6, tau=1e-4),
+        "motor": dict(duration=0.3, substep=1e-6, tau=1e-4),
     }
     out = {}
     for name, kw in cheap.items():
@@ -455,3 +457,30 @@ def test_the_dm_control_environment_gives_the_same_observations_for_the_same_see
     a, b, c = episode(3), episode(3), episode(4)
     assert all(x.keys() == y.keys() and all(np.array_equal(x[k], y[k]) for k in x) for x, y in zip(a, b))
     assert not all(np.array_equal(x["position"], y["position"]) for x, y in zip(a, c))
+
+
+def test_arm_sliding_mode_observer_conforms_and_sees_a_torque_fault():
+    """The SMOO on q̇ (Saif & Xiong eq. (54), Remark 10 on an arm): protocol, and τ̂ = M̂ r_eq of a 20 N·m fault."""
+    from robofdi.faults import Fault
+    from robofdi.loop import Diagnosis
+    from robofdi.observers.sliding_mode_arm import ArmSlidingModeObserver
+    from robofdi.systems.arm import _controller
+
+    sc = _arm_scenario()
+    sim = sc.simulator()
+    model = sc.nominal_model(sim)
+    rates = sc.loop_rates(sim)
+    T = 1.0 / rates.diagnosis_hz
+    _, samples = _arm_setup()
+    check_diagnoser(lambda: ArmSlidingModeObserver(model, T), samples, name="ArmSlidingModeObserver")
+    fault = Fault("j2", "actuator_additive", model.joint_names[1], onset=0.15, magnitude=20.0)
+    traces = []
+    for faults in ((), (fault,)):                        # the same seed: the same noise, the fault's effect alone
+        rec = ClosedLoop(sim, _controller(model), sc.motion, faults=list(faults), rates=rates,
+                         diagnoses={"smo": Diagnosis(ArmSlidingModeObserver(model, T))}).run(0.3, sc.start_pose, seed=0)
+        traces.append(rec.diagnosers["smo"])
+    t = traces[0].time
+    shift = traces[1].residual[:, 1] - traces[0].residual[:, 1]
+    before = np.abs(shift[(t > 0.05) & (t < 0.15)]).max()
+    after = shift[t > 0.2].mean()
+    assert abs(after - 20.0) < 0.3 * 20.0 and before < 0.3 * 20.0, (before, after)
