@@ -26,7 +26,7 @@ import numpy as np
 from robofdi.checks import check_fields, is_number
 from robofdi.loop import ClosedLoop, Diagnosis, Rates
 from robofdi.observers.sliding_mode import CascadeSMO, SMOSettings, Stage
-from robofdi.protocols import Mission, TargetLimit
+from robofdi.protocols import Mission, Parts, TargetLimit
 from robofdi.record import Record
 from robofdi.sims.flexible_joint import FlexibleJointArm
 from robofdi.systems import register_system
@@ -113,18 +113,24 @@ class _ExtraTermArm(FlexibleJointArm):
         return super().step(u)
 
 
-def run_flexible_joint(options: FlexibleJointOptions = FlexibleJointOptions(), faults=(), seed: int = 0,
-                       run_key: str = "run") -> tuple[Record, CascadeSMO]:
-    """One open-loop run on the MuJoCo arm with the SMO online at 1 kHz → (record, the observer with its history)."""
+def flexible_joint_parts(options: FlexibleJointOptions = FlexibleJointOptions(), faults=(), seed: int = 0,
+                         run_key: str = "run") -> Parts:
+    """One open-loop run on the MuJoCo arm with the SMO online at 1 kHz, built (:class:`~robofdi.protocols.Parts`)."""
     arm = (_ExtraTermArm if options.extra_term else FlexibleJointArm)(x0=options.x0)
     smo = flexible_joint_smo(options, arm.control_dt)
     inp = _Input(options.u_amplitude, options.u_frequency)
     loop = ClosedLoop(arm, inp, inp, faults=faults, diagnoses={DIAGNOSER: Diagnosis(smo)}, rates=Rates(1000.0, 1000.0, "first"),
                       reference_columns=["motor_voltage"], reference_units=["V"])
-    record = loop.run(options.duration, seed=seed, run_key=run_key, scenario="ch1-flexible-joint",
-                      meta={"observer": "4-stage SMO (Saif & Xiong Example 2)", "tau": options.tau,
-                            "substep": options.substep, "switching": options.switching})
-    return record, smo
+    return Parts(loop, options.duration, None, seed, run_key, "ch1-flexible-joint",
+                 {"observer": "4-stage SMO (Saif & Xiong Example 2)", "tau": options.tau, "substep": options.substep,
+                  "switching": options.switching})
+
+
+def run_flexible_joint(options: FlexibleJointOptions = FlexibleJointOptions(), faults=(), seed: int = 0,
+                       run_key: str = "run") -> tuple[Record, CascadeSMO]:
+    """One open-loop run on the MuJoCo arm with the SMO online at 1 kHz → (record, the observer with its history)."""
+    parts = flexible_joint_parts(options, faults, seed, run_key)
+    return parts.run(), parts.diagnoses[DIAGNOSER].diagnoser
 
 
 @register_system
@@ -149,5 +155,8 @@ class FlexibleJointSystem:
     def mission(self, options, key, generator):
         return Mission(float(options.duration), None, {"u_amplitude": options.u_amplitude})
 
+    def build(self, options, calibration, key, mission, faults, seed, diagnosers):
+        return flexible_joint_parts(options, faults, seed, run_key="campaign")
+
     def run(self, options, calibration, key, mission, faults, seed, diagnosers):
-        return run_flexible_joint(options, faults, seed, run_key="campaign")[0]
+        return self.build(options, calibration, key, mission, faults, seed, diagnosers).run()

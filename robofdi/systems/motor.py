@@ -29,7 +29,7 @@ from robofdi.errors import RobofdiError
 from robofdi.faults import Fault, Ramp
 from robofdi.loop import ClosedLoop, Diagnosis, Rates
 from robofdi.observers.sliding_mode import CascadeSMO, SMOSettings, Stage
-from robofdi.protocols import Mission, TargetLimit
+from robofdi.protocols import Mission, Parts, TargetLimit
 from robofdi.seeding import stream
 from robofdi.systems import register_system
 
@@ -251,6 +251,12 @@ class _Constant:
 
 def run_motor(options: MotorOptions = MotorOptions(), faults=(), seed: int = 0, run_key: str = "run"):
     """One run of Example 4 (→ record, the SMO with its history) or Example 5 (→ record, the MotorFDI)."""
+    parts = motor_parts(options, faults, seed, run_key)
+    return parts.run(), parts.diagnoses["smo"].diagnoser
+
+
+def motor_parts(options: MotorOptions = MotorOptions(), faults=(), seed: int = 0, run_key: str = "run") -> Parts:
+    """One run of Example 4 or 5, built (:class:`~robofdi.protocols.Parts`)."""
     T = 1e-3
     if options.example == 4:
         plant = MotorPlant("x1", True)
@@ -262,8 +268,7 @@ def run_motor(options: MotorOptions = MotorOptions(), faults=(), seed: int = 0, 
     u = _Constant([MOTOR["u1"], MOTOR["u2"]])
     loop = ClosedLoop(plant, u, u, faults=faults, diagnoses={"smo": Diagnosis(diag)}, rates=Rates(1000.0, 1000.0, "first"),
                       reference_columns=["u1", "u2"], reference_units=["1", "1"])
-    rec = loop.run(options.duration, seed=seed, run_key=run_key, scenario=f"ch1-motor-example{options.example}")
-    return rec, diag
+    return Parts(loop, options.duration, None, seed, run_key, f"ch1-motor-example{options.example}", {})
 
 
 @register_system
@@ -289,5 +294,8 @@ class MotorSystem:
     def mission(self, options, key, generator):
         return Mission(float(options.duration), None, {})
 
+    def build(self, options, calibration, key, mission, faults, seed, diagnosers):
+        return motor_parts(options, faults, seed, run_key="campaign")
+
     def run(self, options, calibration, key, mission, faults, seed, diagnosers):
-        return run_motor(options, faults, seed, run_key="campaign")[0]
+        return self.build(options, calibration, key, mission, faults, seed, diagnosers).run()
