@@ -17,7 +17,7 @@ from robofdi.errors import RobofdiError
 from robofdi.observers.effector_bank import foh_discretize
 from robofdi.observers.residual import Residual, check_measurement
 
-__all__ = ["box_projection", "bias_rate", "generalised_regressor", "generalised_rate", "SensorBiasEstimator"]
+__all__ = ["box_projection", "bias_rate", "bias_gains", "generalised_regressor", "generalised_rate", "SensorBiasEstimator"]
 
 
 def box_projection(theta, v, lower, upper) -> np.ndarray:
@@ -34,6 +34,25 @@ def bias_rate(A, Gamma, e_y, d_hat, d_bar) -> np.ndarray:
     A = np.asarray(A, dtype=float)
     return box_projection(d_hat, np.asarray(Gamma) @ A.T @ np.asarray(e_y, dtype=float), -np.asarray(d_bar),
                           np.asarray(d_bar))
+
+
+def bias_gains(A, lam, tau: float, channels=None) -> np.ndarray:
+    """Diagonal Γ of (10) giving each bias estimate the time constant ``tau`` [s] in the quasi-static
+    approximation (e_y ≈ Aφ_d/|λ|, so φ̇_{d,i} ≈ −γᵢ Σⱼ A_ji² φ_{d,i}/|λᵢ|): γᵢ = |λᵢ| / (τ Σⱼ A_ji²). Channels
+    outside ``channels`` (indices; None: all) get γᵢ = 0 (not estimated). Equal convergence times keep the
+    noise a well-observed channel feeds into a weakly observed one's estimate small (plain Γ = γI does not)."""
+    A = np.asarray(A, dtype=float)
+    n = A.shape[0]
+    lam = np.broadcast_to(np.abs(np.asarray(lam, dtype=float)), (n,))
+    if not (np.isfinite(tau) and tau > 0):
+        raise RobofdiError(f"bias_gains: field 'tau' must be a time > 0 s, got {tau!r}")
+    col = np.sum(A**2, axis=0)
+    g = np.where(col > 0, lam / (tau * np.maximum(col, 1e-300)), 0.0)
+    if channels is not None:
+        keep = np.zeros(n, dtype=bool)
+        keep[list(channels)] = True
+        g = np.where(keep, g, 0.0)
+    return g
 
 
 def generalised_regressor(A, B, c_hat, d_hat, y, u) -> np.ndarray:
@@ -62,7 +81,8 @@ class SensorBiasEstimator:
 
     The pair (ŷ, d̂) is linear between projections, so it is sampled exactly (y interpolated linearly between
     samples, u held) and d̂ clipped to its box after each step. Residual = estimate = d̂ per channel (in the
-    channel's unit); Λ = diag(``lam``) Hurwitz, Γ = diag(``gamma``) > 0, ``d_bar`` the bound per channel
+    channel's unit); Λ = diag(``lam``) Hurwitz, Γ = diag(``gamma``) ≥ 0 (positive definite on the estimated
+    channels; :func:`bias_gains` designs it), ``d_bar`` the bound per channel
     (default 0.2 of the unit). ``bias`` is the current d̂ (for the static estimate x̂ = y − d̂, eq. (12))."""
 
     def __init__(self, A, B, states: Sequence[str], inputs: Sequence[str], units: Sequence[str], dt: float,
@@ -76,8 +96,9 @@ class SensorBiasEstimator:
         if not np.all(lam < 0):
             raise RobofdiError(f"SensorBiasEstimator: field 'lam' must be a Hurwitz diagonal Λ (every entry < 0), got {lam}")
         gamma = np.broadcast_to(np.asarray(gamma, dtype=float), (n,)).copy()
-        if not np.all(gamma > 0):
-            raise RobofdiError(f"SensorBiasEstimator: field 'gamma' must be a positive-definite diagonal Γ, got {gamma}")
+        if not np.all(np.isfinite(gamma) & (gamma >= 0)) or not np.any(gamma > 0):
+            raise RobofdiError(f"SensorBiasEstimator: field 'gamma' must be a diagonal Γ >= 0 (0: channel not "
+                               f"estimated) with at least one entry > 0, got {gamma}")
         self.d_bar = np.broadcast_to(np.asarray(0.2 if d_bar is None else d_bar, dtype=float), (n,)).copy()
         if not np.all(self.d_bar > 0):
             raise RobofdiError(f"SensorBiasEstimator: field 'd_bar' must be bounds > 0, got {self.d_bar}")
