@@ -36,7 +36,8 @@ class DamageEstimator:
     The observer is sampled exactly for the ρ̂ of the step (x interpolated linearly, u held), ρ̂ by Euler and
     clipped to [0, 1]. ``observer="simplified"``: the x₂-only observer of §5.4's Step 1 carried over to the
     damage parameter, x̂̇₂ = −λ(x̂₂ − x₂) + Â x + B̂ u, ρ̂̇ = Proj{−γ ê₂ᵀΩ} (Lyapunov function ê₂ᵀê₂ + φ²/γ;
-    without the slow x₁ modes of Λ_o in P, which make the full law's gradient lag and reverse on this surrogate). Residual = estimate = ρ̂ (component ``left_wing``, unit 1); ``rho`` is the current ρ̂."""
+    without the slow x₁ modes of Λ_o in P, which make the full law's gradient lag and reverse on this surrogate).
+    Residual = estimate = ρ̂ (component ``left_wing``, unit 1); ``rho`` is the current ρ̂."""
 
     def __init__(self, belief: FlightSurrogate, Lam, dt: float, gamma: float = 2000.0, Q=None,
                  dead_zone: float = 2e-3, target: str = "left_wing", observer: str = "full", lam: float = 20.0):
