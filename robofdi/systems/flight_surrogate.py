@@ -53,9 +53,9 @@ DT = 0.01
 BIAS_CHANNELS = ("alpha", "theta", "beta", "q", "p", "r")
 SENSOR_LAMBDA = -5.0
 SENSOR_TAU = 0.1
-#: damage estimator: the simplified (x₂, λ = 20) observer, γ = 3000, dead zone 1e-3 rad/s on ‖ê₂‖.
+#: damage estimator: the simplified (x₂, λ = 20) observer, γ = 3000, dead zone 1.5e-3 rad/s on ‖ê₂‖.
 DAMAGE_GAMMA = 3000.0
-DAMAGE_DEAD_ZONE = 1e-3
+DAMAGE_DEAD_ZONE = 1.5e-3
 
 
 def _smooth(t: float, t0: float, width: float = 1.0) -> float:
