@@ -38,7 +38,7 @@ from robofdi.sims.flight import FlightPlant
 from robofdi.systems import RobotInstances, register_system
 
 __all__ = ["FlightScenario", "SCHEMES", "ERROR_WEIGHTS", "REFERENCE_WEIGHTS", "design", "reference_signal",
-           "build_loop", "calibrate_delta", "effector_bank", "TRACKED"]
+           "build_loop", "calibrate", "calibrate_delta", "effector_bank", "TRACKED"]
 
 SCHEMES = ("baseline", "hybrid", "sensor", "damage", "integrated")
 #: LQR state weights (V, α, θ, β, φ, q, p, r) and input weight of Λ (error dynamics) and of A_m (reference).
@@ -79,6 +79,7 @@ class FlightScenario:
     bank_onset: float = 4.0
     delta: float | None = None
     mismatch: float = 0.0
+    sensor_threshold: tuple | None = None
     lam: float = 40.0
     gamma: float = 5000.0
     c: tuple = (1.0, 10.0, 100.0)
@@ -172,8 +173,9 @@ def build_loop(sc: FlightScenario) -> ClosedLoop:
     bank = effector_bank(sc, b)
     diagnoses["hybrid_mm"] = Diagnosis(bank, SupervisorStatusDecision(bank.components, bank.effectors))
     sens = sensor_estimator(sc, b)
-    diagnoses["sensor_bias"] = Diagnosis(sens, ThresholdDecision(sens.components, sens.threshold(), sens.signatures(),
-                                                                 latch=True))
+    thr = sens.threshold() if sc.sensor_threshold is None else np.asarray(sc.sensor_threshold, dtype=float)
+    diagnoses["sensor_bias"] = Diagnosis(sens, ThresholdDecision(sens.components, thr, sens.signatures(), latch=True,
+                                                                 blanking=int(1.0 / DT)))
     if sc.scheme in ("damage", "integrated") or any(f.kind == "component_wing_damage" for f in sc.faults):
         dam = damage_estimator(sc, b)
         diagnoses["damage"] = Diagnosis(dam, ThresholdDecision(dam.components, np.array([0.05]), dam.signatures()))
@@ -186,7 +188,19 @@ def build_loop(sc: FlightScenario) -> ClosedLoop:
                       reference_units=["rad"] * 3 + list(b.units))
 
 
-def calibrate_delta(sc: FlightScenario, runs: int = 2, margin: float = 3.0) -> float:
+def calibrate(sc: FlightScenario, runs: int = 2) -> dict:
+    """{"delta": the bank's switching threshold (:func:`calibrate_delta`), "sensor_threshold": per channel 1.5 ×
+    the largest |d̂| after the first second of the same fault-free runs (floor 0.005; 1e9 for the channels not
+    estimated)} — run keys ``calibration/<i>``."""
+    free = replace(sc, faults=(), scheme="baseline")
+    loop = build_loop(free)
+    recs = [loop.run(sc.duration, seed=sc.seed, run_key=f"calibration/{i}") for i in range(runs if sc.noise else 1)]
+    worst = np.max([np.abs(r.diagnosers["sensor_bias"].residual[int(1.0 / DT):]).max(axis=0) for r in recs], axis=0)
+    thr = np.where(worst > 0, np.maximum(1.5 * worst, 0.005), 1e9)
+    return {"delta": calibrate_delta(sc, runs, records=recs), "sensor_threshold": thr.tolist()}
+
+
+def calibrate_delta(sc: FlightScenario, runs: int = 2, margin: float = 3.0, records=None) -> float:
     """The switching threshold δ: ``margin`` × the largest I₀ − minᵢ Iᵢ of ``runs`` fault-free runs (run keys
     ``calibration/<i>``; the bank replayed with δ = +inf-like so it never switches), floored at 1e-7."""
     from robofdi.loop import replay
@@ -195,7 +209,7 @@ def calibrate_delta(sc: FlightScenario, runs: int = 2, margin: float = 3.0) -> f
     loop = build_loop(free)
     worst = 0.0
     for i in range(runs if sc.noise else 1):
-        rec = loop.run(sc.duration, seed=sc.seed, run_key=f"calibration/{i}")
+        rec = records[i] if records is not None else loop.run(sc.duration, seed=sc.seed, run_key=f"calibration/{i}")
         bank = effector_bank(replace(sc, delta=1e9))
         gaps = replay(rec, bank, tap=lambda d, _: d.index[0] - d.index[1:].min())
         worst = max(worst, float(np.max(gaps[int(1.0 / DT):])))
@@ -248,8 +262,8 @@ class FlightSurrogateSystem(RobotInstances):
         return {"actuator": actuator, "sensor": sensor}
 
     def calibrate(self, options, key, diagnosers):
-        sc = options.scenario(key)
-        return cached("flight-surrogate", {"scenario": repr(replace(sc, faults=()))}, lambda: calibrate_delta(sc))
+        sc = options.scenario(key, bank=0.4, pitch=0.08)        # the largest mission drawn (conservative δ)
+        return cached("flight-surrogate-fdir", {"scenario": repr(replace(sc, faults=()))}, lambda: calibrate(sc))
 
     def mission(self, options, key, generator):
         bank = float(generator.uniform(0.15, 0.4) * generator.choice([-1.0, 1.0]))
@@ -258,7 +272,8 @@ class FlightSurrogateSystem(RobotInstances):
 
     def run(self, options, calibration, key, mission, faults, seed, diagnosers):
         plan = mission.plan or {}
-        sc = options.scenario(key, faults, bank=plan.get("bank", 0.3), pitch=plan.get("pitch", 0.05),
-                              delta=float(calibration))
+        sc = replace(options.scenario(key, faults, bank=plan.get("bank", 0.3), pitch=plan.get("pitch", 0.05),
+                                      delta=float(calibration["delta"])),
+                     sensor_threshold=tuple(calibration["sensor_threshold"]))
         return build_loop(sc).run(sc.duration, seed=seed, run_key="campaign", scenario="campaign-flight-surrogate",
                                   meta={"robot_seed": int(key), "scheme": sc.scheme})
