@@ -170,12 +170,12 @@ def test_projection_keeps_the_estimate_in_its_box():
     A, B = S.A(), S.B()
     est = SensorBiasEstimator(A, B, S.state_names, S.effectors, list(S.units), 0.01, gamma=50.0, d_bar=0.05)
     g = np.random.default_rng(0)
-    for k in range(300):
+    for _ in range(300):
         res = est.update(np.full(8, 0.5) + 1e-3 * g.normal(size=8), np.zeros(8))
         assert np.all(np.abs(res.estimate) <= 0.05 + 1e-15)
     # the hybrid bank's stuck estimates stay inside the position limits
     bank = HybridEffectorFDI(S.A2(), S.B2(), S.effectors, S.state_names, range(5, 8), 0.01, S.u_min, S.u_max)
-    for k in range(100):
+    for _ in range(100):
         res = bank.update(g.normal(size=8), np.full(8, 5.0))
         assert np.all(res.estimate >= S.u_min - 1e-15) and np.all(res.estimate <= S.u_max + 1e-15)
 
