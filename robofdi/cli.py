@@ -239,8 +239,8 @@ def build_parser() -> argparse.ArgumentParser:
     diag.set_defaults(func=_cmd_diagnose)
     camp = sub.add_parser("campaign", help="many seeded fault scenarios, locally or on a Dask cluster")
     camp.add_argument("spec", metavar="SPEC",
-                      help="a campaign TOML file, or a shipped one by name (arm, auv, helicopter, hydraulic, linear, "
-                           "robosuite-lift, dm_control-cartpole)")
+                      help="a campaign TOML file, or a shipped one by name (arm, auv, flight-surrogate, helicopter, hydraulic, "
+                           "linear, robosuite-lift, dm_control-cartpole)")
     camp.add_argument("--workers", type=int, default=None, help="local worker processes (default: the core count)")
     camp.add_argument("--scheduler", metavar="ADDRESS", help="run on the Dask scheduler at ADDRESS (tcp://HOST:8786)")
     camp.add_argument("--out", metavar="DIR", help="campaign folder (default: runs/campaign-<spec name>)")

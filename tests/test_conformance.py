@@ -49,7 +49,14 @@ def _sim_factories():
         "linear-aircraft": lambda: LinearPlant(aircraft_lateral(), 1e-3, system="aircraft"),
         "linear-helicopter": lambda: LinearPlant(helicopter(), 1e-2, system="helicopter",
                                                  measurement_noise=np.full(3, 1e-4)),
+        "flight-surrogate": _flight_plant,
     }
+
+
+def _flight_plant():
+    from robofdi.sims.flight import FlightPlant
+
+    return FlightPlant()
 
 
 @pytest.mark.parametrize("name", sorted(_sim_factories()))
@@ -157,8 +164,23 @@ def _diagnoser_cases():
               "helicopter-kalman_fault_estimator", "refiner-gain_fault_observer"]
     cases += [f"auv-{n}" for n in AUV_DIAGNOSERS]
     cases += [f"hydraulic-{n}" for n in ("nlar", "nlar_better", "linear_ar", "plar")]
+    cases += [f"flight-{n}" for n in ("hybrid_mm", "sensor_bias", "damage")]
     cases += ["robosuite-momentum", "dm_control-momentum"]
     return cases
+
+
+@functools.cache
+def _flight_setup():
+    from robofdi.faults import Fault
+    from robofdi.systems import flight_surrogate as fs
+
+    sc = fs.FlightScenario(duration=1.5, faults=(Fault("w", "component_wing_damage", "left_wing", onset=5.0,
+                                                       magnitude=0.5),))
+    rec = fs.build_loop(sc).run(1.5, seed=0)
+    samples = _samples(rec)
+    return {"flight-hybrid_mm": (lambda: fs.effector_bank(sc), samples),
+            "flight-sensor_bias": (lambda: fs.sensor_estimator(sc), samples),
+            "flight-damage": (lambda: fs.damage_estimator(sc), samples)}
 
 
 def _diagnoser_case(case):
@@ -168,6 +190,8 @@ def _diagnoser_case(case):
         return functools.partial(make, name), samples
     if family in ("linear", "aircraft", "f16", "helicopter", "refiner"):
         return _linear_setup()[case]
+    if family == "flight":
+        return _flight_setup()[case]
     if family == "auv":
         return _auv_setup()[case]
     if family == "hydraulic":
@@ -222,7 +246,7 @@ def test_every_shipped_diagnoser_conforms(case):
 def test_the_shipped_decisions_conform():
     from robofdi.decision import Signature, ThresholdDecision, WindowedTTest
     from robofdi.decision.directional import DirectionalDecision
-    from robofdi.decision.multiple_model import NisBankDecision, SwitchingIndexDecision
+    from robofdi.decision.multiple_model import NisBankDecision, SupervisorStatusDecision, SwitchingIndexDecision
 
     r = np.random.default_rng(0).normal(size=(60, 3))
     sigs = [Signature(c, frozenset([c])) for c in ("a", "b", "c")]
@@ -235,6 +259,9 @@ def test_the_shipped_decisions_conform():
                    pos, name="SwitchingIndexDecision")
     check_decision(lambda: NisBankDecision(["n0", "n1", "n2"], np.full(3, 2.0), ["h1", "h2"]), pos * 2,
                    name="NisBankDecision")
+    status = np.hstack([pos[:, :1], np.round(pos[:, 1:] * 0.7)])          # switching index, two statuses 0/1/2
+    check_decision(lambda: SupervisorStatusDecision(["I:nominal", "status:a", "status:b"], ["a", "b"]), status,
+                   name="SupervisorStatusDecision")
 
 
 # ---------------------------------------------------------------------------------------------------- systems
@@ -245,6 +272,7 @@ def _system_options():
     cheap = {
         "linear": dict(calibration_runs=2),
         "helicopter": dict(duration=2.0, calibration_runs=2),
+        "flight-surrogate": dict(duration=2.0),
         "hydraulic": dict(duration=3.0, calibration_runs=2),
         "auv": dict(duration=4.0, calibration_runs=1, calibration_duration=20.0),
         "dm_control-cartpole": dict(calibration_episodes=2, steps=40, blanking=5),

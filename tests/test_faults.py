@@ -373,7 +373,8 @@ def test_every_kind_is_covered():
                "sensor_freeze", "sensor_dropout", "sensor_scale", "sensor_noise", "sensor_delay", "sensor_outliers",
                "component_friction", "component_mass", "component_thruster_blocking", "component_thruster_flooding",
                # hydraulic rig (Table 1 of book ch. 6), covered in tests/test_hydraulic.py
-               "component_open_winding", "component_valve_sticking", "component_leak"}
+               "component_open_winding", "component_valve_sticking", "component_leak",
+               "component_wing_damage"}   # flight surrogate (book ch. 5): tests/test_ch5_errors.py, test_ch5_scenarios.py
     assert set(FAULT_KINDS) == covered
 
 

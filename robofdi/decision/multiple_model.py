@@ -10,7 +10,7 @@ import numpy as np
 from robofdi.decision.isolation import Alarms
 from robofdi.errors import RobofdiError
 
-__all__ = ["SwitchingIndexDecision", "NisBankDecision"]
+__all__ = ["SwitchingIndexDecision", "NisBankDecision", "SupervisorStatusDecision"]
 
 
 @dataclass
@@ -126,3 +126,38 @@ class NisBankDecision:
         if self._declared:                        # the declared hypothesis's component marks the isolation
             alarm[1 + list(self.models).index(self._declared[0])] = True
         return Alarms(alarm=alarm, isolated=self._declared, new=new)
+
+
+@dataclass
+class SupervisorStatusDecision:
+    """Decision for a bank that carries its own supervisor (:class:`robofdi.observers.effector_bank.HybridEffectorFDI`,
+    Bošković & Mehra §5.4): the residual ends with one status per effector (0 healthy, 1 identifying, 2 committed);
+    an effector alarms and is isolated while its status is > 0.5 (the supervisor's switch); the switching
+    indices before it are recorded, never thresholded. Isolated effectors are listed in the order they switched."""
+
+    components: Sequence[str]
+    effectors: Sequence[str]
+    threshold: np.ndarray = field(default=None)
+
+    def __post_init__(self):
+        self.components = tuple(self.components)
+        self.effectors = tuple(self.effectors)
+        status = [f"status:{e}" for e in self.effectors]
+        if list(self.components[-len(status):]) != status:
+            raise RobofdiError(f"SupervisorStatusDecision: the residual must end with the statuses {status}")
+        self._first = len(self.components) - len(status)
+        self.threshold = np.concatenate([np.full(self._first, np.inf), np.full(len(status), 0.5)])
+        self.reset()
+
+    def reset(self) -> None:
+        self._order: list[str] = []
+
+    def update(self, residual: np.ndarray) -> Alarms:
+        r = np.asarray(residual, dtype=float)
+        if r.shape != (len(self.components),) or not np.all(np.isfinite(r)):
+            raise RobofdiError(f"SupervisorStatusDecision: residual must be {len(self.components)} finite values")
+        alarm = r > self.threshold
+        on = [e for e, a in zip(self.effectors, alarm[self._first:]) if a]
+        new = tuple(e for e in on if e not in self._order)
+        self._order += list(new)
+        return Alarms(alarm=alarm, isolated=tuple(e for e in self._order if e in on), new=new)

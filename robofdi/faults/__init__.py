@@ -4,6 +4,7 @@ from robofdi.faults.injector import FaultInjector, check_faults
 from robofdi.faults.spec import SPEC_FORMAT, parse_fault_spec, parse_fault_specs
 from robofdi.faults.profiles import (
     PROFILE_TYPES,
+    ExponentialGrowth,
     ExponentialRise,
     Intermittent,
     Oscillation,
@@ -18,6 +19,7 @@ __all__ = [
     "Profile",
     "Step",
     "ExponentialRise",
+    "ExponentialGrowth",
     "Ramp",
     "Sinusoid",
     "Intermittent",

@@ -187,6 +187,7 @@ _EFFECTS = {
     "component_open_winding": Level,
     "component_valve_sticking": Level,
     "component_leak": Level,
+    "component_wing_damage": Level,
 }
 
 

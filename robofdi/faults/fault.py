@@ -73,6 +73,8 @@ FAULT_KINDS: dict[str, FaultKind] = {
                                         description="servovalve coil current × (1 − m·p); m = 1 an open circuit"),
     "component_valve_sticking": FaultKind(unit="1", description="spool stick–slip with a stiction band of m·p (stroke)"),
     "component_leak": FaultKind(unit="mm^2", description="orifice of m·p mm² from a motor line to tank (ruptured line)"),
+    "component_wing_damage": FaultKind(profiles="unit", unit="1",
+                                       description="structural damage ρ = m·p in [0, 1] of a wing (A(ρ), B(ρ))"),
 }
 
 
@@ -117,6 +119,9 @@ class Fault:
             raise RobofdiError(f"{who}: field 'magnitude' must be a finite number, got {self.magnitude!r}")
         if self.kind == "actuator_loss_of_effectiveness" and not 0 <= self.magnitude <= 1:
             raise RobofdiError(f"{who}: field 'magnitude' must be in [0, 1] for {self.kind}, got {self.magnitude!r}")
+        if self.kind == "component_wing_damage" and not 0 <= self.magnitude <= 1:
+            raise RobofdiError(f"{who}: field 'magnitude' must be in [0, 1] for {self.kind} (damage fraction ρ), "
+                               f"got {self.magnitude!r}")
         if self.kind == "sensor_noise" and self.magnitude < 0:
             raise RobofdiError(
                 f"{who}: field 'magnitude' must be >= 0 for {self.kind} (standard deviation), got {self.magnitude!r}"

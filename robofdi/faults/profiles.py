@@ -12,6 +12,7 @@ __all__ = [
     "Profile",
     "Step",
     "ExponentialRise",
+    "ExponentialGrowth",
     "Ramp",
     "Sinusoid",
     "Intermittent",
@@ -66,6 +67,26 @@ class ExponentialRise(Profile):
 
     def __call__(self, s: float) -> float:
         return 1.0 - math.exp(-s / self.tau)
+
+
+@dataclass(frozen=True)
+class ExponentialGrowth(Profile):
+    """A bias that jumps to the magnitude at onset and grows exponentially: p(s) = exp(rate·s) — Bošković &
+    Mehra's Sim 2 sensor profile d(t) = e^{0.05(t − t_F)} c (rate 0.05 1/s). ``rate`` [1/s] > 0; p is unbounded,
+    so only the additive kinds (bias) accept it."""
+
+    rate: float
+    type_name = "exponential_growth"
+    unit_range = False
+
+    def __post_init__(self):
+        _positive("ExponentialGrowth", "rate", self.rate)
+        if self.rate > 10.0:
+            raise RobofdiError(f"ExponentialGrowth: field 'rate' must be <= 10 1/s (a growth, not a blow-up), "
+                               f"got {self.rate!r}")
+
+    def __call__(self, s: float) -> float:
+        return math.exp(self.rate * s)
 
 
 @dataclass(frozen=True)
@@ -146,7 +167,7 @@ class Intermittent(Profile):
 
 #: Serialised profile type name -> class.
 PROFILE_TYPES: dict[str, type[Profile]] = {
-    cls.type_name: cls for cls in (Step, ExponentialRise, Ramp, Sinusoid, Oscillation, Intermittent)
+    cls.type_name: cls for cls in (Step, ExponentialRise, ExponentialGrowth, Ramp, Sinusoid, Oscillation, Intermittent)
 }
 
 

@@ -10,8 +10,8 @@
     component_friction:joint3:1.5@1                 joint-3 friction × 2.5
 
 Profiles, by the names a campaign TOML and summary.json use (:data:`robofdi.faults.profiles.PROFILE_TYPES`):
-``step``, ``exponential_rise(TAU)``, ``ramp(DURATION)``, ``sinusoid(FREQUENCY[,PHASE])``,
-``oscillation(MEAN,AMPLITUDE,FREQUENCY[,PHASE])``, ``intermittent(PERIOD,DUTY)`` (seconds, hertz, radians);
+``step``, ``exponential_rise(TAU)``, ``exponential_growth(RATE)``, ``ramp(DURATION)``, ``sinusoid(FREQUENCY[,PHASE])``,
+``oscillation(MEAN,AMPLITUDE,FREQUENCY[,PHASE])``, ``intermittent(PERIOD,DUTY)`` (seconds, hertz, radians, 1/s);
 ``exp(TAU)`` and ``sin(…)`` are accepted as short aliases. The fault's name is TARGET_KIND (``joint2_additive``),
 numbered if repeated.
 """
@@ -22,7 +22,9 @@ from collections.abc import Sequence
 
 from robofdi.errors import RobofdiError
 from robofdi.faults.fault import FAULT_KINDS, Fault
-from robofdi.faults.profiles import ExponentialRise, Intermittent, Oscillation, Profile, Ramp, Sinusoid, Step
+from robofdi.faults.profiles import (
+    ExponentialGrowth, ExponentialRise, Intermittent, Oscillation, Profile, Ramp, Sinusoid, Step,
+)
 
 __all__ = ["parse_fault_spec", "parse_fault_specs", "SPEC_FORMAT", "PROFILE_HELP"]
 
@@ -35,6 +37,7 @@ _SPEC = re.compile(
 _PROFILES = {
     Step.type_name: (Step, 0, 0, ""),
     ExponentialRise.type_name: (ExponentialRise, 1, 1, "TAU"),
+    ExponentialGrowth.type_name: (ExponentialGrowth, 1, 1, "RATE"),
     Ramp.type_name: (Ramp, 1, 1, "DURATION"),
     Sinusoid.type_name: (Sinusoid, 1, 2, "FREQUENCY[,PHASE]"),
     Oscillation.type_name: (Oscillation, 3, 4, "MEAN,AMPLITUDE,FREQUENCY[,PHASE]"),
