@@ -99,10 +99,22 @@ class Record:
         raise RobofdiError(f"record: unknown dataset {path!r}")
 
     def save(self, path: str | Path) -> Path:
-        """Write the record to an HDF5 file (parents are created); returns the path."""
+        """Write the record to an HDF5 file (parents are created); returns the path. The file is written under a
+        temporary name and renamed, so an interrupted or failed save never leaves a torn file under ``path``; a
+        partial record (``meta["aborted"]``, a run that stopped part-way) carries the top-level attribute
+        ``partial = 1``."""
+        from robofdi.interrupts import atomic_path
+
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
+        with atomic_path(path) as tmp:
+            self._write(tmp)
+        return path
+
+    def _write(self, path: Path) -> None:
         with h5py.File(path, "w") as f:
+            if self.meta.get("aborted"):
+                f.attrs["partial"] = 1
             f.attrs.update(
                 system=self.system,
                 scenario=self.scenario,
@@ -131,7 +143,6 @@ class Record:
                 g["isolated"].attrs.update(columns=json.dumps(["isolated"]), units=json.dumps([""]))
                 g.attrs["components"] = json.dumps(list(tr.components))
                 g.attrs["estimate_components"] = json.dumps(list(tr.estimate_components))
-        return path
 
 
 def _put(group, name: str, data, columns=None, units=None) -> None:
