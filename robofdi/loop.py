@@ -34,7 +34,7 @@ import numpy as np
 
 from robofdi.decision import Identification
 from robofdi.errors import RobofdiError
-from robofdi.faults import FAULT_KINDS, Fault, FaultInjector
+from robofdi.faults import FAULT_KINDS, Fault, FaultInjector, check_faults
 from robofdi.interrupts import Interrupted, signal_of
 from robofdi.protocols import (
     HEALTHY,
@@ -428,6 +428,7 @@ class ClosedLoop:
             )
         # validates targets and kinds now, not after the first seconds of a run
         injector = self._injector(0)
+        check_faults(self.faults, self.rates.control_hz)
         if self.injection == "offline":
             injector.check_offline()
 

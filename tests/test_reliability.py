@@ -150,3 +150,45 @@ def test_ctrl_c_inside_a_run_of_a_one_worker_campaign_stops_it_and_resume_gives_
                              timeout=180, env=_env(tmp_path))
     assert resumed.returncode == 0, resumed.stderr
     pd.testing.assert_frame_equal(load(out).table.drop(columns="wall_time"), whole.table.drop(columns="wall_time"))
+
+
+# ----------------------------------------------------------------------------------- faults that cannot be seen
+def _cli(capsys, *args) -> tuple[int, str]:
+    from robofdi.cli import main
+
+    code = main(list(args))
+    return code, capsys.readouterr().err
+
+
+@pytest.mark.parametrize("spec, expected", [
+    ("actuator_additive:tau_L:20@1~sin(1e6)", "Nyquist"),                       # aliases to zero at the loop rate
+    ("actuator_additive:tau_L:1@1~sin(50)", "Nyquist"),                         # exactly f_s/2: sin(πk) = 0
+    ("actuator_additive:tau_L:1@1~intermittent(1e-6,0.5)", "shorter than one control sample"),
+    ("actuator_additive:tau_L:0@1", "must not be 0"),
+])
+def test_faults_the_sampling_cannot_represent_are_refused(tmp_path, capsys, spec, expected):
+    code, err = _cli(capsys, "run", "linear", "--quiet", "--out", str(tmp_path), "--fault", spec)
+    assert code == 2 and expected in err and len(err.strip().splitlines()) == 1, err
+    assert not list(tmp_path.rglob("*.h5"))
+
+
+def test_contradicting_hard_overs_on_one_target_are_refused_and_sequential_ones_accepted():
+    from robofdi.faults import Fault, check_faults
+    from robofdi.faults.profiles import Sinusoid
+
+    a = Fault("up", "actuator_hard_over", "joint1", onset=1.0, params={"limit": 100.0})
+    b = Fault("down", "actuator_hard_over", "joint1", onset=2.0, params={"limit": -100.0})
+    with pytest.raises(Exception, match="contradicts fault 'up'"):
+        check_faults([a, b], 1000.0)
+    check_faults([Fault("up", "actuator_hard_over", "joint1", onset=1.0, end=2.0, params={"limit": 100.0}), b], 1000.0)
+    check_faults([Fault("s", "actuator_additive", "joint1", onset=1.0, magnitude=1.0, profile=Sinusoid(499.0))], 1000.0)
+
+
+def test_a_zero_size_campaign_entry_is_refused_where_the_kind_scales_with_it():
+    from robofdi import RobofdiError
+
+    bad = LINEAR.format(ff=1, faulty=1).replace("magnitude_fraction = [0.05, 0.4]", "magnitude_fraction = [0, 0]")
+    with pytest.raises(RobofdiError, match=r"faults\[0\].*must not be 0"):
+        load_spec(bad)
+    # a one-sided range ending at 0 is a real range (the probe takes the end with the larger size)
+    load_spec(bad.replace("magnitude_fraction = [0, 0]", "magnitude_fraction = [0, 0.2]"))

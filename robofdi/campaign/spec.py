@@ -42,7 +42,7 @@ except ModuleNotFoundError:          # Python 3.10
 from robofdi.protocols import System
 from robofdi.systems import fault_limit, get_system
 from robofdi.errors import RobofdiError
-from robofdi.faults import FAULT_KINDS, Fault
+from robofdi.faults import FAULT_KINDS, Fault, check_size
 from robofdi.faults.profiles import profile_from_dict
 
 __all__ = ["CampaignSpec", "FaultDistribution", "load_spec", "parse_spec", "SIGNED_KINDS", "shipped_specs"]
@@ -163,8 +163,9 @@ class FaultDistribution:
             try:
                 profile = profile_from_dict(p if isinstance(p, dict) else {"type": p})
                 probe = max(limits.values(), key=lambda lim: lim.limit)
-                size = (fraction[1] * probe.limit) if fraction else magnitude[1]
-                Fault("probe", kind, targets[0], onset=0.0, magnitude=size, profile=profile, params=params)
+                low_high = [v * probe.limit for v in fraction] if fraction else list(magnitude)
+                size = max(low_high, key=abs)                 # 0 only when the range is [0, 0]
+                check_size(Fault("probe", kind, targets[0], onset=0.0, magnitude=size, profile=profile, params=params))
             except RobofdiError as exc:
                 raise RobofdiError(f"{where}.profiles[{i}]: {exc}") from None
             parsed.append(profile.to_dict())

@@ -9,7 +9,7 @@ from collections.abc import Mapping
 from robofdi import RobofdiError
 from robofdi.faults.profiles import Profile, Step, profile_from_dict
 
-__all__ = ["Fault", "FaultKind", "FAULT_KINDS"]
+__all__ = ["Fault", "FaultKind", "FAULT_KINDS", "MAGNITUDE_FREE", "check_faults", "check_size"]
 
 
 @dataclass(frozen=True)
@@ -74,6 +74,12 @@ FAULT_KINDS: dict[str, FaultKind] = {
     "component_valve_sticking": FaultKind(unit="1", description="spool stick–slip with a stiction band of m·p (stroke)"),
     "component_leak": FaultKind(unit="mm^2", description="orifice of m·p mm² from a motor line to tank (ruptured line)"),
 }
+
+
+#: Kinds whose effect does not depend on ``magnitude`` (it is ignored: 0 by convention); every other kind scales
+#: with it, so a zero magnitude is a fault that never acts and is refused.
+MAGNITUDE_FREE = ("actuator_lock_in_place", "actuator_float", "actuator_hard_over", "sensor_freeze", "sensor_dropout",
+                  "sensor_delay")
 
 
 def _finite(x: Any) -> bool:
@@ -214,3 +220,51 @@ class Fault:
         if kwargs.get("params") is None:
             kwargs.pop("params", None)
         return cls(**kwargs)
+
+
+def check_faults(faults, control_hz: float) -> None:
+    """Refuse faults the control-rate sampling cannot represent, and faults that contradict each other.
+
+    * A sinusoidal profile at or above the Nyquist frequency control_hz/2 aliases (sin(2πf·k/f_s) can be 0 at
+      every sample: the label and the effect vanish), Shannon's sampling theorem.
+    * An intermittent profile whose on or off phase is shorter than one control sample is not that pattern once
+      sampled (a 1 µs period is on most of the time at 1 kHz).
+    * A zero magnitude for a kind that scales with it (:func:`check_size`).
+    * Two faults of one kind that each set the target's value (lock, float, hard-over, freeze, dropout, delay) on
+      the same target at overlapping times cannot both be true.
+    """
+    from robofdi.faults.profiles import Intermittent, Oscillation, Sinusoid
+
+    dt = 1.0 / control_hz
+    for f in faults:
+        p, who = f.profile, f"Fault {f.name!r}"
+        check_size(f)
+        if isinstance(p, (Sinusoid, Oscillation)) and p.frequency >= 0.5 * control_hz:
+            raise RobofdiError(f"{who}: field 'profile': frequency {p.frequency:g} Hz is at or above the Nyquist "
+                               f"frequency {0.5 * control_hz:g} Hz of the {control_hz:g} Hz control loop (it aliases); "
+                               f"expected < {0.5 * control_hz:g} Hz")
+        if isinstance(p, Intermittent):
+            on, off = p.duty * p.period, (1.0 - p.duty) * p.period
+            if on < dt * (1 - 1e-9) or (p.duty < 1 and off < dt * (1 - 1e-9)):
+                raise RobofdiError(f"{who}: field 'profile': intermittent on {on:g} s / off {off:g} s, shorter than one "
+                                   f"control sample ({dt:g} s at {control_hz:g} Hz); expected on and off phases >= {dt:g} s")
+    setting = [f for f in faults if f.kind in MAGNITUDE_FREE]
+    for i, a in enumerate(setting):
+        for b in setting[i + 1:]:
+            if a.kind == b.kind and a.target == b.target and _overlap(a, b):
+                raise RobofdiError(f"Fault {b.name!r}: contradicts fault {a.name!r}: two {a.kind} faults on "
+                                   f"{a.target!r} at overlapping times; expected at most one at a time")
+
+
+def _overlap(a: Fault, b: Fault) -> bool:
+    a_end = math.inf if a.end is None else a.end
+    b_end = math.inf if b.end is None else b.end
+    return a.onset < b_end and b.onset < a_end
+
+
+def check_size(fault: Fault) -> None:
+    """Refuse a fault of size zero of a kind whose effect scales with ``magnitude`` (not :data:`MAGNITUDE_FREE`): it
+    never acts, and a diagnoser would be scored as missing it."""
+    if fault.magnitude == 0 and fault.kind not in MAGNITUDE_FREE:
+        raise RobofdiError(f"Fault {fault.name!r}: field 'magnitude' must not be 0 for {fault.kind} (a fault of size "
+                           "zero never acts, and would be scored as a missed detection)")

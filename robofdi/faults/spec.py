@@ -21,7 +21,7 @@ import re
 from collections.abc import Sequence
 
 from robofdi.errors import RobofdiError
-from robofdi.faults.fault import FAULT_KINDS, Fault
+from robofdi.faults.fault import FAULT_KINDS, Fault, check_size
 from robofdi.faults.profiles import ExponentialRise, Intermittent, Oscillation, Profile, Ramp, Sinusoid, Step
 
 __all__ = ["parse_fault_spec", "parse_fault_specs", "SPEC_FORMAT", "PROFILE_HELP"]
@@ -90,8 +90,10 @@ def parse_fault_spec(spec: str, name: str | None = None) -> Fault:
     onset, magnitude = _number(m.group("onset"), "ONSET", spec), _number(m.group("magnitude"), "MAGNITUDE", spec)
     end = None if end is None else _number(end, "END", spec)
     try:
-        return Fault(name or f"{target}_{kind.split('_', 1)[1]}", kind, target, onset=onset, end=end,
-                     magnitude=magnitude, profile=profile, params=params)
+        fault = Fault(name or f"{target}_{kind.split('_', 1)[1]}", kind, target, onset=onset, end=end,
+                      magnitude=magnitude, profile=profile, params=params)
+        check_size(fault)
+        return fault
     except RobofdiError as exc:
         raise RobofdiError(f"fault spec {spec!r}: {exc}") from None
 
