@@ -56,10 +56,10 @@ def _is_system(name: str) -> bool:
 def _cmd_run(args) -> int:
     from robofdi.evaluate.headline import run_report
     from robofdi.loop import RunAborted, RunInterrupted
+    from robofdi.seeding import check_seed
 
     experiments = _experiments()
-    if args.seed < 0:
-        raise RobofdiError(f"--seed must be an integer >= 0, got {args.seed}")
+    check_seed("--seed", args.seed)
     if args.name in experiments:
         _, mod = experiments[args.name]
     elif _is_system(args.name):
@@ -76,6 +76,8 @@ def _cmd_run(args) -> int:
                            f"{', '.join(n for n, (_, m) in experiments.items() if getattr(m, 'OPTIONS', ()))})")
     if "joints" in options:
         options["joints"] = [j.strip() for j in options["joints"].split(",") if j.strip()]
+        if not options["joints"]:
+            raise RobofdiError(f"--joints: expected comma-separated joint names, got {args.joints!r}")
     try:
         summary, run_dir = mod.run(args.name, args.out, args.seed, progress=not args.quiet, **options)
     except RunInterrupted as exc:        # a calibration run, or a run whose partial record could not be saved

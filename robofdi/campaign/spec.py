@@ -40,6 +40,7 @@ except ModuleNotFoundError:          # Python 3.10
     import tomli as tomllib
 
 from robofdi.protocols import System
+from robofdi.seeding import check_seed
 from robofdi.systems import fault_limit, get_system
 from robofdi.errors import RobofdiError
 from robofdi.faults import FAULT_KINDS, Fault, check_size
@@ -47,6 +48,8 @@ from robofdi.faults.profiles import profile_from_dict
 
 __all__ = ["CampaignSpec", "FaultDistribution", "load_spec", "parse_spec", "SIGNED_KINDS", "shipped_specs"]
 
+#: The most runs a campaign may have (its results table is built in memory).
+MAX_RUNS = 1_000_000
 #: How a fault entry draws its size inside its range.
 MAGNITUDE_DRAWS = ("uniform", "log_uniform")
 #: Kinds whose magnitude has a sign that matters and a symmetric range (random_sign defaults to true).
@@ -234,9 +237,7 @@ def parse_spec(data: dict, source: str = "spec") -> CampaignSpec:
     except RobofdiError as exc:
         raise RobofdiError(f"{source}: {exc}") from None
     options = _options(f"{source}: system", system, options_table)
-    seed = data.get("seed", 0)
-    if not (isinstance(seed, int) and not isinstance(seed, bool) and seed >= 0):
-        raise RobofdiError(f"{source}: field 'seed' must be an integer >= 0, got {seed!r}")
+    seed = check_seed(f"{source}: field 'seed'", data.get("seed", 0))
     counts = {}
     for key in ("fault_free_runs", "faulty_runs"):
         v = data.get(key, 0)
@@ -245,6 +246,15 @@ def parse_spec(data: dict, source: str = "spec") -> CampaignSpec:
         counts[key] = v
     if counts["fault_free_runs"] + counts["faulty_runs"] == 0:
         raise RobofdiError(f"{source}: fields 'fault_free_runs' + 'faulty_runs' must be > 0, got no runs")
+    if counts["fault_free_runs"] + counts["faulty_runs"] > MAX_RUNS:
+        raise RobofdiError(f"{source}: fields 'fault_free_runs' + 'faulty_runs' must be <= {MAX_RUNS:,} (the results "
+                           f"table, one row per run and diagnoser, is held in memory), got "
+                           f"{counts['fault_free_runs'] + counts['faulty_runs']:,}")
+    try:                       # the robot file, joints, instances: checked now, not after the folder is written
+        system.targets(options)
+        system.calibration_keys(options)
+    except RobofdiError as exc:
+        raise RobofdiError(f"{source}: {exc}") from None
     available = tuple(system.diagnosers(options))
     diagnosers = data.get("diagnosers", list(available))
     if not isinstance(diagnosers, list) or not diagnosers:
@@ -310,7 +320,9 @@ def load_spec(spec) -> CampaignSpec:
             raise RobofdiError(f"SPEC: no file {str(spec)!r}; expected a TOML file or a shipped spec "
                                f"({', '.join(sorted(shipped))})")
     try:
-        data = tomllib.loads(path.read_text())
+        data = tomllib.loads(path.read_bytes().decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise RobofdiError(f"{path.name}: not UTF-8 text (byte {exc.start}); expected a TOML file in UTF-8") from None
     except tomllib.TOMLDecodeError as exc:
         raise RobofdiError(f"{path.name}: not valid TOML: {exc}") from None
     return parse_spec(data, path.name)

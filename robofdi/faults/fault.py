@@ -24,6 +24,7 @@ class _ParamSpec:
 _LIMIT = _ParamSpec(lambda v: True, "a finite number", required=True)
 _DELAY = _ParamSpec(lambda v: v > 0, "a finite number > 0 (s)", required=True)
 _PROBABILITY = _ParamSpec(lambda v: 0 < v <= 1, "a finite number in (0, 1]", required=True)
+_NON_NEGATIVE = _ParamSpec(lambda v: v >= 0, ">= 0")
 
 
 @dataclass(frozen=True)
@@ -42,6 +43,7 @@ class FaultKind:
     offline: bool = False
     unit: str = "target"
     description: str = ""
+    values: _ParamSpec | None = None     # what the effect m·p may be (component kinds: what the plant can take)
 
 
 #: Fault kind -> its :class:`FaultKind`. The prefix before "_" is the family: actuator, sensor or component.
@@ -63,16 +65,20 @@ FAULT_KINDS: dict[str, FaultKind] = {
     "sensor_noise": FaultKind(description="y + N(0, (m·p)²), loss of accuracy"),
     "sensor_delay": FaultKind({"delay": _DELAY}, profiles="unit", description="y(t − delay·p)"),
     "sensor_outliers": FaultKind({"probability": _PROBABILITY}, description="y ± m·p with the given probability per sample"),
-    "component_friction": FaultKind(unit="1", description="joint friction × (1 + m·p) (friction rise)"),
-    "component_mass": FaultKind(unit="kg", description="m·p kg added to a body (damage, payload change)"),
-    "component_thruster_blocking": FaultKind(profiles="unit", unit="1",
+    "component_friction": FaultKind(unit="1", description="joint friction × (1 + m·p) (friction rise)",
+                                    values=_ParamSpec(lambda v: v > -1, "> -1 (friction cannot become negative)")),
+    "component_mass": FaultKind(unit="kg", description="m·p kg added to a body (damage, payload change)",
+                                values=_NON_NEGATIVE),
+    "component_thruster_blocking": FaultKind(profiles="unit", unit="1", values=_NON_NEGATIVE,
                                              description="rotor stalled while m·p > 0 (solid body in the blades)"),
-    "component_thruster_flooding": FaultKind(unit="1", description="flooded thruster: motor drive × (1 + m·p), "
-                                                                   "leakage current"),
-    "component_open_winding": FaultKind(profiles="unit", unit="1",
+    "component_thruster_flooding": FaultKind(unit="1", values=_NON_NEGATIVE,
+                                             description="flooded thruster: motor drive × (1 + m·p), leakage current"),
+    "component_open_winding": FaultKind(profiles="unit", unit="1", values=_ParamSpec(lambda v: 0 <= v <= 1, "in [0, 1]"),
                                         description="servovalve coil current × (1 − m·p); m = 1 an open circuit"),
-    "component_valve_sticking": FaultKind(unit="1", description="spool stick–slip with a stiction band of m·p (stroke)"),
-    "component_leak": FaultKind(unit="mm^2", description="orifice of m·p mm² from a motor line to tank (ruptured line)"),
+    "component_valve_sticking": FaultKind(unit="1", values=_NON_NEGATIVE,
+                                          description="spool stick–slip with a stiction band of m·p (stroke)"),
+    "component_leak": FaultKind(unit="mm^2", values=_NON_NEGATIVE,
+                                description="orifice of m·p mm² from a motor line to tank (ruptured line)"),
 }
 
 
@@ -140,6 +146,13 @@ class Fault:
                 f"{who}: field 'profile' must stay in [0, 1] for {self.kind} (step, exponential_rise, ramp or "
                 f"intermittent), got {self.profile.type_name}"
             )
+        values = FAULT_KINDS[self.kind].values
+        if values is not None:
+            for p in self.profile.bounds:
+                if not values.check(self.magnitude * p):
+                    raise RobofdiError(f"{who}: field 'magnitude': the effect magnitude·p(t) reaches "
+                                       f"{self.magnitude * p:g} with profile {self.profile.type_name}; {self.kind} "
+                                       f"expects it {values.expected}")
         if self.seed is not None and (not isinstance(self.seed, int) or isinstance(self.seed, bool) or self.seed < 0):
             raise RobofdiError(f"{who}: field 'seed' must be None or an integer >= 0, got {self.seed!r}")
         self._check_params(who)

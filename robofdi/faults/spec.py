@@ -28,7 +28,7 @@ __all__ = ["parse_fault_spec", "parse_fault_specs", "SPEC_FORMAT", "PROFILE_HELP
 
 SPEC_FORMAT = "KIND:TARGET:MAGNITUDE@ONSET[-END][~PROFILE][;NAME=VALUE]"
 _SPEC = re.compile(
-    r"^(?P<kind>[a-z_]+):(?P<target>[^:@~;]+):(?P<magnitude>[^@]+)@(?P<onset>[0-9.eE+]+)(?:-(?P<end>[0-9.eE+]+))?"
+    r"^(?P<kind>[a-z_]+):(?P<target>[^:@~;]+):(?P<magnitude>[^@]+)@(?P<onset>[0-9.]+(?:[eE][+-]?[0-9]*)?)(?:-(?P<end>[0-9.]+(?:[eE][+-]?[0-9]*)?))?"
     r"(?:~(?P<profile>[a-z_]+(?:\([^)]*\))?))?(?P<params>(?:;[a-z_]+=[^;]+)*)$"
 )
 #: canonical profile name (the serialised type name) → (class, least and most arguments, argument names)
