@@ -17,6 +17,7 @@ wall-clock time, so the same seed gives a byte-identical file.
 """
 from __future__ import annotations
 
+import io
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -106,12 +107,25 @@ class Record:
         from robofdi.interrupts import atomic_path
 
         path = Path(path)
+        data = self.to_bytes()
         path.parent.mkdir(parents=True, exist_ok=True)
-        with atomic_path(path) as tmp:
-            self._write(tmp)
+        with atomic_path(path) as tmp:           # one plain write: a full disk is one OSError naming the file
+            with open(tmp, "wb") as fh:
+                fh.write(data)
         return path
 
-    def _write(self, path: Path) -> None:
+    def to_bytes(self) -> bytes:
+        """The HDF5 file :meth:`save` writes, built in memory (HDF5 never meets the disk, so a full or failing
+        device cannot leave it half-flushed)."""
+        from robofdi.seeding import check_seed
+
+        if self.seed is not None:
+            check_seed("record: field 'seed'", self.seed)
+        buffer = io.BytesIO()
+        self._write(buffer)
+        return buffer.getvalue()
+
+    def _write(self, path) -> None:
         with h5py.File(path, "w") as f:
             if self.meta.get("aborted"):
                 f.attrs["partial"] = 1

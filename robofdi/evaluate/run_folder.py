@@ -54,9 +54,14 @@ def write_run_folder(run_dir: Path, record: Record, summary: Mapping, others: Ma
     if isinstance(summary, dict):
         settle_lead(summary, record)
     write_summary(summary, run_dir / "summary.json")
-    record.save(run_dir / "record.h5")
-    for key, rec in (others or {}).items():
-        rec.save(run_dir / f"{key}.h5")
+    failed = None
+    for name, rec in {"record": record, **(others or {})}.items():
+        try:
+            rec.save(run_dir / f"{name}.h5")
+        except OSError as exc:              # a full disk: keep trying the others (a smaller one may fit), then say so
+            failed = failed or exc
+    if failed is not None:
+        raise failed
     (run_dir / PARTIAL).unlink(missing_ok=True)
     figures = run_dir / "figures"
     figures.mkdir(exist_ok=True)
