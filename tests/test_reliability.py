@@ -8,8 +8,10 @@ itself from a wrapper around the real function that is running at that moment (t
 from __future__ import annotations
 
 import json
+import signal
 import subprocess
 import sys
+from pathlib import Path
 
 import h5py
 import pandas as pd
@@ -192,3 +194,157 @@ def test_a_zero_size_campaign_entry_is_refused_where_the_kind_scales_with_it():
         load_spec(bad)
     # a one-sided range ending at 0 is a real range (the probe takes the end with the larger size)
     load_spec(bad.replace("magnitude_fraction = [0, 0]", "magnitude_fraction = [0, 0.2]"))
+
+
+# ------------------------------------------------------------------------------ bad input refused before any work
+def _arm_variant(tmp_path, pattern: str, replacement: str, name: str) -> Path:
+    import re
+
+    from robofdi import ASSETS
+
+    text = (Path(ASSETS) / "arm6.xml").read_text()
+    assert re.search(pattern, text), pattern
+    path = tmp_path / name
+    path.write_text(re.sub(pattern, replacement, text, count=1))
+    return path
+
+
+@pytest.mark.parametrize("args, expected", [
+    (["run", "linear", "--seed", str(2**64)], "--seed must be an integer in [0, 2^63 - 1]"),
+    (["run", "arm", "--fault", "component_mass:payload:-3@1"], "component_mass expects it >= 0"),
+    (["run", "arm", "--fault", "component_friction:joint2:-2@1"], "expects it > -1"),
+    (["run", "arm", "--fault", "component_friction:joint2:1.5@1~sin(2)"], "reaches -1.5 with profile sinusoid"),
+    (["run", "arm", "--robot", "."], "is a folder"),
+    (["run", "arm", "--robot", "/dev/null"], "not a regular file"),
+    (["run", "arm", "--joints", ","], "--joints: expected comma-separated joint names"),
+])
+def test_bad_command_line_input_is_one_line_exit_2_before_any_folder(tmp_path, capsys, args, expected):
+    out = tmp_path / "runs"
+    code, err = _cli(capsys, *args, "--quiet", "--out", str(out))
+    assert code == 2 and expected in err and len(err.strip().splitlines()) == 1, err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("pattern, replacement, expected", [
+    (r'mass="[^"]*"', 'mass="nan"', "mass='nan' is not a finite number"),
+    (r'timestep="[^"]*"', 'timestep="0.5"', "timestep> is 0.5 s; expected a physics step in (0, 0.01] s"),
+    (r'ctrlrange="[^"]*"', 'ctrlrange="-1e12 1e12"', "expected at most 1e+06 in magnitude"),
+])
+def test_mjcf_values_mujoco_would_replace_or_that_are_absurd_are_named(tmp_path, capsys, pattern, replacement, expected):
+    robot = _arm_variant(tmp_path, pattern, replacement, "bad.xml")
+    code, err = _cli(capsys, "run", "arm", "--robot", str(robot), "--quiet", "--out", str(tmp_path / "runs"))
+    assert code == 2 and expected in err and len(err.strip().splitlines()) == 1, err
+
+
+def test_non_utf8_mjcf_and_toml_name_the_file_and_the_byte(tmp_path, capsys):
+    robot = tmp_path / "latin1.xml"
+    robot.write_bytes(b'<mujoco model="\xe9"><worldbody/></mujoco>')
+    code, err = _cli(capsys, "run", "arm", "--robot", str(robot), "--quiet", "--out", str(tmp_path / "runs"))
+    assert code == 2 and "latin1.xml" in err and "not UTF-8" in err and "byte 15" in err, err
+    spec = tmp_path / "latin1.toml"
+    spec.write_bytes(LINEAR.format(ff=1, faulty=1).encode() + b"# caf\xe9\n")
+    code, err = _cli(capsys, "campaign", str(spec), "--out", str(tmp_path / "c"), "--quiet")
+    assert code == 2 and "latin1.toml: not UTF-8" in err, err
+    assert not (tmp_path / "c").exists()
+
+
+def test_an_onset_in_scientific_notation_is_read_as_a_number():
+    from robofdi.faults import parse_fault_spec
+
+    assert parse_fault_spec("actuator_additive:joint2:20@1e-3").onset == pytest.approx(1e-3)
+    f = parse_fault_spec("actuator_additive:joint2:20@1e-3-2.5")
+    assert (f.onset, f.end) == (pytest.approx(1e-3), 2.5)
+
+
+@pytest.mark.parametrize("change, expected", [
+    ('[system]\nname = "arm"\nrobot = "nope.xml"', "system.robot: mjcf: file 'nope.xml' does not exist"),
+    ('[system]\nname = "arm"\njoints = ["x"]', "are not joints of arm6.xml"),
+    ('[system]\nname = "linear"\nduration = inf', "field 'duration' is out of range, got inf"),
+    ('fault_free_runs = 1000000000\n[system]\nname = "linear"', "must be <= 1,000,000"),
+    ('seed = 18446744073709551616\n[system]\nname = "linear"', "'seed' must be an integer in [0, 2^63 - 1]"),
+])
+def test_campaign_fields_are_checked_before_the_folder_is_written(tmp_path, capsys, change, expected):
+    spec = tmp_path / "bad.toml"
+    spec.write_text("fault_free_runs = 2\n" * ("fault_free_runs" not in change) + change + "\n")
+    out = tmp_path / "campaign"
+    code, err = _cli(capsys, "campaign", str(spec), "--out", str(out), "--quiet")
+    assert code == 2 and expected in err and len(err.strip().splitlines()) == 1, err
+    assert not out.exists()
+
+
+# ------------------------------------------------------------------------------------------------------ full disk
+def _run_with_file_size_limit(tmp_path, limit: int) -> subprocess.CompletedProcess:
+    """`robofdi run linear` where no file may grow past ``limit`` bytes (RLIMIT_FSIZE, SIGXFSZ ignored: a write
+    beyond it fails with EFBIG, as one on a full device fails with ENOSPC)."""
+    import resource
+
+    def limited():
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    cmd = [sys.executable, "-m", "robofdi.cli", "run", "linear", "--quiet", "--out", str(tmp_path / "runs")]
+    return subprocess.run(cmd, preexec_fn=limited, capture_output=True, text=True, timeout=180, env=_env(tmp_path))
+
+
+def test_a_record_that_does_not_fit_names_the_file_and_keeps_the_summary(tmp_path):
+    proc = _run_with_file_size_limit(tmp_path, 50_000)          # summary.json ~1 kB fits, record.h5 ~230 kB does not
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.strip() == f"robofdi: error: '{tmp_path / 'runs' / 'linear-seed0' / 'record.h5'}': File too large"
+    folder = tmp_path / "runs" / "linear-seed0"
+    assert sorted(p.name for p in folder.iterdir()) == ["summary.json"]      # no torn record.h5, no temporary file
+    assert json.loads((folder / "summary.json").read_text())["diagnosers"]
+
+
+def test_a_summary_that_does_not_fit_names_the_file(tmp_path):
+    proc = _run_with_file_size_limit(tmp_path, 300)
+    assert proc.returncode == 2, proc.stderr
+    assert "summary.json': File too large" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+    assert not list((tmp_path / "runs" / "linear-seed0").iterdir())
+
+
+# --------------------------------------------------------------------------------------------- calibration cache
+def test_a_truncated_calibration_cache_is_reported_with_its_path_and_recomputed(tmp_path):
+    from robofdi import calibration
+
+    env = {**_env(tmp_path), "ROBOFDI_CACHE": str(tmp_path / "cache")}
+    cmd = [sys.executable, "-m", "robofdi.cli", "run", "linear", "--quiet", "--out", str(tmp_path / "runs")]
+    first = subprocess.run(cmd, capture_output=True, text=True, timeout=180, env=env)
+    assert first.returncode == 0, first.stderr
+    (path,) = (tmp_path / "cache").glob("*.cal.npz")
+    good = path.read_bytes()
+    def summary():
+        data = json.loads((tmp_path / "runs" / "linear-seed0" / "summary.json").read_text())
+        data.pop("wall_time", None)
+        return data
+
+    before = summary()
+    path.write_bytes(good[: len(good) // 2])                              # torn, as by a full disk or a crash
+    again = subprocess.run(cmd, capture_output=True, text=True, timeout=180, env=env)
+    assert again.returncode == 0, again.stderr
+    assert str(path) in again.stderr and "unreadable" in again.stderr and "recomputing" in again.stderr
+    assert calibration.loads(path.read_bytes()) is not None                 # replaced by a good file
+    assert summary() == before
+    assert not list((tmp_path / "cache").glob("*.tmp"))
+
+
+def test_every_corruption_of_a_cache_file_is_detected_and_nothing_is_pickled():
+    import numpy as np
+
+    from robofdi import calibration
+
+    data = calibration.dumps({"theta": np.linspace(0.0, 1.0, 40), "k": 3})
+    assert b"pickle" not in data
+    for n in range(0, len(data), 7):                                        # every truncation
+        try:
+            calibration.loads(data[:n])
+        except Exception:
+            continue
+        pytest.fail(f"a file cut at byte {n} of {len(data)} was read")
+    for k in range(0, len(data), 3):                                        # every flipped byte, even ones that unzip
+        flipped = bytearray(data)
+        flipped[k] ^= 0xFF
+        try:
+            value = calibration.loads(bytes(flipped))
+        except Exception:
+            continue
+        assert np.array_equal(value["theta"], np.linspace(0.0, 1.0, 40)) and value["k"] == 3, k
