@@ -11,6 +11,7 @@ import json
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import h5py
@@ -348,3 +349,27 @@ def test_every_corruption_of_a_cache_file_is_detected_and_nothing_is_pickled():
         except Exception:
             continue
         assert np.array_equal(value["theta"], np.linspace(0.0, 1.0, 40)) and value["k"] == 3, k
+
+
+# ----------------------------------------------------------------------------------------------------------- Dask
+def test_an_http_server_as_dask_scheduler_is_one_line_within_the_timeout(tmp_path):
+    pytest.importorskip("dask.distributed")
+    import http.server
+    import threading
+
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), http.server.SimpleHTTPRequestHandler)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    try:
+        address = f"tcp://127.0.0.1:{server.server_address[1]}"
+        start = time.monotonic()
+        proc = subprocess.run([sys.executable, "-m", "robofdi.cli", "campaign", "linear", "--scheduler", address,
+                               "--out", str(tmp_path / "c"), "--quiet"], capture_output=True, text=True, timeout=120,
+                              env=_env(tmp_path))
+        seconds = time.monotonic() - start
+    finally:
+        server.shutdown()
+    assert proc.returncode == 2, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "cannot reach the Dask scheduler" in lines[0] and "within 10 s" in lines[0], proc.stderr
+    assert seconds < 90                                        # 10 s + start-up on a loaded machine, not > 10 min
+    assert not (tmp_path / "c").exists()
