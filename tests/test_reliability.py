@@ -7,7 +7,9 @@ Real runs of the linear system (subprocesses for the signals); a signal at an ex
 itself from a wrapper around the real function that is running at that moment (the physics is never replaced)."""
 from __future__ import annotations
 
+import contextlib
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -79,7 +81,6 @@ raise SystemExit(main(sys.argv[3:]))
 
 
 def _env(tmp_path) -> dict:
-    import os
 
     return {**os.environ, "ROBOFDI_PROGRESS": "off"}
 
@@ -373,3 +374,92 @@ def test_an_http_server_as_dask_scheduler_is_one_line_within_the_timeout(tmp_pat
     assert len(lines) == 1 and "cannot reach the Dask scheduler" in lines[0] and "within 10 s" in lines[0], proc.stderr
     assert seconds < 90                                        # 10 s + start-up on a loaded machine, not > 10 min
     assert not (tmp_path / "c").exists()
+
+
+# ------------------------------------------------------------------------------------------- servers and plug-ins
+def _listening(pids: list[int]) -> list[str]:
+    """The local addresses (ip:port) the processes ``pids`` listen on over TCP, from /proc."""
+    import socket
+    import struct
+
+    inodes = set()
+    for pid in pids:
+        with contextlib.suppress(OSError):
+            for fd in os.listdir(f"/proc/{pid}/fd"):
+                with contextlib.suppress(OSError):
+                    link = os.readlink(f"/proc/{pid}/fd/{fd}")
+                    if link.startswith("socket:["):
+                        inodes.add(link[8:-1])
+    found = []
+    for table, family in (("/proc/net/tcp", socket.AF_INET), ("/proc/net/tcp6", socket.AF_INET6)):
+        with contextlib.suppress(OSError), open(table) as fh:
+            for row in fh.readlines()[1:]:
+                cols = row.split()
+                if cols[3] != "0A" or cols[9] not in inodes:              # 0A: LISTEN
+                    continue
+                address, port = cols[1].split(":")
+                raw = bytes.fromhex(address)
+                raw = b"".join(struct.pack("<I", w) for w in struct.unpack(f">{len(raw) // 4}I", raw))
+                found.append(f"{socket.inet_ntop(family, raw)}:{int(port, 16)}")
+    return found
+
+
+def test_robofdi_view_listens_on_127_0_0_1_only(tmp_path):
+    if not sys.platform.startswith("linux"):
+        pytest.skip("reads the sockets from /proc")
+    import select
+
+    from test_viz import _children, make_record
+
+    record = make_record().save(tmp_path / "record.h5")
+    proc = subprocess.Popen([sys.executable, "-m", "robofdi.cli", "view", str(record), "--no-browser"], cwd=tmp_path,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    children: list[int] = []
+    try:
+        line, deadline = "", time.monotonic() + 120
+        while "http" not in line and proc.poll() is None:
+            ready, _, _ = select.select([proc.stdout], [], [], max(0.0, deadline - time.monotonic()))
+            assert ready, "robofdi view printed no URL within 120 s"
+            line = proc.stdout.readline()
+        assert "http://127.0.0.1:" in line, proc.stderr.read() if proc.poll() is not None else line
+        children = _children(proc.pid)
+        addresses = _listening([proc.pid, *children])
+        web_port = int(line.split("http://127.0.0.1:")[1].split("/")[0])
+        assert f"127.0.0.1:{web_port}" in addresses and len(addresses) >= 2, addresses       # web server + zmq
+        assert all(a.startswith("127.0.0.1:") for a in addresses), addresses
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(timeout=30) == 0
+    finally:
+        for pid in [*children, proc.pid]:
+            with contextlib.suppress(OSError):
+                os.kill(pid, signal.SIGKILL)
+        proc.wait(timeout=30)
+        proc.stdout.close()
+        proc.stderr.close()
+
+
+def test_building_a_replay_starts_no_server(tmp_path):
+    from test_viz import make_record
+
+    from robofdi.viz import write_replay_html
+
+    started: list = []
+    watching = [True]
+
+    def audit(event, args):                   # Python's audit events: every subprocess and every socket bind
+        if watching[0] and event in ("subprocess.Popen", "socket.bind"):
+            started.append((event, args[:2]))
+
+    sys.addaudithook(audit)
+    try:
+        path = write_replay_html(make_record(), tmp_path / "replay.html")
+    finally:
+        watching[0] = False
+    assert "handle_command_bytearray" in path.read_text()              # the scene is in the file
+    assert not started, started                                          # no meshcat-server, nothing listening
+
+
+def _children(pid: int) -> list[int]:
+    from test_viz import _children as children
+
+    return children(pid)
