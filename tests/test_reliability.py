@@ -463,3 +463,44 @@ def _children(pid: int) -> list[int]:
     from test_viz import _children as children
 
     return children(pid)
+
+
+SIDE_EFFECT = """
+from pathlib import Path
+Path(__file__).with_name("imported").write_text("the module ran")
+
+class NotASystem:
+    def __init__(self):
+        Path(__file__).with_name("instantiated").write_text("the class ran")
+"""
+
+
+def test_a_module_attr_system_is_imported_only_for_an_otherwise_valid_spec_and_never_blindly_instantiated(
+        tmp_path, monkeypatch):
+    from robofdi import RobofdiError
+
+    (tmp_path / "sidefx_mod.py").write_text(SIDE_EFFECT)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    with pytest.raises(RobofdiError, match="'seed' must be an integer"):
+        load_spec({"system": "sidefx_mod:NotASystem", "seed": -1, "fault_free_runs": 1})
+    with pytest.raises(RobofdiError, match="'fault_free_runs'"):
+        load_spec({"system": "sidefx_mod:NotASystem", "fault_free_runs": "many"})
+    assert not (tmp_path / "imported").exists(), "the module was imported for an invalid spec"
+    with pytest.raises(RobofdiError, match="does not implement the System protocol"):
+        load_spec({"system": "sidefx_mod:NotASystem", "fault_free_runs": 1})
+    assert (tmp_path / "imported").exists()                      # a valid spec imports it (documented: code runs)
+    assert not (tmp_path / "instantiated").exists(), "a class that is not a System was instantiated"
+
+
+def test_a_pickle_planted_as_a_calibration_is_refused_and_runs_nothing(tmp_path):
+    import pickle
+
+    from robofdi import calibration
+
+    class Boom:
+        def __reduce__(self):
+            return (Path.write_text, (tmp_path / "ran", "pickle executed"))
+
+    with pytest.raises(ValueError):
+        calibration.loads(pickle.dumps(Boom()))
+    assert not (tmp_path / "ran").exists()

@@ -9,7 +9,8 @@
     # (a system without options can be given at the top instead: system = "linear")
 
     [system]                       # the system and its options (see its options dataclass)
-    name = "arm"                   # a registered system, or "package.module:attribute"
+    name = "arm"                   # a registered system, or "package.module:attribute" (imports that module: its
+                                   # code runs, so only for specs you trust; checked after the rest of the spec)
     robot = "arm6.xml"
 
     [[faults]]
@@ -232,11 +233,10 @@ def parse_spec(data: dict, source: str = "spec") -> CampaignSpec:
         name = options_table.pop("name", None)
     if name is None:
         raise RobofdiError(f"{source}: field 'system' is required (e.g. system = \"arm\", or [system] with name = \"arm\")")
-    try:
-        system = get_system(name)
-    except RobofdiError as exc:
-        raise RobofdiError(f"{source}: {exc}") from None
-    options = _options(f"{source}: system", system, options_table)
+    if not isinstance(name, str) or not name:
+        raise RobofdiError(f"{source}: field 'system' must be a system name, got {name!r}")
+    # everything that does not need the system first: a 'package.module:attribute' system is imported (its code
+    # runs) only for a spec that is otherwise valid
     seed = check_seed(f"{source}: field 'seed'", data.get("seed", 0))
     counts = {}
     for key in ("fault_free_runs", "faulty_runs"):
@@ -250,6 +250,22 @@ def parse_spec(data: dict, source: str = "spec") -> CampaignSpec:
         raise RobofdiError(f"{source}: fields 'fault_free_runs' + 'faulty_runs' must be <= {MAX_RUNS:,} (the results "
                            f"table, one row per run and diagnoser, is held in memory), got "
                            f"{counts['fault_free_runs'] + counts['faulty_runs']:,}")
+    records = data.get("records", False)
+    if not isinstance(records, bool):
+        raise RobofdiError(f"{source}: field 'records' must be true or false, got {records!r}")
+    level = data.get("detection_level", 0.9)
+    if not (_number(level) and 0 < level < 1):
+        raise RobofdiError(f"{source}: field 'detection_level' must be a probability in (0, 1), got {level!r}")
+    tables = data.get("faults", [])
+    if not isinstance(tables, list):
+        raise RobofdiError(f"{source}: field 'faults' must be [[faults]] tables, got {tables!r}")
+    if counts["faulty_runs"] and not tables:
+        raise RobofdiError(f"{source}: field 'faults': faulty_runs = {counts['faulty_runs']} needs at least one [[faults]] entry")
+    try:
+        system = get_system(name)
+    except RobofdiError as exc:
+        raise RobofdiError(f"{source}: {exc}") from None
+    options = _options(f"{source}: system", system, options_table)
     try:                       # the robot file, joints, instances: checked now, not after the folder is written
         system.targets(options)
         system.calibration_keys(options)
@@ -263,17 +279,6 @@ def parse_spec(data: dict, source: str = "spec") -> CampaignSpec:
         if d not in available:
             raise RobofdiError(f"{source}: field 'diagnosers': unknown diagnoser {d!r} for system {system.name!r}; "
                                f"expected some of {', '.join(available)}")
-    records = data.get("records", False)
-    if not isinstance(records, bool):
-        raise RobofdiError(f"{source}: field 'records' must be true or false, got {records!r}")
-    level = data.get("detection_level", 0.9)
-    if not (_number(level) and 0 < level < 1):
-        raise RobofdiError(f"{source}: field 'detection_level' must be a probability in (0, 1), got {level!r}")
-    tables = data.get("faults", [])
-    if not isinstance(tables, list):
-        raise RobofdiError(f"{source}: field 'faults' must be [[faults]] tables, got {tables!r}")
-    if counts["faulty_runs"] and not tables:
-        raise RobofdiError(f"{source}: field 'faults': faulty_runs = {counts['faulty_runs']} needs at least one [[faults]] entry")
     faults = tuple(FaultDistribution.resolve(f"{source}: faults[{i}]", t, system, options) for i, t in enumerate(tables))
     return CampaignSpec(name, seed, counts["fault_free_runs"],
                         counts["faulty_runs"], tuple(diagnosers), records, float(level), options, faults, source)

@@ -23,7 +23,9 @@ an entry point of the group ``robofdi.systems`` in its pyproject.toml::
     [project.entry-points."robofdi.systems"]
     my-plant = "my_package.my_system"
 
-or name it directly as ``"package.module:attribute"`` (a campaign spec's ``system``, ``robofdi run``).
+or name it directly as ``"package.module:attribute"`` (a campaign spec's ``system``, ``robofdi run``). That
+imports the module — it runs its code — so a spec naming one is trusted like a script; a campaign spec is checked
+for everything that does not need the system before the import.
 """
 from __future__ import annotations
 
@@ -91,8 +93,16 @@ def system_names() -> list[str]:
     return sorted(SYSTEMS)
 
 
+#: what a System class or instance must have before ``package.module:attribute`` is instantiated
+_SYSTEM_MEMBERS = ("name", "options_type", "diagnosers", "targets", "calibration_keys", "calibrate", "mission", "run")
+
+
 def get_system(name: str) -> System:
-    """A registered system by name, or ``"package.module:attribute"`` (a System class or instance)."""
+    """A registered system by name, or ``"package.module:attribute"`` (a System class or instance).
+
+    ``package.module:attribute`` imports that module, which runs its code: name only modules you trust (a spec
+    from elsewhere should name registered systems). The attribute is instantiated only if it has every member of
+    the System protocol."""
     if not isinstance(name, str) or not name:
         raise RobofdiError(f"system: expected a non-empty name, got {name!r}")
     if ":" in name:
@@ -101,6 +111,9 @@ def get_system(name: str) -> System:
             system = getattr(import_module(module), attr)
         except (ImportError, AttributeError) as exc:
             raise RobofdiError(f"system: cannot import {name!r} ({exc})") from None
+        missing = [m for m in _SYSTEM_MEMBERS if not hasattr(system, m)]
+        if missing:                                   # checked before anything is instantiated
+            raise RobofdiError(f"system: {name!r} does not implement the System protocol (missing: {', '.join(missing)})")
         if isinstance(system, type):
             system = system()
         if not isinstance(system, System):
