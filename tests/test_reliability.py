@@ -504,3 +504,18 @@ def test_a_pickle_planted_as_a_calibration_is_refused_and_runs_nothing(tmp_path)
     with pytest.raises(ValueError):
         calibration.loads(pickle.dumps(Boom()))
     assert not (tmp_path / "ran").exists()
+
+
+@pytest.mark.parametrize("spec, expected", [
+    ("actuator_lock_in_place:joint2:5@1", "must be 0 for actuator_lock_in_place: the kind ignores it"),
+    ("sensor_freeze:joint2_pos:0.1@1", "must be 0 for sensor_freeze"),
+    ("sensor_delay:joint2_pos:0@1;delay=1e9", "a delay in (0, 60] s"),
+])
+def test_silently_ignored_or_absurd_fault_values_are_refused(spec, expected):
+    from robofdi import RobofdiError
+    from robofdi.faults import parse_fault_spec
+
+    with pytest.raises(RobofdiError) as info:
+        parse_fault_spec(spec)
+    assert expected in str(info.value)
+    parse_fault_spec("actuator_lock_in_place:joint2:0@1")                  # the documented form stays valid

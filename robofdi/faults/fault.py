@@ -22,7 +22,7 @@ class _ParamSpec:
 
 
 _LIMIT = _ParamSpec(lambda v: True, "a finite number", required=True)
-_DELAY = _ParamSpec(lambda v: v > 0, "a finite number > 0 (s)", required=True)
+_DELAY = _ParamSpec(lambda v: 0 < v <= 60, "a delay in (0, 60] s", required=True)
 _PROBABILITY = _ParamSpec(lambda v: 0 < v <= 1, "a finite number in (0, 1]", required=True)
 _NON_NEGATIVE = _ParamSpec(lambda v: v >= 0, ">= 0")
 
@@ -277,7 +277,12 @@ def _overlap(a: Fault, b: Fault) -> bool:
 
 def check_size(fault: Fault) -> None:
     """Refuse a fault of size zero of a kind whose effect scales with ``magnitude`` (not :data:`MAGNITUDE_FREE`): it
-    never acts, and a diagnoser would be scored as missing it."""
+    never acts, and a diagnoser would be scored as missing it; and a non-zero magnitude for a kind that ignores it
+    (lock, freeze, …): the user meant something the fault will not do."""
     if fault.magnitude == 0 and fault.kind not in MAGNITUDE_FREE:
         raise RobofdiError(f"Fault {fault.name!r}: field 'magnitude' must not be 0 for {fault.kind} (a fault of size "
                            "zero never acts, and would be scored as a missed detection)")
+    if fault.magnitude != 0 and fault.kind in MAGNITUDE_FREE:
+        raise RobofdiError(f"Fault {fault.name!r}: field 'magnitude' must be 0 for {fault.kind}: the kind ignores it "
+                           f"(its effect is set by the profile{' and params' if FAULT_KINDS[fault.kind].params else ''}), "
+                           f"got {fault.magnitude:g}")
