@@ -104,9 +104,9 @@ def test_a_signal_mid_simulation_keeps_a_clearly_partial_record(tmp_path, sig, c
         assert f.attrs["partial"] == 1
         assert 2.0 < f["time"][-1] < 4.0               # step 300 at 100 Hz; the run lasts 10 s
     # a later successful run in the same folder removes the stale partial record
-    again = subprocess.run([sys.executable, "-m", "robofdi.cli", "run", "linear", "--out", str(tmp_path / "runs"),
-                            "--quiet"], capture_output=True, text=True, timeout=180, env=_env(tmp_path))
-    assert again.returncode == 0, again.stderr
+    from robofdi.cli import main
+
+    assert main(["run", "linear", "--out", str(tmp_path / "runs"), "--quiet"]) == 0
     names = sorted(p.name for p in folder.iterdir())
     assert "partial.h5" not in names and "record.h5" in names and "summary.json" in names
     with h5py.File(folder / "record.h5", "r") as f:
@@ -305,15 +305,15 @@ def test_a_summary_that_does_not_fit_names_the_file(tmp_path):
 
 
 # --------------------------------------------------------------------------------------------- calibration cache
-def test_a_truncated_calibration_cache_is_reported_with_its_path_and_recomputed(tmp_path):
+def test_a_truncated_calibration_cache_is_reported_with_its_path_and_recomputed(tmp_path, monkeypatch, capsys):
     from robofdi import calibration
 
-    env = {**_env(tmp_path), "ROBOFDI_CACHE": str(tmp_path / "cache")}
-    cmd = [sys.executable, "-m", "robofdi.cli", "run", "linear", "--quiet", "--out", str(tmp_path / "runs")]
-    first = subprocess.run(cmd, capture_output=True, text=True, timeout=180, env=env)
-    assert first.returncode == 0, first.stderr
+    monkeypatch.setenv("ROBOFDI_CACHE", str(tmp_path / "cache"))
+    args = ("run", "linear", "--quiet", "--out", str(tmp_path / "runs"))
+    assert _cli(capsys, *args)[0] == 0
     (path,) = (tmp_path / "cache").glob("*.cal.npz")
     good = path.read_bytes()
+
     def summary():
         data = json.loads((tmp_path / "runs" / "linear-seed0" / "summary.json").read_text())
         data.pop("wall_time", None)
@@ -321,9 +321,10 @@ def test_a_truncated_calibration_cache_is_reported_with_its_path_and_recomputed(
 
     before = summary()
     path.write_bytes(good[: len(good) // 2])                              # torn, as by a full disk or a crash
-    again = subprocess.run(cmd, capture_output=True, text=True, timeout=180, env=env)
-    assert again.returncode == 0, again.stderr
-    assert str(path) in again.stderr and "unreadable" in again.stderr and "recomputing" in again.stderr
+    with pytest.warns(UserWarning) as warned:
+        assert _cli(capsys, *args)[0] == 0
+    message = " ".join(str(w.message) for w in warned)
+    assert str(path) in message and "unreadable" in message and "recomputing" in message
     assert calibration.loads(path.read_bytes()) is not None                 # replaced by a good file
     assert summary() == before
     assert not list((tmp_path / "cache").glob("*.tmp"))
