@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 import signal
+import sys
 import threading
 from contextlib import contextmanager
 from pathlib import Path
@@ -57,12 +58,19 @@ def stop_on_signals():
         received.signum = signum
         raise Interrupted(signum)
 
+    def unraisable(info):          # our Interrupted raised inside a finaliser: remembered above, not printed
+        if not isinstance(info.exc_value, Interrupted):
+            previous_hook(info)
+
     previous = {s: signal.getsignal(s) for s in SIGNALS}
+    previous_hook = sys.unraisablehook
     for s in SIGNALS:
         signal.signal(s, handler)
+    sys.unraisablehook = unraisable
     try:
         yield received
     finally:
+        sys.unraisablehook = previous_hook
         for s, h in previous.items():
             signal.signal(s, h if h is not None else signal.SIG_DFL)
 

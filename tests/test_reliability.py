@@ -72,6 +72,19 @@ if moment in ("simulation", "calibration"):       # calibration: with an empty c
     signal_on(LinearPlant, "step", step_n if moment == "simulation" else 300)
     if moment == "simulation":
         arm_on(LinearSystem, "run")
+elif moment == "finaliser":                         # a signal whose exception Python swallows (raised in __del__)
+    import robofdi.experiments.system_run as system_run
+
+    class Finaliser:
+        def __del__(self):
+            os.kill(os.getpid(), sig)
+
+    real_write = system_run.write_run_folder
+    def write_then_collect(*args, **kwargs):
+        out = real_write(*args, **kwargs)
+        Finaliser()                                   # collected at once: its __del__ gets the signal
+        return out
+    system_run.write_run_folder = write_then_collect
 elif moment == "saving":
     import robofdi.record
     signal_on(robofdi.record, "_put", 4)
@@ -121,6 +134,12 @@ def test_a_signal_during_calibration_saves_nothing_and_the_next_run_calibrates(t
     assert not list((tmp_path / "cache").glob("*")) if (tmp_path / "cache").exists() else True
     folder = tmp_path / "runs" / "linear-seed0"
     assert not list(folder.iterdir())
+
+
+def test_a_signal_whose_exception_python_swallows_still_stops_with_its_exit_code(tmp_path):
+    proc = _robofdi_run(tmp_path, "finaliser", "SIGINT")
+    assert proc.returncode == 130, proc.stderr
+    assert proc.stderr.strip() == "robofdi: interrupted by SIGINT", proc.stderr      # no "Exception ignored" traceback
 
 
 def test_sigterm_while_the_record_is_written_leaves_no_torn_file(tmp_path):
