@@ -9,8 +9,7 @@
     # (a system without options can be given at the top instead: system = "linear")
 
     [system]                       # the system and its options (see its options dataclass)
-    name = "arm"                   # a registered system, or "package.module:attribute" (imports that module: its
-                                   # code runs, so only for specs you trust; checked after the rest of the spec)
+    name = "arm"                   # a registered system, or "package.module:attribute" (imported: trusted specs only)
     robot = "arm6.xml"
 
     [[faults]]
