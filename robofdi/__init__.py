@@ -34,6 +34,7 @@ _API = {
     "ThresholdDecision": "robofdi.decision", "Signature": "robofdi.decision", "calibrate_thresholds": "robofdi.decision",
     "FaultCompensation": "robofdi.ftc",
     "ClosedLoop": "robofdi.loop", "Diagnosis": "robofdi.loop", "Rates": "robofdi.loop", "RunAborted": "robofdi.loop",
+    "RunInterrupted": "robofdi.loop",
     "diagnose_record": "robofdi.loop",
     "Record": "robofdi.record", "load": "robofdi.record",
     "summarize": "robofdi.evaluate", "write_summary": "robofdi.evaluate", "results_table": "robofdi.evaluate",

@@ -13,7 +13,8 @@ robot instance and reused by every later run, experiment and campaign worker::
   from the file. A value that cannot be stored is kept in memory for this process only.
 * **Folder.** ``$ROBOFDI_CACHE``, else ``~/.cache/robofdi`` (:func:`cache_dir`); :func:`clear` empties it
   (``robofdi cache clear`` at the command line). Writes are atomic (a temporary file renamed), so concurrent
-  workers and an interrupted run never leave a torn file; a torn or foreign file is recomputed.
+  workers and an interrupted run never leave a torn file; every file carries a SHA-256 of its content, and a torn,
+  corrupt or foreign file is reported (a warning naming it) and recomputed.
 """
 from __future__ import annotations
 
@@ -24,7 +25,6 @@ import io
 import json
 import os
 import warnings
-import zipfile
 from collections.abc import Callable, Mapping
 from importlib import import_module
 from pathlib import Path
@@ -77,8 +77,10 @@ def cached(system: str, description: Mapping, compute: Callable[[], Any], *, cac
     if path.is_file():
         try:
             return loads(path.read_bytes()), True
-        except (OSError, ValueError, KeyError, TypeError, AttributeError, ImportError, zipfile.BadZipFile):
-            pass                                            # a torn or foreign file is recomputed
+        except Exception as exc:                            # torn, corrupt or foreign: said, recomputed, replaced
+            reason = " ".join(str(exc).split()) or type(exc).__name__
+            warnings.warn(f"calibration cache: {path} is unreadable ({type(exc).__name__}: {reason}); recomputing it",
+                          stacklevel=2)
     value = compute()
     try:
         data = dumps(value)
@@ -87,13 +89,16 @@ def cached(system: str, description: Mapping, compute: Callable[[], Any], *, cac
                       stacklevel=2)
         _memory[key] = value
         return value, False
+    tmp = path.with_name(f"{path.name}.{os.getpid()}.{np.random.default_rng().integers(1 << 62)}.tmp")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f"{path.name}.{os.getpid()}.{np.random.default_rng().integers(1 << 62)}.tmp")
         tmp.write_bytes(data)
         tmp.replace(path)
-    except OSError:
-        pass                                                # a read-only cache only costs the next run its calibration
+    except OSError:                                         # a read-only or full cache only costs the next run its
+        try:                                                # calibration; no torn temporary file stays behind
+            tmp.unlink(missing_ok=True)
+        except OSError:
+            pass
     return value, False
 
 
@@ -125,18 +130,32 @@ def dumps(value: Any) -> bytes:
     """``value`` as the bytes of an .npz file (arrays as arrays, the rest a JSON tree); TypeError if it holds
     something that is neither data nor an object of :data:`TRUSTED` packages."""
     arrays: dict[str, np.ndarray] = {}
-    tree = _encode(value, arrays)
+    tree = np.frombuffer(json.dumps(_encode(value, arrays)).encode(), dtype=np.uint8)
     buffer = io.BytesIO()
-    np.savez(buffer, __tree__=np.frombuffer(json.dumps(tree).encode(), dtype=np.uint8), **arrays)
+    np.savez(buffer, __tree__=tree, __sha256__=_digest(tree, arrays), **arrays)
     return buffer.getvalue()
+
+
+def _digest(tree: np.ndarray, arrays: Mapping[str, np.ndarray]) -> np.ndarray:
+    """SHA-256 of the tree and of every array (name, dtype, shape, bytes): a flipped byte that still unzips is
+    caught too."""
+    digest = hashlib.sha256(tree.tobytes())
+    for name in sorted(arrays):
+        a = np.ascontiguousarray(arrays[name])
+        digest.update(f"\0{name}\0{a.dtype.str}\0{a.shape}\0".encode() + a.tobytes())
+    return np.frombuffer(digest.digest(), dtype=np.uint8)
 
 
 def loads(data: bytes) -> Any:
     """The value :func:`dumps` stored."""
     with np.load(io.BytesIO(data), allow_pickle=False) as npz:
         arrays = {k: npz[k] for k in npz.files}
-    tree = json.loads(arrays.pop("__tree__").tobytes().decode())
-    return _decode(tree, arrays)
+    if "__tree__" not in arrays or "__sha256__" not in arrays:
+        raise ValueError("calibration cache: not a robofdi calibration file (no tree or no checksum)")
+    tree, digest = arrays.pop("__tree__"), arrays.pop("__sha256__")
+    if not np.array_equal(digest, _digest(tree, arrays)):
+        raise ValueError("calibration cache: checksum mismatch (a corrupt file)")
+    return _decode(json.loads(tree.tobytes().decode()), arrays)
 
 
 def _class_path(obj) -> str:

@@ -6,16 +6,20 @@ given faults (:mod:`robofdi.experiments.system_run`).
 
 Errors print one line ``robofdi: error: …`` and exit with code 2 (bad input, including a file or folder that
 cannot be read or written) or 1 (a run that failed; what it had recorded is saved as ``partial.h5`` in the run
-folder; also any unexpected failure, whose traceback ``ROBOFDI_TRACEBACK=1`` shows).
+folder; also any unexpected failure, whose traceback ``ROBOFDI_TRACEBACK=1`` shows). SIGINT and SIGTERM stop any
+command the same way (:mod:`robofdi.interrupts`): one line, exit code 130 or 143, a run in flight kept as
+``partial.h5``.
 """
 from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
 from pathlib import Path
 
 from robofdi import RobofdiError, __version__
+from robofdi.interrupts import exit_code, signal_of, stop_on_signals
 from robofdi.faults.spec import PROFILE_HELP
 
 # options of `robofdi run` that only some experiments take (module attribute OPTIONS lists them)
@@ -52,11 +56,11 @@ def _is_system(name: str) -> bool:
 
 def _cmd_run(args) -> int:
     from robofdi.evaluate.headline import run_report
-    from robofdi.loop import RunAborted
+    from robofdi.loop import RunAborted, RunInterrupted
+    from robofdi.seeding import check_seed
 
     experiments = _experiments()
-    if args.seed < 0:
-        raise RobofdiError(f"--seed must be an integer >= 0, got {args.seed}")
+    check_seed("--seed", args.seed)
     if args.name in experiments:
         _, mod = experiments[args.name]
     elif _is_system(args.name):
@@ -73,8 +77,14 @@ def _cmd_run(args) -> int:
                            f"{', '.join(n for n, (_, m) in experiments.items() if getattr(m, 'OPTIONS', ()))})")
     if "joints" in options:
         options["joints"] = [j.strip() for j in options["joints"].split(",") if j.strip()]
+        if not options["joints"]:
+            raise RobofdiError(f"--joints: expected comma-separated joint names, got {args.joints!r}")
     try:
         summary, run_dir = mod.run(args.name, args.out, args.seed, progress=not args.quiet, **options)
+    except RunInterrupted as exc:        # a calibration run, or a run whose partial record could not be saved
+        where = f"recorded so far: {exc.partial_path}" if exc.partial_path else "nothing of it was saved"
+        print(f"robofdi: {exc} ({where})", file=sys.stderr)
+        return exit_code(exc)
     except RunAborted as exc:
         where = f"recorded so far: {exc.partial_path}" if exc.partial_path else "the partial record could not be saved"
         print(f"robofdi: error: {exc} ({where})", file=sys.stderr)
@@ -124,7 +134,7 @@ def _cmd_campaign(args) -> int:
                               runs=args.runs, progress=not args.quiet)
     except CampaignInterrupted as exc:
         print(f"robofdi: {exc}", file=sys.stderr)
-        return 143
+        return exit_code(exc.signum)
     summary = result.summary
     print((out / "report.md").read_text().split("\n## ", 1)[0].rstrip())
     print(f"\ncampaign folder: {out}  (results.parquet, campaign.json, report.md, figures/)")
@@ -263,6 +273,15 @@ def _os_error(exc: OSError) -> str:
 
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
+    with stop_on_signals() as received:
+        code = _main(args)
+        if received.signum is not None and code in (0, 1):     # the signal's exception was swallowed somewhere
+            print(f"robofdi: interrupted by {signal.Signals(received.signum).name}", file=sys.stderr)
+            code = exit_code(received.signum)
+    return code
+
+
+def _main(args) -> int:
     try:
         return args.func(args)
     except RobofdiError as exc:
@@ -271,9 +290,9 @@ def main(argv=None) -> int:
     except OSError as exc:
         print(f"robofdi: error: {_os_error(exc)}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("robofdi: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:        # SIGINT or SIGTERM outside a run (calibration, saving): nothing half-written
+        print(f"robofdi: interrupted by {signal.Signals(signal_of(exc)).name}", file=sys.stderr)
+        return exit_code(exc)
     except Exception as exc:
         if os.environ.get("ROBOFDI_TRACEBACK"):
             raise

@@ -25,6 +25,7 @@ record's diagnoser view with the same input forming (ū(k−1), zeros at the fir
 """
 from __future__ import annotations
 
+import signal
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -33,7 +34,8 @@ import numpy as np
 
 from robofdi.decision import Identification
 from robofdi.errors import RobofdiError
-from robofdi.faults import FAULT_KINDS, Fault, FaultInjector
+from robofdi.faults import FAULT_KINDS, Fault, FaultInjector, check_faults
+from robofdi.interrupts import Interrupted, signal_of
 from robofdi.protocols import (
     HEALTHY,
     Accommodation,
@@ -49,7 +51,7 @@ from robofdi.record import DiagnoserTrace, FaultLabels, Record
 from robofdi.seeding import stream
 
 __all__ = ["Rates", "Diagnosis", "DiagnosisRunner", "DiagnosisBank", "Recorder", "ClosedLoop", "RunAborted",
-           "diagnose_record", "diagnoser_inputs", "replay", "ORACLE"]
+           "RunInterrupted", "diagnose_record", "diagnoser_inputs", "replay", "ORACLE"]
 
 #: ``health_source`` of the oracle accommodation: health read from the fault labels (a bound, never a diagnosis).
 ORACLE = "oracle"
@@ -128,6 +130,16 @@ class RunAborted(RuntimeError):
 
     def __init__(self, message: str, record: Record):
         super().__init__(message)
+        self.record = record
+        self.partial_path = None
+
+
+class RunInterrupted(Interrupted):
+    """SIGINT or SIGTERM during a run (a KeyboardInterrupt, not a failure: a campaign never journals it as an
+    error row). ``record`` holds what was recorded so far, ``partial_path`` where it was saved."""
+
+    def __init__(self, message: str, record: Record, signum: int):
+        super().__init__(signum, message)
         self.record = record
         self.partial_path = None
 
@@ -416,6 +428,7 @@ class ClosedLoop:
             )
         # validates targets and kinds now, not after the first seconds of a run
         injector = self._injector(0)
+        check_faults(self.faults, control_hz=self.rates.control_hz)
         if self.injection == "offline":
             injector.check_offline()
 
@@ -497,8 +510,10 @@ class ClosedLoop:
                     rec.append(u_applied=sim.saturate(u_plant))
                 if progress is not None:
                     progress(1)
-        except KeyboardInterrupt:
-            raise RunAborted(f"run interrupted at t = {rec.last('time', 0.0):.3f} s", _trim(record())) from None
+        except KeyboardInterrupt as exc:         # SIGINT or SIGTERM (robofdi.interrupts): stop, keep the record
+            signum = signal_of(exc)
+            raise RunInterrupted(f"run interrupted by {signal.Signals(signum).name} at t = "
+                                 f"{rec.last('time', 0.0):.3f} s", _trim(record()), signum) from None
         except Exception as exc:
             raise RunAborted(f"run failed at t = {rec.last('time', 0.0):.3f} s: {exc}", _trim(record())) from exc
         return record()

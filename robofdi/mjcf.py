@@ -34,9 +34,48 @@ def resolve_asset(path: str | Path) -> Path:
     p = Path(path)
     if not p.is_absolute() and not p.exists():
         p = ASSETS / p
+    if p.exists() and not p.is_file():
+        what = "a folder" if p.is_dir() else "not a regular file"
+        raise RobofdiError(f"mjcf: {str(path)!r} is {what}; expected an MJCF or URDF file")
     if not p.is_file():
         raise RobofdiError(f"mjcf: file {str(path)!r} does not exist (looked in the working folder and {ASSETS})")
     return p
+
+
+#: The largest physics step of an arm [s]: beyond it the stiff joint dynamics are not integrated (and a 1 kHz drive
+#: loop cannot run); MuJoCo's default is 0.002 s.
+MAX_ARM_TIMESTEP = 0.01
+#: The largest joint torque range an arm may declare [N·m or N]: a bigger one is a unit slip or a placeholder.
+MAX_TORQUE = 1e6
+
+
+def check_model_text(path: Path) -> None:
+    """Refuse what MuJoCo would read without complaint but not as written: a file that is not UTF-8 (named with the
+    byte position), and a non-finite number (``nan``, ``inf``) in any attribute (MuJoCo replaces a NaN mass by a
+    default of its own with one warning line). ``path``: an MJCF file."""
+    import xml.etree.ElementTree as ET
+
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise RobofdiError(f"mjcf: {str(path)!r} is not UTF-8 text (byte {exc.start}: {exc.object[exc.start:exc.start + 1]!r}); "
+                           "expected an MJCF/URDF XML file in UTF-8") from None
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError:
+        return                                              # MuJoCo reports malformed XML with its own message
+    for element in root.iter():
+        for key, value in element.attrib.items():
+            for token in value.split():
+                try:
+                    number = float(token)
+                except ValueError:
+                    continue
+                if not np.isfinite(number):
+                    name = element.get("name")
+                    where = f"<{element.tag}{f' name={name!r}' if name else ''}>"
+                    raise RobofdiError(f"mjcf: {path.name}: {where} attribute {key}={value!r} is not a finite number "
+                                       "(MuJoCo would silently replace it); expected finite values")
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -209,6 +248,9 @@ def _torque_range(m: mujoco.MjModel, a: int, j: int, path: Path) -> tuple[float,
     if not (np.isfinite(lo) and np.isfinite(hi)):
         raise RobofdiError(f"mjcf: actuator {_actuator_label(m, a)} on arm joint {joint!r} of {path.name}: neither its "
                            f"ctrlrange, its forcerange nor the joint's actuatorfrcrange bounds the torque; expected one")
+    if max(abs(lo), abs(hi)) > MAX_TORQUE:
+        raise RobofdiError(f"mjcf: actuator {_actuator_label(m, a)} on arm joint {joint!r} of {path.name}: torque range "
+                           f"[{lo:g}, {hi:g}] (ctrlrange · gear · gain); expected at most {MAX_TORQUE:g} in magnitude")
     if not hi > lo:
         raise RobofdiError(f"mjcf: actuator {_actuator_label(m, a)} on arm joint {joint!r} of {path.name}: empty torque "
                            f"range [{lo}, {hi}]")
@@ -301,11 +343,15 @@ _COMPILED_SIZE = 16
 
 
 def _compile_arm(path: Path, joints, torque_motors: bool, drive_inertia: float) -> CompiledArm:
+    check_model_text(path)
     try:
         spec = mujoco.MjSpec.from_file(str(path))
     except Exception as exc:
         raise RobofdiError(f"mjcf: MuJoCo cannot read {str(path)!r}: {' '.join(str(exc).split())}") from None
     m = _compile(spec, path)
+    if not 0 < m.opt.timestep <= MAX_ARM_TIMESTEP:
+        raise RobofdiError(f"mjcf: {path.name}: <option timestep> is {m.opt.timestep:g} s; expected a physics step in "
+                           f"(0, {MAX_ARM_TIMESTEP:g}] s for an arm (MuJoCo's default is 0.002 s)")
     ids = _select_arm(m, path, joints, torque_motors)
     if torque_motors and _to_motors(spec, m, ids, path):
         m = _compile(spec, path)

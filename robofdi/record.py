@@ -17,6 +17,7 @@ wall-clock time, so the same seed gives a byte-identical file.
 """
 from __future__ import annotations
 
+import io
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -99,10 +100,35 @@ class Record:
         raise RobofdiError(f"record: unknown dataset {path!r}")
 
     def save(self, path: str | Path) -> Path:
-        """Write the record to an HDF5 file (parents are created); returns the path."""
+        """Write the record to an HDF5 file (parents are created); returns the path. The file is written under a
+        temporary name and renamed, so an interrupted or failed save never leaves a torn file under ``path``; a
+        partial record (``meta["aborted"]``, a run that stopped part-way) carries the top-level attribute
+        ``partial = 1``."""
+        from robofdi.interrupts import atomic_path
+
         path = Path(path)
+        data = self.to_bytes()
         path.parent.mkdir(parents=True, exist_ok=True)
+        with atomic_path(path) as tmp:           # one plain write: a full disk is one OSError naming the file
+            with open(tmp, "wb") as fh:
+                fh.write(data)
+        return path
+
+    def to_bytes(self) -> bytes:
+        """The HDF5 file :meth:`save` writes, built in memory (HDF5 never meets the disk, so a full or failing
+        device cannot leave it half-flushed)."""
+        from robofdi.seeding import check_seed
+
+        if self.seed is not None:
+            check_seed("record: field 'seed'", self.seed)
+        buffer = io.BytesIO()
+        self._write(buffer)
+        return buffer.getvalue()
+
+    def _write(self, path) -> None:
         with h5py.File(path, "w") as f:
+            if self.meta.get("aborted"):
+                f.attrs["partial"] = 1
             f.attrs.update(
                 system=self.system,
                 scenario=self.scenario,
@@ -131,7 +157,6 @@ class Record:
                 g["isolated"].attrs.update(columns=json.dumps(["isolated"]), units=json.dumps([""]))
                 g.attrs["components"] = json.dumps(list(tr.components))
                 g.attrs["estimate_components"] = json.dumps(list(tr.estimate_components))
-        return path
 
 
 def _put(group, name: str, data, columns=None, units=None) -> None:

@@ -19,8 +19,18 @@ import numpy as np
 
 from robofdi.errors import RobofdiError
 
-__all__ = ["stream", "rng"]
+__all__ = ["stream", "rng", "MAX_SEED", "check_seed"]
 
+#: The largest seed: a record stores its seed as a signed 64-bit HDF5 attribute.
+MAX_SEED = 2**63 - 1
+
+
+def check_seed(where: str, seed) -> int:
+    """``seed`` as an int, or a RobofdiError naming ``where``: an integer in [0, MAX_SEED]."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed <= MAX_SEED:
+        raise RobofdiError(f"{where} must be an integer in [0, 2^63 - 1] (a record stores it as a 64-bit integer), "
+                           f"got {seed!r}")
+    return int(seed)
 
 
 def _key(name: str) -> int:
@@ -34,9 +44,7 @@ def _root(seed) -> np.random.SeedSequence:
         return seed
     if seed is None:
         return np.random.SeedSequence()
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise RobofdiError(f"seed: expected an integer >= 0 (or a SeedSequence), got {seed!r}")
-    return np.random.SeedSequence(int(seed))
+    return np.random.SeedSequence(check_seed("seed", seed))
 
 
 def stream(seed, *names: str) -> np.random.SeedSequence:
@@ -44,9 +52,6 @@ def stream(seed, *names: str) -> np.random.SeedSequence:
     root = _root(seed)
     return np.random.SeedSequence(root.entropy, spawn_key=tuple(root.spawn_key) + tuple(_key(n) for n in names),
                                   pool_size=root.pool_size)
-
-
-
 
 
 def rng(seed, *names: str) -> np.random.Generator:

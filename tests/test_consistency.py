@@ -20,7 +20,7 @@ SKIP = 5
 @pytest.fixture(scope="module")
 def designed():
     """arm6 (seed 0): design on the calibration suite, as the scheme's calibration does."""
-    base = arm_scenario("arm6.xml", faults=["actuator_additive:joint1:0@0.5"], seed=0, schemes=("momentum",))
+    base = arm_scenario("arm6.xml", faults=["actuator_additive:joint1:1@0.5"], seed=0, schemes=("momentum",))
     sim = base.simulator()
     model = base.nominal_model(sim)
     rates = base.loop_rates(sim)
@@ -69,8 +69,8 @@ def test_the_design_covers_its_runs_and_its_cache_round_trip(designed):
 
 def test_unseen_fault_free_motion_stays_inside_twice_the_bound(designed):
     base, _, model, rates, _, design = designed
-    sc = arm_scenario("arm6.xml", faults=["actuator_additive:joint1:0@0.5"], seed=0, schemes=("momentum",))
-    sc = replace(sc, motion=arm_scenario("arm6.xml", faults=["actuator_additive:joint1:0@0.5"], seed=7).motion,
+    sc = arm_scenario("arm6.xml", faults=["actuator_additive:joint1:1@0.5"], seed=0, schemes=("momentum",))
+    sc = replace(sc, motion=arm_scenario("arm6.xml", faults=["actuator_additive:joint1:1@0.5"], seed=7).motion,
                  faults=())
     rec = run_scenario(sc, calibration(sc)[0])
     z = np.abs(_trace(rec, model, design, rates).residual[SKIP:])

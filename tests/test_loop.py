@@ -18,7 +18,7 @@ from robofdi.evaluate.run_folder import keep_partial
 from robofdi.experiments.ch3_industrial_robot import FAULTS, scenario
 from robofdi.faults import Fault, Step
 from robofdi.ftc import FaultCompensation
-from robofdi.loop import ORACLE, ClosedLoop, Diagnosis, Rates, RunAborted, diagnose_record
+from robofdi.loop import ORACLE, ClosedLoop, Diagnosis, Rates, RunAborted, RunInterrupted, diagnose_record
 from robofdi.observers import MomentumObserver
 from robofdi.observers.arm_schemes import arm_schemes
 from robofdi.record import load
@@ -150,7 +150,7 @@ def test_ctrl_c_keeps_partial_h5(tmp_path):
         if len(ticks) == 600:
             raise KeyboardInterrupt
 
-    with pytest.raises(RunAborted, match="interrupted") as info, keep_partial(tmp_path):
+    with pytest.raises(RunInterrupted, match="interrupted") as info, keep_partial(tmp_path):
         loop.run(1.2, sc.start_pose, progress=interrupt_at_600)
     assert info.value.partial_path == tmp_path / "partial.h5"
     rec = load(tmp_path / "partial.h5")

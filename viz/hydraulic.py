@@ -3,11 +3,8 @@ the load pressure as the colour of an indicator on the motor housing (blue = 0 â
 pressure), a yellow ring while a true fault is active and a red sphere from the primary diagnoser's first alarm."""
 from __future__ import annotations
 
-import contextlib
-import io
 from pathlib import Path
 
-import meshcat
 import meshcat.geometry as g
 import meshcat.transformations as tf
 import numpy as np
@@ -15,6 +12,7 @@ from meshcat.animation import Animation
 
 from robofdi.errors import RobofdiError
 
+from .meshcat_local import offline_visualizer
 from .replay import _animate_visibility, _as_record, close_visualizer, resolve_mjcf
 from .scene import MeshcatScene, rgba_to_material
 
@@ -81,8 +79,7 @@ def write_hydraulic_replay(record, path: str | Path, diagnoser: str | None = Non
     """Self-contained HTML replay of a hydraulic-rig record (or the path of a saved one)."""
     record = _as_record(record)
     path = Path(path)
-    with contextlib.redirect_stdout(io.StringIO()):
-        vis = meshcat.Visualizer()
+    vis = offline_visualizer()              # no server
     try:
         build_hydraulic_replay(vis, record, diagnoser, fps)
         html = vis.static_html()

@@ -15,7 +15,6 @@ move with the link in the browser.
 from __future__ import annotations
 
 import contextlib
-import io
 import math
 import signal
 import threading
@@ -32,6 +31,7 @@ from meshcat.animation import Animation
 import robofdi
 from robofdi import RobofdiError
 
+from .meshcat_local import local_visualizer, offline_visualizer
 from .scene import MeshcatScene, rgba_to_material
 
 __all__ = ["Replay", "Marker", "resolve_mjcf", "scene_joints", "fault_joint", "isolated_joints", "build_replay",
@@ -460,8 +460,7 @@ def write_replay_html(record, path: str | Path, diagnoser: str | None = None, fp
     else:
         def build(vis):
             build_replay(vis, record, diagnoser=diagnoser, fps=fps, folder=folder)
-    with contextlib.redirect_stdout(io.StringIO()):
-        vis = meshcat.Visualizer()
+    vis = offline_visualizer()              # no server: nothing listens while the replay is built
     try:
         build(vis)
         html = vis.static_html()
@@ -518,8 +517,7 @@ def view(record_path, diagnoser: str | None = None, open_browser: bool = True, f
     vis = None
     with _stop_on_signals(stop_signals) as arm:
         try:
-            with contextlib.redirect_stdout(io.StringIO()):
-                vis = meshcat.Visualizer()
+            vis = local_visualizer()        # listens on 127.0.0.1 only (meshcat's own server: every interface)
             arm()
             system_replay = _system_replay(record)
             if system_replay is not None:

@@ -10,6 +10,7 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 import os
 import signal
+import threading
 from collections.abc import Callable, Iterable, Iterator
 
 from robofdi.errors import RobofdiError
@@ -91,11 +92,7 @@ class DaskCluster:
             raise RobofdiError(f"--scheduler needs dask.distributed, which is not installed: {INSTALL_CLUSTER}") from None
         if not isinstance(address, str) or not address.strip():
             raise RobofdiError(f"--scheduler: expected an address like tcp://HOST:8786, got {address!r}")
-        try:
-            self.client = Client(address, timeout=timeout, set_as_default=False)
-        except (OSError, TimeoutError, ValueError) as exc:
-            raise RobofdiError(f"--scheduler: cannot reach the Dask scheduler at {address!r} within {timeout:g} s "
-                               f"({' '.join(str(exc).split())})") from None
+        self.client = _connect(Client, address, timeout)
         self.workers = len(self.client.scheduler_info().get("workers", {}))
         if self.workers == 0:
             self.client.close()
@@ -129,6 +126,42 @@ class DaskCluster:
                          for args in args_list]
         for future in as_completed(self._futures, loop=self.client.loop):
             yield future.result()
+
+
+def _connect(client_type, address: str, timeout: float):
+    """A Dask client connected to ``address`` within ``timeout`` seconds whatever answers there (a scheduler, an
+    HTTP server that never completes the handshake, nothing at all), or one RobofdiError. The connection is made
+    in a helper thread so that the deadline holds even where dask's own timeout does not; a client that connects
+    too late, or whose connection failed, is closed quietly (no ``Client.__del__`` traceback at exit)."""
+    outcome: dict = {}
+
+    def connect():
+        try:
+            client = client_type(address, timeout=timeout, set_as_default=False)
+        except BaseException as exc:       # any failure of a foreign endpoint (MemoryError from a garbage length…)
+            outcome["error"] = exc
+            return
+        if outcome.setdefault("client", client) is not client or outcome.get("late"):
+            _close_quietly(client)
+
+    thread = threading.Thread(target=connect, name="robofdi-dask-connect", daemon=True)
+    thread.start()
+    thread.join(timeout + 2.0)
+    if "client" in outcome and not outcome.get("late"):
+        return outcome["client"]
+    outcome["late"] = True
+    reason = outcome.get("error")
+    detail = f" ({type(reason).__name__}: {' '.join(str(reason).split())[:200]})" if reason is not None else \
+        " (no answer as a Dask scheduler)"
+    raise RobofdiError(f"--scheduler: cannot reach the Dask scheduler at {address!r} within {timeout:g} s{detail}; "
+                       "expected the address of a running `dask scheduler` (tcp://HOST:8786)")
+
+
+def _close_quietly(client) -> None:
+    try:
+        client.close(timeout=1)
+    except BaseException:
+        pass
 
 
 def backend(workers: int | None = None, scheduler: str | None = None):

@@ -10,7 +10,6 @@ from __future__ import annotations
 import json
 import os
 import signal
-import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,6 +20,7 @@ from robofdi.campaign.backends import backend
 from robofdi.campaign.runs import COLUMNS, execute_run
 from robofdi.campaign.spec import CampaignSpec, load_spec
 from robofdi.errors import RobofdiError
+from robofdi.interrupts import signal_of, stop_on_signals
 
 __all__ = ["run_campaign", "CampaignInterrupted", "read_journal", "results_table", "JOURNAL", "TABLE"]
 
@@ -30,16 +30,13 @@ STATE = "spec.json"
 
 
 class CampaignInterrupted(RuntimeError):
-    """SIGTERM or Ctrl-C: the finished runs are journaled; ``resume=True`` continues."""
+    """SIGTERM or Ctrl-C: the finished runs are journaled (the runs in flight are not: they are not failures);
+    ``resume=True`` continues. ``signum``: the signal."""
 
-    def __init__(self, done: int, total: int, out: Path):
-        super().__init__(f"campaign interrupted after {done} of {total} runs; what finished is kept in {out / JOURNAL} "
-                         f"(run again with --resume to complete it)")
-        self.done, self.total, self.out = done, total, out
-
-
-class _Terminated(BaseException):
-    pass
+    def __init__(self, done: int, total: int, out: Path, signum: int = signal.SIGTERM):
+        super().__init__(f"campaign interrupted by {signal.Signals(signum).name} after {done} of {total} runs; what "
+                         f"finished is kept in {out / JOURNAL} (run again with --resume to complete it)")
+        self.done, self.total, self.out, self.signum = done, total, out, int(signum)
 
 
 def _calibrate(spec: CampaignSpec, key) -> tuple:
@@ -159,15 +156,8 @@ def run_campaign(spec, out: str | Path, *, workers: int | None = None, scheduler
         raise
     todo = [i for i in range(total) if i not in journal]
     session = _Session(pool.description, pool.workers)
-    previous = signal.getsignal(signal.SIGTERM) if threading.current_thread() is threading.main_thread() else None
-
-    def terminate(signum, frame):
-        raise _Terminated()
-
-    if previous is not None:
-        signal.signal(signal.SIGTERM, terminate)
     try:
-        with pool:
+        with stop_on_signals(), pool:
             keys = spec.campaign_system.calibration_keys(spec.options)
             start = time.perf_counter()
             calibrations, cal_info = {}, {}
@@ -195,11 +185,8 @@ def run_campaign(spec, out: str | Path, *, workers: int | None = None, scheduler
                     if errors:
                         bar.set_postfix(errors=errors)
             session.seconds = time.perf_counter() - start
-    except (_Terminated, KeyboardInterrupt):
-        raise CampaignInterrupted(len([i for i in journal if i < total]), total, out) from None
-    finally:
-        if previous is not None:
-            signal.signal(signal.SIGTERM, previous)
+    except KeyboardInterrupt as exc:      # SIGINT or SIGTERM, here or inside a run in this process (RunInterrupted)
+        raise CampaignInterrupted(len([i for i in journal if i < total]), total, out, signal_of(exc)) from None
     table = results_table([journal[i] for i in sorted(journal) if i < total], spec.diagnosers)
     result = CampaignResult(out, spec, table)
     if report:

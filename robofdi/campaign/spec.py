@@ -9,7 +9,7 @@
     # (a system without options can be given at the top instead: system = "linear")
 
     [system]                       # the system and its options (see its options dataclass)
-    name = "arm"                   # a registered system, or "package.module:attribute"
+    name = "arm"                   # a registered system, or "package.module:attribute" (imported: trusted specs only)
     robot = "arm6.xml"
 
     [[faults]]
@@ -40,13 +40,16 @@ except ModuleNotFoundError:          # Python 3.10
     import tomli as tomllib
 
 from robofdi.protocols import System
+from robofdi.seeding import check_seed
 from robofdi.systems import fault_limit, get_system
 from robofdi.errors import RobofdiError
-from robofdi.faults import FAULT_KINDS, Fault
+from robofdi.faults import FAULT_KINDS, Fault, check_size
 from robofdi.faults.profiles import profile_from_dict
 
 __all__ = ["CampaignSpec", "FaultDistribution", "load_spec", "parse_spec", "SIGNED_KINDS", "shipped_specs"]
 
+#: The most runs a campaign may have (its results table is built in memory).
+MAX_RUNS = 1_000_000
 #: How a fault entry draws its size inside its range.
 MAGNITUDE_DRAWS = ("uniform", "log_uniform")
 #: Kinds whose magnitude has a sign that matters and a symmetric range (random_sign defaults to true).
@@ -163,8 +166,9 @@ class FaultDistribution:
             try:
                 profile = profile_from_dict(p if isinstance(p, dict) else {"type": p})
                 probe = max(limits.values(), key=lambda lim: lim.limit)
-                size = (fraction[1] * probe.limit) if fraction else magnitude[1]
-                Fault("probe", kind, targets[0], onset=0.0, magnitude=size, profile=profile, params=params)
+                low_high = [v * probe.limit for v in fraction] if fraction else list(magnitude)
+                size = max(low_high, key=abs)                 # 0 only when the range is [0, 0]
+                check_size(Fault("probe", kind, targets[0], onset=0.0, magnitude=size, profile=profile, params=params))
             except RobofdiError as exc:
                 raise RobofdiError(f"{where}.profiles[{i}]: {exc}") from None
             parsed.append(profile.to_dict())
@@ -228,14 +232,11 @@ def parse_spec(data: dict, source: str = "spec") -> CampaignSpec:
         name = options_table.pop("name", None)
     if name is None:
         raise RobofdiError(f"{source}: field 'system' is required (e.g. system = \"arm\", or [system] with name = \"arm\")")
-    try:
-        system = get_system(name)
-    except RobofdiError as exc:
-        raise RobofdiError(f"{source}: {exc}") from None
-    options = _options(f"{source}: system", system, options_table)
-    seed = data.get("seed", 0)
-    if not (isinstance(seed, int) and not isinstance(seed, bool) and seed >= 0):
-        raise RobofdiError(f"{source}: field 'seed' must be an integer >= 0, got {seed!r}")
+    if not isinstance(name, str) or not name:
+        raise RobofdiError(f"{source}: field 'system' must be a system name, got {name!r}")
+    # everything that does not need the system first: a 'package.module:attribute' system is imported (its code
+    # runs) only for a spec that is otherwise valid
+    seed = check_seed(f"{source}: field 'seed'", data.get("seed", 0))
     counts = {}
     for key in ("fault_free_runs", "faulty_runs"):
         v = data.get(key, 0)
@@ -244,14 +245,10 @@ def parse_spec(data: dict, source: str = "spec") -> CampaignSpec:
         counts[key] = v
     if counts["fault_free_runs"] + counts["faulty_runs"] == 0:
         raise RobofdiError(f"{source}: fields 'fault_free_runs' + 'faulty_runs' must be > 0, got no runs")
-    available = tuple(system.diagnosers(options))
-    diagnosers = data.get("diagnosers", list(available))
-    if not isinstance(diagnosers, list) or not diagnosers:
-        raise RobofdiError(f"{source}: field 'diagnosers' must be a non-empty list, got {diagnosers!r}")
-    for d in diagnosers:
-        if d not in available:
-            raise RobofdiError(f"{source}: field 'diagnosers': unknown diagnoser {d!r} for system {system.name!r}; "
-                               f"expected some of {', '.join(available)}")
+    if counts["fault_free_runs"] + counts["faulty_runs"] > MAX_RUNS:
+        raise RobofdiError(f"{source}: fields 'fault_free_runs' + 'faulty_runs' must be <= {MAX_RUNS:,} (the results "
+                           f"table, one row per run and diagnoser, is held in memory), got "
+                           f"{counts['fault_free_runs'] + counts['faulty_runs']:,}")
     records = data.get("records", False)
     if not isinstance(records, bool):
         raise RobofdiError(f"{source}: field 'records' must be true or false, got {records!r}")
@@ -263,6 +260,24 @@ def parse_spec(data: dict, source: str = "spec") -> CampaignSpec:
         raise RobofdiError(f"{source}: field 'faults' must be [[faults]] tables, got {tables!r}")
     if counts["faulty_runs"] and not tables:
         raise RobofdiError(f"{source}: field 'faults': faulty_runs = {counts['faulty_runs']} needs at least one [[faults]] entry")
+    try:
+        system = get_system(name)
+    except RobofdiError as exc:
+        raise RobofdiError(f"{source}: {exc}") from None
+    options = _options(f"{source}: system", system, options_table)
+    try:                       # the robot file, joints, instances: checked now, not after the folder is written
+        system.targets(options)
+        system.calibration_keys(options)
+    except RobofdiError as exc:
+        raise RobofdiError(f"{source}: {exc}") from None
+    available = tuple(system.diagnosers(options))
+    diagnosers = data.get("diagnosers", list(available))
+    if not isinstance(diagnosers, list) or not diagnosers:
+        raise RobofdiError(f"{source}: field 'diagnosers' must be a non-empty list, got {diagnosers!r}")
+    for d in diagnosers:
+        if d not in available:
+            raise RobofdiError(f"{source}: field 'diagnosers': unknown diagnoser {d!r} for system {system.name!r}; "
+                               f"expected some of {', '.join(available)}")
     faults = tuple(FaultDistribution.resolve(f"{source}: faults[{i}]", t, system, options) for i, t in enumerate(tables))
     return CampaignSpec(name, seed, counts["fault_free_runs"],
                         counts["faulty_runs"], tuple(diagnosers), records, float(level), options, faults, source)
@@ -309,7 +324,9 @@ def load_spec(spec) -> CampaignSpec:
             raise RobofdiError(f"SPEC: no file {str(spec)!r}; expected a TOML file or a shipped spec "
                                f"({', '.join(sorted(shipped))})")
     try:
-        data = tomllib.loads(path.read_text())
+        data = tomllib.loads(path.read_bytes().decode("utf-8"))
+    except UnicodeDecodeError as exc:
+        raise RobofdiError(f"{path.name}: not UTF-8 text (byte {exc.start}); expected a TOML file in UTF-8") from None
     except tomllib.TOMLDecodeError as exc:
         raise RobofdiError(f"{path.name}: not valid TOML: {exc}") from None
     return parse_spec(data, path.name)

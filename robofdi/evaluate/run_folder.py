@@ -11,20 +11,24 @@ from robofdi.evaluate.headline import settle_lead
 from robofdi.evaluate.summary import write_summary
 from robofdi.record import Record
 
-__all__ = ["prepare_run_dir", "write_run_folder", "keep_partial"]
+__all__ = ["prepare_run_dir", "write_run_folder", "keep_partial", "PARTIAL"]
+
+#: what an interrupted or failed run recorded, in its run folder
+PARTIAL = "partial.h5"
 
 
 @contextmanager
 def keep_partial(run_dir: Path):
-    """A run that fails (or is interrupted) inside this block keeps what it recorded: ``run_dir/partial.h5``."""
-    from robofdi.loop import RunAborted
+    """A run that fails (or is interrupted) inside this block keeps what it recorded: ``run_dir/partial.h5``
+    (its top-level attribute ``partial`` is 1). A second signal while it is saved leaves no torn file."""
+    from robofdi.loop import RunAborted, RunInterrupted
 
     try:
         yield
-    except RunAborted as exc:
+    except (RunAborted, RunInterrupted) as exc:
         try:
-            exc.partial_path = exc.record.save(run_dir / "partial.h5")
-        except OSError:
+            exc.partial_path = exc.record.save(run_dir / PARTIAL)
+        except (OSError, RobofdiError, KeyboardInterrupt):
             exc.partial_path = None
         raise
 
@@ -44,13 +48,21 @@ def write_run_folder(run_dir: Path, record: Record, summary: Mapping, others: Ma
     """Save the record (and ``others`` as ``<key>.h5``), the summary, one residual figure per diagnoser, the
     estimates figure and the self-contained Meshcat replay. The run's lead diagnoser is decided first
     (:func:`~robofdi.evaluate.headline.settle_lead`) and written into the summary and the record, so the printed
-    table and the replay lead with the same one."""
+    table and the replay lead with the same one. The summary is written first (small, and all a full disk
+    should not cost); every file is written atomically; a stale ``partial.h5`` of an earlier interrupted run in
+    this folder is removed once the records are written."""
     if isinstance(summary, dict):
         settle_lead(summary, record)
-    record.save(run_dir / "record.h5")
-    for key, rec in (others or {}).items():
-        rec.save(run_dir / f"{key}.h5")
     write_summary(summary, run_dir / "summary.json")
+    failed = None
+    for name, rec in {"record": record, **(others or {})}.items():
+        try:
+            rec.save(run_dir / f"{name}.h5")
+        except OSError as exc:              # a full disk: keep trying the others (a smaller one may fit), then say so
+            failed = failed or exc
+    if failed is not None:
+        raise failed
+    (run_dir / PARTIAL).unlink(missing_ok=True)
     figures = run_dir / "figures"
     figures.mkdir(exist_ok=True)
     for d in record.diagnosers:

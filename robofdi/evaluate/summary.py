@@ -85,10 +85,15 @@ def _jsonable(obj):
 
 
 def write_summary(summary: Mapping, path: str | Path) -> Path:
-    """Write the summary as indented JSON (NaN -> null; parents created); returns the path."""
+    """Write the summary as indented JSON (NaN -> null; parents created; atomically: a temporary file renamed);
+    returns the path."""
+    from robofdi.interrupts import atomic_path
+
     path = Path(path)
+    text = json.dumps(_jsonable(summary), indent=2, allow_nan=False) + "\n"
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(_jsonable(summary), indent=2, allow_nan=False) + "\n")
+    with atomic_path(path) as tmp:
+        tmp.write_text(text)
     return path
 
 

@@ -9,7 +9,7 @@ from collections.abc import Mapping
 from robofdi import RobofdiError
 from robofdi.faults.profiles import Profile, Step, profile_from_dict
 
-__all__ = ["Fault", "FaultKind", "FAULT_KINDS"]
+__all__ = ["Fault", "FaultKind", "FAULT_KINDS", "MAGNITUDE_FREE", "check_sampling", "check_size"]
 
 
 @dataclass(frozen=True)
@@ -22,8 +22,9 @@ class _ParamSpec:
 
 
 _LIMIT = _ParamSpec(lambda v: True, "a finite number", required=True)
-_DELAY = _ParamSpec(lambda v: v > 0, "a finite number > 0 (s)", required=True)
+_DELAY = _ParamSpec(lambda v: 0 < v <= 60, "a delay in (0, 60] s", required=True)
 _PROBABILITY = _ParamSpec(lambda v: 0 < v <= 1, "a finite number in (0, 1]", required=True)
+_NON_NEGATIVE = _ParamSpec(lambda v: v >= 0, ">= 0")
 
 
 @dataclass(frozen=True)
@@ -42,6 +43,7 @@ class FaultKind:
     offline: bool = False
     unit: str = "target"
     description: str = ""
+    values: _ParamSpec | None = None     # what the effect m·p may be (component kinds: what the plant can take)
 
 
 #: Fault kind -> its :class:`FaultKind`. The prefix before "_" is the family: actuator, sensor or component.
@@ -63,19 +65,29 @@ FAULT_KINDS: dict[str, FaultKind] = {
     "sensor_noise": FaultKind(description="y + N(0, (m·p)²), loss of accuracy"),
     "sensor_delay": FaultKind({"delay": _DELAY}, profiles="unit", description="y(t − delay·p)"),
     "sensor_outliers": FaultKind({"probability": _PROBABILITY}, description="y ± m·p with the given probability per sample"),
-    "component_friction": FaultKind(unit="1", description="joint friction × (1 + m·p) (friction rise)"),
-    "component_mass": FaultKind(unit="kg", description="m·p kg added to a body (damage, payload change)"),
-    "component_thruster_blocking": FaultKind(profiles="unit", unit="1",
+    "component_friction": FaultKind(unit="1", description="joint friction × (1 + m·p) (friction rise)",
+                                    values=_ParamSpec(lambda v: v > -1, "> -1 (friction cannot become negative)")),
+    "component_mass": FaultKind(unit="kg", description="m·p kg added to a body (damage, payload change)",
+                                values=_NON_NEGATIVE),
+    "component_thruster_blocking": FaultKind(profiles="unit", unit="1", values=_NON_NEGATIVE,
                                              description="rotor stalled while m·p > 0 (solid body in the blades)"),
-    "component_thruster_flooding": FaultKind(unit="1", description="flooded thruster: motor drive × (1 + m·p), "
-                                                                   "leakage current"),
-    "component_open_winding": FaultKind(profiles="unit", unit="1",
+    "component_thruster_flooding": FaultKind(unit="1", values=_NON_NEGATIVE,
+                                             description="flooded thruster: motor drive × (1 + m·p), leakage current"),
+    "component_open_winding": FaultKind(profiles="unit", unit="1", values=_ParamSpec(lambda v: 0 <= v <= 1, "in [0, 1]"),
                                         description="servovalve coil current × (1 − m·p); m = 1 an open circuit"),
-    "component_valve_sticking": FaultKind(unit="1", description="spool stick–slip with a stiction band of m·p (stroke)"),
-    "component_leak": FaultKind(unit="mm^2", description="orifice of m·p mm² from a motor line to tank (ruptured line)"),
-    "component_wing_damage": FaultKind(profiles="unit", unit="1",
+    "component_valve_sticking": FaultKind(unit="1", values=_NON_NEGATIVE,
+                                          description="spool stick–slip with a stiction band of m·p (stroke)"),
+    "component_leak": FaultKind(unit="mm^2", values=_NON_NEGATIVE,
+                                description="orifice of m·p mm² from a motor line to tank (ruptured line)"),
+    "component_wing_damage": FaultKind(profiles="unit", unit="1", values=_ParamSpec(lambda v: 0 <= v <= 1, "in [0, 1]"),
                                        description="structural damage ρ = m·p in [0, 1] of a wing (A(ρ), B(ρ))"),
 }
+
+
+#: Kinds whose effect does not depend on ``magnitude`` (it is ignored: 0 by convention); every other kind scales
+#: with it, so a zero magnitude is a fault that never acts and is refused.
+MAGNITUDE_FREE = ("actuator_lock_in_place", "actuator_float", "actuator_hard_over", "sensor_freeze", "sensor_dropout",
+                  "sensor_delay")
 
 
 def _finite(x: Any) -> bool:
@@ -139,6 +151,13 @@ class Fault:
                 f"{who}: field 'profile' must stay in [0, 1] for {self.kind} (step, exponential_rise, ramp or "
                 f"intermittent), got {self.profile.type_name}"
             )
+        values = FAULT_KINDS[self.kind].values
+        if values is not None:
+            for p in self.profile.bounds:
+                if not values.check(self.magnitude * p):
+                    raise RobofdiError(f"{who}: field 'magnitude': the effect magnitude·p(t) reaches "
+                                       f"{self.magnitude * p:g} with profile {self.profile.type_name}; {self.kind} "
+                                       f"expects it {values.expected}")
         if self.seed is not None and (not isinstance(self.seed, int) or isinstance(self.seed, bool) or self.seed < 0):
             raise RobofdiError(f"{who}: field 'seed' must be None or an integer >= 0, got {self.seed!r}")
         self._check_params(who)
@@ -219,3 +238,57 @@ class Fault:
         if kwargs.get("params") is None:
             kwargs.pop("params", None)
         return cls(**kwargs)
+
+
+def check_sampling(faults, control_hz: float) -> None:
+    """Refuse faults the control-rate sampling cannot represent, and faults that contradict each other
+    (part of :func:`robofdi.faults.check_faults`).
+
+    * A sinusoidal profile at or above the Nyquist frequency control_hz/2 aliases (sin(2πf·k/f_s) can be 0 at
+      every sample: the label and the effect vanish), Shannon's sampling theorem.
+    * An intermittent profile whose on or off phase is shorter than one control sample is not that pattern once
+      sampled (a 1 µs period is on most of the time at 1 kHz).
+    * A zero magnitude for a kind that scales with it (:func:`check_size`).
+    * Two faults of one kind that each set the target's value (lock, float, hard-over, freeze, dropout, delay) on
+      the same target at overlapping times cannot both be true.
+    """
+    from robofdi.faults.profiles import Intermittent, Oscillation, Sinusoid
+
+    dt = 1.0 / control_hz
+    for f in faults:
+        p, who = f.profile, f"Fault {f.name!r}"
+        check_size(f)
+        if isinstance(p, (Sinusoid, Oscillation)) and p.frequency >= 0.5 * control_hz:
+            raise RobofdiError(f"{who}: field 'profile': frequency {p.frequency:g} Hz is at or above the Nyquist "
+                               f"frequency {0.5 * control_hz:g} Hz of the {control_hz:g} Hz control loop (it aliases); "
+                               f"expected < {0.5 * control_hz:g} Hz")
+        if isinstance(p, Intermittent):
+            on, off = p.duty * p.period, (1.0 - p.duty) * p.period
+            if on < dt * (1 - 1e-9) or (p.duty < 1 and off < dt * (1 - 1e-9)):
+                raise RobofdiError(f"{who}: field 'profile': intermittent on {on:g} s / off {off:g} s, shorter than one "
+                                   f"control sample ({dt:g} s at {control_hz:g} Hz); expected on and off phases >= {dt:g} s")
+    setting = [f for f in faults if f.kind in MAGNITUDE_FREE]
+    for i, a in enumerate(setting):
+        for b in setting[i + 1:]:
+            if a.kind == b.kind and a.target == b.target and _overlap(a, b):
+                raise RobofdiError(f"Fault {b.name!r}: contradicts fault {a.name!r}: two {a.kind} faults on "
+                                   f"{a.target!r} at overlapping times; expected at most one at a time")
+
+
+def _overlap(a: Fault, b: Fault) -> bool:
+    a_end = math.inf if a.end is None else a.end
+    b_end = math.inf if b.end is None else b.end
+    return a.onset < b_end and b.onset < a_end
+
+
+def check_size(fault: Fault) -> None:
+    """Refuse a fault of size zero of a kind whose effect scales with ``magnitude`` (not :data:`MAGNITUDE_FREE`): it
+    never acts, and a diagnoser would be scored as missing it; and a non-zero magnitude for a kind that ignores it
+    (lock, freeze, …): the user meant something the fault will not do."""
+    if fault.magnitude == 0 and fault.kind not in MAGNITUDE_FREE:
+        raise RobofdiError(f"Fault {fault.name!r}: field 'magnitude' must not be 0 for {fault.kind} (a fault of size "
+                           "zero never acts, and would be scored as a missed detection)")
+    if fault.magnitude != 0 and fault.kind in MAGNITUDE_FREE:
+        raise RobofdiError(f"Fault {fault.name!r}: field 'magnitude' must be 0 for {fault.kind}: the kind ignores it "
+                           f"(its effect is set by the profile{' and params' if FAULT_KINDS[fault.kind].params else ''}), "
+                           f"got {fault.magnitude:g}")

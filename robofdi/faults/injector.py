@@ -8,7 +8,7 @@ import numpy as np
 
 from robofdi.errors import RobofdiError, all_finite
 from robofdi.faults.effects import Effect, make_effect
-from robofdi.faults.fault import FAULT_KINDS, Fault
+from robofdi.faults.fault import FAULT_KINDS, Fault, check_sampling
 from robofdi.seeding import stream
 
 __all__ = ["FaultInjector", "check_faults"]
@@ -194,12 +194,13 @@ class FaultInjector:
 
 
 def check_faults(faults: Sequence[Fault], simulator=None, duration: float | None = None, injection: str = "online",
-                 label: str = "Fault") -> None:
-    """Refuse, before anything runs, faults a run cannot carry — the one check every scenario and the command
-    line use: an onset outside a run of ``duration`` s; with a ``simulator`` (its ``actuators``,
-    ``sensor_channels`` and ``component_kinds``), an unknown target or a kind it cannot take (the injector's own
-    checks); with ``injection`` "offline", a fault that needs the closed loop. ``label`` starts each message (e.g.
-    "--fault" at the command line)."""
+                 label: str = "Fault", control_hz: float | None = None) -> None:
+    """Refuse, before anything runs, faults a run cannot carry — the one check every scenario, the loop and the
+    command line use: an onset outside a run of ``duration`` s; faults the sampling at ``control_hz`` cannot
+    represent or that contradict each other (:func:`robofdi.faults.fault.check_sampling`; ``control_hz`` defaults
+    to the simulator's); with a ``simulator`` (its ``actuators``, ``sensor_channels`` and ``component_kinds``), an
+    unknown target or a kind it cannot take (the injector's own checks); with ``injection`` "offline", a fault
+    that needs the closed loop. ``label`` starts the onset message (e.g. "--fault" at the command line)."""
     faults = tuple(faults)
     for f in faults:
         if not isinstance(f, Fault):
@@ -207,6 +208,10 @@ def check_faults(faults: Sequence[Fault], simulator=None, duration: float | None
         if duration is not None and f.onset >= duration:
             raise RobofdiError(f"{label} {f.name!r}: onset {f.onset:g} s is not inside the run (duration "
                                f"{duration:g} s)")
+    if control_hz is None and simulator is not None and getattr(simulator, "control_dt", None):
+        control_hz = 1.0 / simulator.control_dt
+    if control_hz is not None:
+        check_sampling(faults, control_hz)
     if simulator is not None:
         injector = FaultInjector(faults, simulator.actuators, simulator.sensor_channels, 0,
                                  component_kinds=simulator.component_kinds)

@@ -37,6 +37,11 @@ class Profile:
     type_name = ""  # serialised name, set by subclasses (class attribute, not a field)
     unit_range = True  # p(s) stays in [0, 1] (class attribute)
 
+    @property
+    def bounds(self) -> tuple[float, float]:
+        """The least and the greatest value p(s) takes (a fault's effect is magnitude·p)."""
+        return (0.0, 1.0)
+
     def __call__(self, s: float) -> float:  # pragma: no cover - abstract
         raise NotImplementedError
 
@@ -50,6 +55,10 @@ class Step(Profile):
     """Abrupt fault: p(s) = 1."""
 
     type_name = "step"
+
+    @property
+    def bounds(self) -> tuple[float, float]:
+        return (1.0, 1.0)
 
     def __call__(self, s: float) -> float:
         return 1.0
@@ -112,6 +121,10 @@ class Sinusoid(Profile):
     type_name = "sinusoid"
     unit_range = False
 
+    @property
+    def bounds(self) -> tuple[float, float]:
+        return (-1.0, 1.0)
+
     def __post_init__(self):
         _positive("Sinusoid", "frequency", self.frequency)
         if not _is_number(self.phase):
@@ -143,6 +156,10 @@ class Oscillation(Profile):
     @property
     def unit_range(self) -> bool:
         return self.mean - abs(self.amplitude) >= 0.0 and self.mean + abs(self.amplitude) <= 1.0
+
+    @property
+    def bounds(self) -> tuple[float, float]:
+        return (self.mean - abs(self.amplitude), self.mean + abs(self.amplitude))
 
     def __call__(self, s: float) -> float:
         return self.mean + self.amplitude * math.sin(2.0 * math.pi * self.frequency * s + self.phase)

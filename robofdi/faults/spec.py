@@ -21,7 +21,7 @@ import re
 from collections.abc import Sequence
 
 from robofdi.errors import RobofdiError
-from robofdi.faults.fault import FAULT_KINDS, Fault
+from robofdi.faults.fault import FAULT_KINDS, Fault, check_size
 from robofdi.faults.profiles import (
     ExponentialGrowth, ExponentialRise, Intermittent, Oscillation, Profile, Ramp, Sinusoid, Step,
 )
@@ -30,7 +30,7 @@ __all__ = ["parse_fault_spec", "parse_fault_specs", "SPEC_FORMAT", "PROFILE_HELP
 
 SPEC_FORMAT = "KIND:TARGET:MAGNITUDE@ONSET[-END][~PROFILE][;NAME=VALUE]"
 _SPEC = re.compile(
-    r"^(?P<kind>[a-z_]+):(?P<target>[^:@~;]+):(?P<magnitude>[^@]+)@(?P<onset>[0-9.eE+]+)(?:-(?P<end>[0-9.eE+]+))?"
+    r"^(?P<kind>[a-z_]+):(?P<target>[^:@~;]+):(?P<magnitude>[^@]+)@(?P<onset>[0-9.]+(?:[eE][+-]?[0-9]*)?)(?:-(?P<end>[0-9.]+(?:[eE][+-]?[0-9]*)?))?"
     r"(?:~(?P<profile>[a-z_]+(?:\([^)]*\))?))?(?P<params>(?:;[a-z_]+=[^;]+)*)$"
 )
 #: canonical profile name (the serialised type name) → (class, least and most arguments, argument names)
@@ -93,8 +93,10 @@ def parse_fault_spec(spec: str, name: str | None = None) -> Fault:
     onset, magnitude = _number(m.group("onset"), "ONSET", spec), _number(m.group("magnitude"), "MAGNITUDE", spec)
     end = None if end is None else _number(end, "END", spec)
     try:
-        return Fault(name or f"{target}_{kind.split('_', 1)[1]}", kind, target, onset=onset, end=end,
-                     magnitude=magnitude, profile=profile, params=params)
+        fault = Fault(name or f"{target}_{kind.split('_', 1)[1]}", kind, target, onset=onset, end=end,
+                      magnitude=magnitude, profile=profile, params=params)
+        check_size(fault)
+        return fault
     except RobofdiError as exc:
         raise RobofdiError(f"fault spec {spec!r}: {exc}") from None
 

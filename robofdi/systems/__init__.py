@@ -23,7 +23,9 @@ an entry point of the group ``robofdi.systems`` in its pyproject.toml::
     [project.entry-points."robofdi.systems"]
     my-plant = "my_package.my_system"
 
-or name it directly as ``"package.module:attribute"`` (a campaign spec's ``system``, ``robofdi run``).
+or name it directly as ``"package.module:attribute"`` (a campaign spec's ``system``, ``robofdi run``). That
+imports the module — it runs its code — so a spec naming one is trusted like a script; a campaign spec is checked
+for everything that does not need the system before the import.
 """
 from __future__ import annotations
 
@@ -47,6 +49,11 @@ SYSTEMS: dict[str, System] = {}
 _discovered = False
 
 
+#: what a System must have (checked before a ``package.module:attribute`` is instantiated, and on registration)
+_SYSTEM_MEMBERS = ("name", "options_type", "diagnosers", "targets", "calibration_keys", "calibrate", "mission", "build",
+                   "run")
+
+
 class RobotInstances:
     """Base of a system whose options have ``robot_seeds``: one robot instance (its seeded plant effects and
     nominal-model errors) and one calibration per seed; a campaign's runs cycle through them. A run is its
@@ -64,8 +71,7 @@ def register_system(system):
     a class decorator. Returns what it was given."""
     instance = system() if isinstance(system, type) else system
     if not isinstance(instance, System):
-        missing = [a for a in ("name", "options_type", "diagnosers", "targets", "calibration_keys", "calibrate",
-                               "mission", "build", "run") if not hasattr(instance, a)]
+        missing = [a for a in _SYSTEM_MEMBERS if not hasattr(instance, a)]
         raise RobofdiError(f"register_system: {system!r} does not implement the System protocol (missing: "
                            f"{', '.join(missing)})")
     SYSTEMS[instance.name] = instance
@@ -96,7 +102,11 @@ def system_names() -> list[str]:
 
 
 def get_system(name: str) -> System:
-    """A registered system by name, or ``"package.module:attribute"`` (a System class or instance)."""
+    """A registered system by name, or ``"package.module:attribute"`` (a System class or instance).
+
+    ``package.module:attribute`` imports that module, which runs its code: name only modules you trust (a spec
+    from elsewhere should name registered systems). The attribute is instantiated only if it has every member of
+    the System protocol."""
     if not isinstance(name, str) or not name:
         raise RobofdiError(f"system: expected a non-empty name, got {name!r}")
     if ":" in name:
@@ -105,6 +115,9 @@ def get_system(name: str) -> System:
             system = getattr(import_module(module), attr)
         except (ImportError, AttributeError) as exc:
             raise RobofdiError(f"system: cannot import {name!r} ({exc})") from None
+        missing = [m for m in _SYSTEM_MEMBERS if not hasattr(system, m)]
+        if missing:                                   # checked before anything is instantiated
+            raise RobofdiError(f"system: {name!r} does not implement the System protocol (missing: {', '.join(missing)})")
         if isinstance(system, type):
             system = system()
         if not isinstance(system, System):

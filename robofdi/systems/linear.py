@@ -27,7 +27,7 @@ from dataclasses import asdict, dataclass, fields
 import numpy as np
 
 from robofdi.calibration import cached
-from robofdi.checks import check_fields, is_int
+from robofdi.checks import check_fields, is_int, is_positive
 from robofdi.control.linear import StateFeedback, lqr_gain
 from robofdi.decision import ThresholdDecision, calibrate_thresholds
 from robofdi.errors import RobofdiError
@@ -83,11 +83,12 @@ class LinearSettings:
         LinearMismatch(self.mismatch, 0)
         checks = (("margin", self.margin >= 1), ("calibration_runs", isinstance(self.calibration_runs, int)
                                                    and self.calibration_runs >= 1),
-                  ("duration", self.duration > self.blanking), ("blanking", self.blanking >= 0))
+                  ("duration", is_positive(self.duration, 3600) and self.duration > self.blanking),
+                  ("blanking", self.blanking >= 0))
         for name, ok in checks:
             if not ok:
                 raise RobofdiError(f"LinearSettings: field {name!r} is out of range, got {getattr(self, name)!r} "
-                                   "(margin >= 1, calibration_runs >= 1, 0 <= blanking < duration)")
+                                   "(margin >= 1, calibration_runs >= 1, 0 <= blanking < duration <= 3600 s)")
 
     @property
     def blanking_samples(self) -> int:
