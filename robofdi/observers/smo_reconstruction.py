@@ -1,0 +1,463 @@
+"""Sliding-mode observers for actuator-fault reconstruction — C. Edwards, H. Alwi & C. P. Tan, "Sliding mode methods
+for fault detection and fault tolerant control with application to aerospace systems", Int. J. Appl. Math. Comput.
+Sci. 22(1), 2012, §2–§3 (after Edwards, Spurgeon & Patton 2000 and Tan & Edwards 2003). Equation numbers are the
+paper's.
+
+Design functions (pure):
+
+* :func:`equivalent_injection` — the first-order SMO (3)/(7): during sliding (e_y ≡ 0) the equivalent output error
+  injection is ν_eq = (C G_n)⁻¹ (C M ξ − C A e) and the error slides on ker C with the reduced matrix returned;
+* :func:`canonical_form` — the canonical coordinates of (12)–(13): C = [0 T] (T orthogonal), M = [0; 0; M_o]; with
+  the existence conditions A1 (rank(CM) = q) and A2 ((A, M, C) minimum phase: the unobservable modes of
+  (A11, A211) are the invariant zeros) checked, a violated one refused naming it;
+* :func:`reconstruction_design` — L = [L_o 0], G_l, G_n = [−L Tᵀ; Tᵀ] (the Edwards–Spurgeon sign, see below), W =
+  [W_1 M_o⁻¹] Tᵀ of (14)–(15), by pole placement or by the bounded-real LMI on Ĝ(s) of (16) (``method="lmi"``,
+  needs cvxpy);
+* :func:`hinf_norm` — ‖G‖∞ of a stable state-space system (Hamiltonian iteration, Bruinsma & Steinbuch 1990):
+  the L2 gain γ of (11) for a given design.
+
+Stepping (one ``update``, Diagnoser protocol): :class:`SMOReconstructor`, the observer (7)–(8) with f̂ = W ν_eq (10),
+integrated by the chapter-1 kernel (:class:`robofdi.observers.sliding_mode.CascadeSMO`, ``switching="unit"``:
+ν = −ρ e_y/‖e_y‖ exactly, sub-stepped; ν_eq is the interval mean of ν).
+
+Conventions (errata of the paper, documented): e_y = C z − y as in (8), so ν of (8) is −ν of (3) and ν_eq → +ξ in the
+pendulum demo (with the printed (3) the low-pass ν tracks −ξ); (14) as printed gives the sliding matrix
+A11 − L A21 while (16) has A11 + L A211: we use G_n = [−L Tᵀ; Tᵀ], with which (16) holds as printed (and which is the
+form of (51)).
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+import scipy.signal
+
+from robofdi.checks import is_number
+from robofdi.errors import RobofdiError
+from robofdi.models.linear import format_mode, unobservable_modes
+from robofdi.observers.residual import Residual
+from robofdi.observers.sliding_mode import CascadeSMO, SMOSettings, Stage, _mat
+
+__all__ = ["EquivalentInjection", "CanonicalForm", "ReconstructionDesign", "equivalent_injection", "canonical_form",
+           "reconstruction_design", "hinf_norm", "SMOReconstructor", "HAS_CVXPY"]
+
+try:                                                    # pragma: no cover - depends on the install
+    import cvxpy as _cp
+    HAS_CVXPY = True
+except ImportError:                                     # pragma: no cover
+    _cp = None
+    HAS_CVXPY = False
+
+_TOL = 1e-9
+
+
+def _square(A, where: str) -> np.ndarray:
+    A = _mat(A, "A", where)
+    if A.shape[0] != A.shape[1]:
+        raise RobofdiError(f"{where}: field 'A' must be square, got shape {A.shape}")
+    return A
+
+
+def _rank(X) -> int:
+    return int(np.linalg.matrix_rank(X)) if X.size else 0
+
+
+# ----------------------------------------------------------------------------------------------------- §2
+@dataclass(frozen=True)
+class EquivalentInjection:
+    """Sliding on e_y = 0 of ė = (A − G_l C) e + G_n ν − M ξ: ν_eq = −``Phi`` e + ``Xi`` ξ with Phi = (C G_n)⁻¹ C A,
+    Xi = (C G_n)⁻¹ C M; the reduced error motion ė_N = ``sliding`` e_N on ker C (e = N e_N, N orthonormal) with its
+    ``sliding_poles`` (the invariant zeros of (A, G_n, C))."""
+
+    Phi: np.ndarray
+    Xi: np.ndarray | None
+    N: np.ndarray
+    sliding: np.ndarray
+    sliding_poles: np.ndarray
+
+
+def equivalent_injection(A, C, G_n, M=None) -> EquivalentInjection:
+    """Edwards et al. §2, eqs. (1)–(3): setting ė_y = C ė = 0 in the error system gives the equivalent output error
+    injection; C G_n must be invertible (the injection acts on every output)."""
+    where = "equivalent_injection"
+    A = _square(A, where)
+    n = A.shape[0]
+    C = _mat(C, "C", where, cols=n)
+    G_n = _mat(G_n, "G_n", where, rows=n, cols=C.shape[0])
+    CG = C @ G_n
+    if _rank(CG) < C.shape[0]:
+        raise RobofdiError(f"{where}: C G_n must be invertible (eq. 3: the switching term reaches every output), got "
+                           f"rank {_rank(CG)} for {C.shape[0]} outputs")
+    CGi = np.linalg.inv(CG)
+    Xi = None
+    if M is not None:
+        M = _mat(M, "M", where, rows=n)
+        Xi = CGi @ C @ M
+    P = np.eye(n) - G_n @ CGi @ C                         # the projector along G_n onto ker C
+    N = scipy.linalg.null_space(C)
+    S = N.T @ P @ A @ N
+    return EquivalentInjection(CGi @ C @ A, Xi, N, S, np.linalg.eigvals(S) if S.size else np.zeros(0))
+
+
+# ----------------------------------------------------------------------------------------------------- §3
+@dataclass(frozen=True)
+class CanonicalForm:
+    """Coordinates x_c = ``Tt`` x of (12)–(13): A_c = [[A11, A12], [A21, A22]] (A11 (n−p)×(n−p)), M_c = [0; 0; M_o]
+    (M_o q×q nonsingular), C_c = [0 T] (T p×p orthogonal), Q_c = [Q1; Q2]; A211 / Q21 are the top p − q rows of A21
+    / Q2; ``zeros`` the invariant zeros of (A, M, C) (the unobservable modes of (A11, A211))."""
+
+    Tt: np.ndarray
+    A: np.ndarray
+    B: np.ndarray | None
+    M: np.ndarray
+    C: np.ndarray
+    Q: np.ndarray | None
+    T: np.ndarray
+    M_o: np.ndarray
+    n: int
+    p: int
+    q: int
+    zeros: tuple[complex, ...]
+
+    @property
+    def A11(self):
+        r = self.n - self.p
+        return self.A[:r, :r]
+
+    @property
+    def A12(self):
+        r = self.n - self.p
+        return self.A[:r, r:]
+
+    @property
+    def A21(self):
+        r = self.n - self.p
+        return self.A[r:, :r]
+
+    @property
+    def A22(self):
+        r = self.n - self.p
+        return self.A[r:, r:]
+
+    @property
+    def A211(self):
+        return self.A21[: self.p - self.q]
+
+    @property
+    def Q1(self):
+        return None if self.Q is None else self.Q[: self.n - self.p]
+
+    @property
+    def Q2(self):
+        return None if self.Q is None else self.Q[self.n - self.p:]
+
+    @property
+    def Q21(self):
+        return None if self.Q is None else self.Q2[: self.p - self.q]
+
+
+def canonical_form(A, M, C, Q=None, B=None) -> CanonicalForm:
+    """The canonical form of Edwards et al. (12)–(13) built numerically: T_0 = [N_cᵀ; C] (N_c an orthonormal basis
+    of ker C: C T_0⁻¹ = [0 I]), T_b = [[I, −M_1 M_2⁺], [0, I]] (zeroes the top block of M), T_r orthogonal from the
+    complete QR of M_2 = CM with T_r M_2 = [0; M_o]; Tt = blkdiag(I, T_r) T_b T_0, T = T_rᵀ.
+
+    Refused (RobofdiError naming the condition): C without full row rank, M without full column rank, A1
+    rank(CM) < q (the fault does not act on the outputs with relative degree one: the cascade of §4 is needed), A2
+    an invariant zero of (A, M, C) with Re >= 0 (not minimum phase: the sliding motion cannot be made stable)."""
+    where = "canonical_form"
+    A = _square(A, where)
+    n = A.shape[0]
+    C = _mat(C, "C", where, cols=n)
+    M = _mat(M, "M", where, rows=n)
+    p, q = C.shape[0], M.shape[1]
+    if _rank(C) < p:
+        raise RobofdiError(f"{where}: field 'C' must have full row rank (eq. 5), got rank {_rank(C)} for {p} rows")
+    if _rank(M) < q:
+        raise RobofdiError(f"{where}: field 'M' must have full column rank (eq. 4), got rank {_rank(M)} for {q} columns")
+    rCM = _rank(C @ M)
+    if rCM < q:
+        raise RobofdiError(f"{where}: assumption A1 violated: rank(CM) = {rCM} < q = {q} (Edwards et al. §3; the "
+                           "faults need relative degree one: use the cascade of §4)")
+    Qm = None if Q is None else _mat(Q, "Q", where, rows=n)
+    Bm = None if B is None else _mat(B, "B", where, rows=n)
+    r = n - p
+    Nc = scipy.linalg.null_space(C)
+    T0 = np.vstack([Nc.T, C])
+    M0 = T0 @ M
+    M1, M2 = M0[:r], M0[r:]
+    Tb = np.eye(n)
+    Tb[:r, r:] = -M1 @ np.linalg.pinv(M2)
+    Qf, _ = np.linalg.qr(M2, mode="complete")             # M2 = Qf [R; 0]
+    Tr = np.vstack([Qf[:, q:].T, Qf[:, :q].T])            # Tr M2 = [0; R]
+    Tt = scipy.linalg.block_diag(np.eye(r), Tr) @ Tb @ T0
+    Ti = np.linalg.inv(Tt)
+    Ac, Mc, Cc = Tt @ A @ Ti, Tt @ M, C @ Ti
+    M_o = Mc[n - q:]
+    Mc[: n - q] = 0.0                                      # exact zeros (they are round-off)
+    T = Cc[:, r:].copy()
+    A11, A211 = Ac[:r, :r], Ac[r:, :r][: p - q]
+    if r == 0:
+        zeros: tuple[complex, ...] = ()
+    elif p == q:
+        zeros = tuple(complex(z) for z in np.linalg.eigvals(A11))
+    else:
+        zeros = tuple(complex(z) for z in unobservable_modes(A11, A211))
+    bad = [z for z in zeros if z.real >= -_TOL]
+    if bad:
+        raise RobofdiError(f"{where}: assumption A2 violated: (A, M, C) is not minimum phase, invariant zero "
+                           f"{format_mode(bad[0])} has Re >= 0 (Edwards et al. §3: the unobservable modes of "
+                           "(A11, A211) are the invariant zeros)")
+    return CanonicalForm(Tt, Ac, None if Bm is None else Tt @ Bm, Mc, Cc, None if Qm is None else Tt @ Qm, T, M_o,
+                         n, p, q, zeros)
+
+
+def hinf_norm(A, B, C, D=None, tol: float = 1e-9) -> float:
+    """‖C (sI − A)⁻¹ B + D‖∞ of a Hurwitz A: the Bruinsma–Steinbuch iteration (frequencies where the Hamiltonian
+    H(γ) has imaginary eigenvalues raise the lower bound until none remain), relative accuracy ``tol``."""
+    A = np.atleast_2d(np.asarray(A, dtype=float))
+    n = A.shape[0]
+    B = np.asarray(B, dtype=float).reshape(n, -1) if n else np.asarray(B, dtype=float)
+    C = np.asarray(C, dtype=float).reshape(-1, n) if n else np.asarray(C, dtype=float)
+    m, p = B.shape[1], C.shape[0]
+    D = np.zeros((p, m)) if D is None else np.asarray(D, dtype=float).reshape(p, m)
+    if n == 0 or m == 0 or p == 0:
+        return float(np.linalg.norm(D, 2)) if D.size else 0.0
+    ev = np.linalg.eigvals(A)
+    if np.max(ev.real) >= 0:
+        raise RobofdiError(f"hinf_norm: field 'A' must be Hurwitz, eigenvalue {format_mode(ev[np.argmax(ev.real)])}")
+
+    def sigma(w: float) -> float:
+        G = C @ np.linalg.solve(1j * w * np.eye(n) - A, B) + D
+        return float(np.linalg.norm(G, 2))
+
+    cands = [0.0] + [abs(e) for e in ev] + [abs(e.imag) for e in ev]
+    lb = max([float(np.linalg.norm(D, 2))] + [sigma(w) for w in cands])
+    if lb == 0.0:
+        return 0.0
+    for _ in range(60):
+        g = (1 + 2 * tol) * lb
+        R = g * g * np.eye(m) - D.T @ D
+        Ri = np.linalg.inv(R)
+        Ah = A + B @ Ri @ D.T @ C
+        H = np.block([[Ah, B @ Ri @ B.T], [-C.T @ (np.eye(p) + D @ Ri @ D.T) @ C, -Ah.T]])
+        lam = np.linalg.eigvals(H)
+        w = np.sort(np.unique(np.round(np.abs(lam[np.abs(lam.real) < 1e-7 * max(1.0, np.abs(lam).max())].imag), 12)))
+        if w.size == 0:
+            return float(lb)
+        pts = list(w) + [0.5 * (w[i] + w[i + 1]) for i in range(w.size - 1)]
+        new = max(sigma(x) for x in pts)
+        if new <= lb * (1 + tol):
+            return float(lb)
+        lb = new
+    return float(lb)
+
+
+@dataclass(frozen=True)
+class ReconstructionDesign:
+    """The observer (7)–(10) in the original coordinates: ż = A z + B u − ``G_l`` e_y + ``G_n`` ν, f̂ = ``W`` ν;
+    ``L_o`` / ``W_1`` the free parameters of (15) and W; ``sliding_poles`` = eig(A11 + L_o A211) (the reduced error
+    motion, (16)); ``gamma`` = ‖Ĝ‖∞ of (16) (the L2 gain of (11), 0 without Q); ``gamma_lmi`` the LMI bound (None
+    for pole placement); ``form`` the canonical form it was built in; ``method`` "place" or "lmi"."""
+
+    G_l: np.ndarray
+    G_n: np.ndarray
+    W: np.ndarray
+    L_o: np.ndarray
+    W_1: np.ndarray
+    sliding_poles: np.ndarray
+    error_poles: np.ndarray
+    gamma: float
+    gamma_lmi: float | None
+    form: CanonicalForm
+    method: str
+
+    def Ghat(self):
+        """The state-space (a, b, c, d) of Ĝ(s) = W_c A21 (sI − Ã11)⁻¹ (Q1 + L Q21) + W_c Q2, eq. (16)."""
+        return _ghat(self.form, self.L_o, self.W_1)
+
+
+def _ghat(f: CanonicalForm, L_o, W_1):
+    r, q = f.n - f.p, f.q
+    Wc = np.hstack([W_1, np.linalg.inv(f.M_o)])
+    a = f.A11 + L_o @ f.A211
+    if f.Q is None:
+        h = 0
+        return a, np.zeros((r, h)), Wc @ f.A21, np.zeros((q, h))
+    return a, f.Q1 + L_o @ f.Q21, Wc @ f.A21, Wc @ f.Q2
+
+
+def _lmi_design(f: CanonicalForm, margin: float, solver: str | None):
+    """Minimise γ s.t. the bounded-real LMI on Ĝ(s) of (16) (variables P1 > 0, Y = P1 L_o, W_1, γ)."""
+    where = "reconstruction_design"
+    if not HAS_CVXPY:
+        raise RobofdiError(f"{where}: method 'lmi' needs cvxpy (pip install cvxpy; it brings the Clarabel/SCS solvers)"
+                           "; use method='place' with scipy only")
+    if f.Q is None:
+        raise RobofdiError(f"{where}: method 'lmi' minimises the L2 gain from ξ (11): field 'Q' must be given")
+    cp = _cp
+    r, p, q, h = f.n - f.p, f.p, f.q, f.Q.shape[1]
+    if r == 0:
+        raise RobofdiError(f"{where}: method 'lmi' has nothing to design for n = p (no A11 block)")
+    Moi = np.linalg.inv(f.M_o)
+    P1 = cp.Variable((r, r), symmetric=True)
+    Y = cp.Variable((r, p - q)) if p > q else None
+    W1 = cp.Variable((q, p - q)) if p > q else None
+    g = cp.Variable()
+    A11, A21, A211, Q1, Q2, Q21 = f.A11, f.A21, f.A211, f.Q1, f.Q2, f.Q21
+    PA = P1 @ A11 + (Y @ A211 if Y is not None else 0)
+    PB = P1 @ Q1 + (Y @ Q21 if Y is not None else 0)
+    Wc_A21 = Moi @ A21[p - q:] + (W1 @ A21[: p - q] if W1 is not None else 0)
+    Wc_Q2 = Moi @ Q2[p - q:] + (W1 @ Q2[: p - q] if W1 is not None else 0)
+    blk = cp.bmat([[PA + PA.T, PB, Wc_A21.T], [PB.T, -g * np.eye(h), Wc_Q2.T], [Wc_A21, Wc_Q2, -g * np.eye(q)]])
+    size = r + h + q
+    cons = [P1 >> margin * np.eye(r), 0.5 * (blk + blk.T) << -margin * np.eye(size)]
+    prob = cp.Problem(cp.Minimize(g), cons)
+    try:
+        prob.solve(solver=solver or ("CLARABEL" if "CLARABEL" in cp.installed_solvers() else None))
+    except cp.SolverError as exc:
+        raise RobofdiError(f"{where}: the L2 design LMI could not be solved: {exc}") from None
+    if prob.status not in ("optimal", "optimal_inaccurate") or g.value is None:
+        raise RobofdiError(f"{where}: the L2 design LMI (bounded-real lemma on Ĝ(s), eq. 16) is infeasible: solver "
+                           f"status {prob.status!r}")
+    P = np.array(P1.value)
+    L_o = np.linalg.solve(P, np.array(Y.value)) if Y is not None else np.zeros((r, 0))
+    W_1 = np.array(W1.value) if W1 is not None else np.zeros((q, 0))
+    return L_o, W_1, float(g.value)
+
+
+def reconstruction_design(A, C, M, B=None, Q=None, poles: Sequence[complex] | None = None, A_s=None, W_1=None,
+                          method: str = "place", margin: float = 1e-7, solver: str | None = None) -> ReconstructionDesign:
+    """Edwards et al. §3, eqs. (12)–(16) (the recipe of Edwards, Spurgeon & Patton 2000):
+
+    1. canonical form (:func:`canonical_form`, A1 and A2 checked);
+    2. L_o with A11 + L_o A211 Hurwitz: ``poles`` placed on (A11ᵀ, A211ᵀ) (method "place"; p = q: A11 is already the
+       zero dynamics), or the bounded-real LMI minimising ‖Ĝ‖∞ over (L_o, W_1) (method "lmi", cvxpy);
+    3. G_l = Tt⁻¹ T_L⁻¹ [Ã12; Ã22 − A_s] Tᵀ with T_L = [[I, L], [0, I]], Ã = T_L A_c T_L⁻¹ (A_s Hurwitz, default −5 I):
+       then A − G_l C has the eigenvalues eig(Ã11) ∪ eig(A_s);
+    4. G_n = Tt⁻¹ [−L Tᵀ; Tᵀ] (erratum: the printed (14) has +L), W = [W_1 M_o⁻¹] Tᵀ (W_1 = 0 by default, eq. 10)."""
+    where = "reconstruction_design"
+    if method not in ("place", "lmi"):
+        raise RobofdiError(f"{where}: field 'method' must be 'place' or 'lmi', got {method!r}")
+    f = canonical_form(A, M, C, Q=Q, B=B)
+    n, p, q = f.n, f.p, f.q
+    r = n - p
+    gamma_lmi = None
+    if method == "lmi":
+        if poles is not None or W_1 is not None:
+            raise RobofdiError(f"{where}: method 'lmi' designs L_o and W_1 itself: leave 'poles' and 'W_1' unset")
+        L_o, W1, gamma_lmi = _lmi_design(f, margin, solver)
+    else:
+        if p == q or r == 0:
+            L_o = np.zeros((r, p - q))
+            if poles is not None and len(poles):
+                raise RobofdiError(f"{where}: field 'poles' must be empty for p = q (A11 + L A211 = A11: its "
+                                   f"eigenvalues are the invariant zeros {list(np.round(f.zeros, 6))})")
+        else:
+            if poles is None:
+                raise RobofdiError(f"{where}: field 'poles' must give {r} eigenvalues of A11 + L_o A211 (Re < 0)")
+            s = np.array(poles, dtype=complex).ravel()
+            if s.shape != (r,) or np.any(s.real >= 0):
+                raise RobofdiError(f"{where}: field 'poles' must be {r} eigenvalues with Re < 0 of A11 + L_o A211 "
+                                   f"(eq. 16), got {poles!r}")
+            try:
+                L_o = -np.real(scipy.signal.place_poles(f.A11.T, f.A211.T, s).gain_matrix.T)
+            except ValueError as exc:
+                raise RobofdiError(f"{where}: field 'poles' cannot be placed on (A11, A211) (its unobservable modes "
+                                   f"are the invariant zeros {list(np.round(f.zeros, 6))}): {exc}") from None
+        W1 = np.zeros((q, p - q)) if W_1 is None else _mat(W_1, "W_1", where, rows=q, cols=p - q)
+    As = -5.0 * np.eye(p) if A_s is None else _mat(A_s, "A_s", where, rows=p, cols=p)
+    if np.max(np.linalg.eigvals(As).real) >= 0:
+        raise RobofdiError(f"{where}: field 'A_s' must be Hurwitz (the e_y dynamics during the reaching phase)")
+    L = np.hstack([L_o, np.zeros((r, q))])
+    TL = np.eye(n)
+    TL[:r, r:] = L
+    TLi = np.linalg.inv(TL)
+    At = TL @ f.A @ TLi
+    T = f.T
+    Glc = TLi @ np.vstack([At[:r, r:], At[r:, r:] - As]) @ T.T
+    Gnc = np.vstack([-L @ T.T, T.T])
+    Ti = np.linalg.inv(f.Tt)
+    G_l, G_n = Ti @ Glc, Ti @ Gnc
+    W = np.hstack([W1, np.linalg.inv(f.M_o)]) @ T.T
+    sl = np.linalg.eigvals(f.A11 + L_o @ f.A211) if r else np.zeros(0)
+    if r and np.max(sl.real) >= 0:
+        raise RobofdiError(f"{where}: the sliding motion A11 + L_o A211 is not stable (eigenvalue "
+                           f"{format_mode(sl[np.argmax(sl.real)])})")
+    a, b, c, d = _ghat(f, L_o, W1)
+    gamma = hinf_norm(a, b, c, d) if b.shape[1] else 0.0
+    Ao = np.asarray(A, dtype=float) - G_l @ np.asarray(C, dtype=float)
+    return ReconstructionDesign(G_l, G_n, W, L_o, W1, sl, np.linalg.eigvals(Ao), gamma, gamma_lmi, f, method)
+
+
+# ----------------------------------------------------------------------------------------------------- stepping
+class SMOReconstructor:
+    """Diagnoser protocol: the actuator-fault reconstruction SMO (7)–(10) of Edwards et al. §3.
+
+    ż = (A − G_l C) z + G_l y + B u + G_n ν, ν = −ρ e_y/‖e_y‖, e_y = C z − y, integrated by the chapter-1 kernel
+    (:class:`~robofdi.observers.sliding_mode.CascadeSMO`, one output stage per measurement, ``switching="unit"``,
+    sub-stepped at ``settings.substep``). Residual: ν_eq (p entries ``nu_<measurement>``), the interval mean of ν
+    over the diagnosis sample (the equivalent output error injection); estimate: f̂ = W ν_eq (10), one entry per
+    fault channel. ``rho`` [fault units × ‖M_o‖] must exceed the bound (9) on the fault."""
+
+    def __init__(self, A, B, C, G_l, G_n, W, rho: float, settings: SMOSettings, inputs: Sequence[str],
+                 measurements: Sequence[str], faults: Sequence[str], measurement_units: Sequence[str] | None = None,
+                 fault_units: Sequence[str] | None = None, x0=None):
+        where = "SMOReconstructor"
+        A = _square(A, where)
+        n = A.shape[0]
+        C = _mat(C, "C", where, cols=n)
+        B = _mat(B, "B", where, rows=n) if np.size(B) else np.zeros((n, 0))
+        p = C.shape[0]
+        G_l = _mat(G_l, "G_l", where, rows=n, cols=p)
+        G_n = _mat(G_n, "G_n", where, rows=n, cols=p)
+        W = _mat(W, "W", where, cols=p)
+        q = W.shape[0]
+        if not (is_number(rho) and rho > 0):
+            raise RobofdiError(f"{where}: field 'rho' must be a gain > 0 (eq. 9: ρ ≥ k_1 + α + η), got {rho!r}")
+        if settings.switching != "unit":
+            raise RobofdiError(f"{where}: settings field 'switching' must be 'unit' (ν = −ρ e_y/‖e_y‖, eq. 8), got "
+                               f"{settings.switching!r}")
+        for field, names, size in (("inputs", inputs, B.shape[1]), ("measurements", measurements, p),
+                                   ("faults", faults, q)):
+            if len(list(names)) != size:
+                raise RobofdiError(f"{where}: field {field!r} must hold {size} names, got {len(list(names))}")
+        self.rho, self.W, self.G_l, self.G_n, self.C = float(rho), W, G_l, G_n, C
+        Mx = A - G_l @ C
+        Gl = G_l.copy()
+
+        def affine(y, u):
+            return Mx, Gl @ y + B @ u
+
+        stages = [Stage(self.rho, self.rho * G_n[:, j], Wy=np.eye(p)[j], Cx=C[j], name=f"nu_{m}")
+                  for j, m in enumerate(measurements)]
+        mu = list(measurement_units or ["1"] * p)
+        self._smo = CascadeSMO(n, affine, stages, settings, inputs, measurements, x0=x0, residual_units=mu,
+                               where=where)
+        self.inputs, self.measurements = list(inputs), list(measurements)
+        self.components = list(self._smo.components)
+        self.estimate_components = list(faults)
+        self.estimate_modes = ["level"] * q
+        self.units = {"residual": mu, "estimate": list(fault_units or ["1"] * q)}
+
+    @classmethod
+    def from_design(cls, A, B, C, design: ReconstructionDesign, rho: float, settings: SMOSettings, **names):
+        """The observer of a :func:`reconstruction_design` (its G_l, G_n and W)."""
+        return cls(A, B, C, design.G_l, design.G_n, design.W, rho, settings, **names)
+
+    def reset(self) -> None:
+        self._smo.reset()
+
+    def signatures(self) -> list:
+        return []
+
+    @property
+    def state_estimate(self) -> np.ndarray:
+        return self._smo.state_estimate
+
+    def update(self, y: np.ndarray, u: np.ndarray) -> Residual:
+        # e_y = C z − y: the kernel's ē = y − C z, and ψ = ē/‖ē‖, so ρψ = ν of (8) and the injection is G_n ν
+        res = self._smo.update(y, u)
+        nu = res.r
+        return Residual(nu.copy(), self.W @ nu)
