@@ -1,4 +1,4 @@
-"""Edwards, Alwi & Tan (2012) §6: sliding-mode control with on-line control allocation (robofdi.ftc.smc_ca).
+"""Edwards, Alwi & Tan §6: sliding-mode control with on-line control allocation (robofdi.ftc.smc_ca).
 The paper gives no plant numbers for §6 (the B747 of §7 is not printed): the identities are checked on a random
 [HARNESS] plant with B1 ≠ 0 and the B1 = 0 transfer (seed digest §8) on the linearised chapter-4 AUV."""
 from __future__ import annotations

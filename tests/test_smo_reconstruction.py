@@ -1,4 +1,4 @@
-"""Edwards, Alwi & Tan (2012) §2–§3: the first-order SMO and actuator-fault reconstruction (robofdi.observers.
+"""Edwards, Alwi & Tan §2–§3: the first-order SMO and actuator-fault reconstruction (robofdi.observers.
 smo_reconstruction). Numbers marked [digest] are the checks of the seed-003 digest; [HARNESS] systems are ours."""
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Sliding-mode control with on-line control allocation — Edwards, Alwi & Tan (2012) §6, eqs. (55)–(70) (after Alwi &
+"""Sliding-mode control with on-line control allocation — Edwards, Alwi & Tan, §6, eqs. (55)–(70) (after Alwi &
 Edwards 2008). Equation numbers are the paper's.
 
 Plant (55): ẋ = A x + B (I − K) u with B = [B1; B2] (B2 ∈ R^{l×m} of rank l, the last l states), K = diag(k_i) the

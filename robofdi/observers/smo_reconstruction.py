@@ -1,7 +1,7 @@
 """Sliding-mode observers for actuator-fault reconstruction — C. Edwards, H. Alwi & C. P. Tan, "Sliding mode methods
-for fault detection and fault tolerant control with application to aerospace systems", Int. J. Appl. Math. Comput.
-Sci. 22(1), 2012, §2–§3 (after Edwards, Spurgeon & Patton 2000 and Tan & Edwards 2003). Equation numbers are the
-paper's.
+for fault detection and fault tolerant control with application to aerospace systems", Int. J. Appl. Math.
+Comput. Sci. (manuscript received January 2011), §2–§3 (after Edwards, Spurgeon & Patton 2000 and Tan & Edwards
+2003). Equation numbers are the paper's.
 
 Design functions (pure):
 
