@@ -13,6 +13,8 @@ Design functions (pure):
 * :func:`reconstruction_design` — L = [L_o 0], G_l, G_n = [−L Tᵀ; Tᵀ] (the Edwards–Spurgeon sign, see below), W =
   [W_1 M_o⁻¹] Tᵀ of (14)–(15), by pole placement or by the bounded-real LMI on Ĝ(s) of (16) (``method="lmi"``,
   needs cvxpy);
+* :func:`sensor_fault_system` — §5 (44)–(47): the incipient sensor fault f_o appended to the state, x_a = [x; f_o],
+  A_a = [[A, 0], [0, 0]], F_a = [0; I_q], C_a = [C F]; φ = ḟ_o is the "actuator fault" of the §3 design, f̂_o = C_f z_a;
 * :func:`hinf_norm` — ‖G‖∞ of a stable state-space system (Hamiltonian iteration, Bruinsma & Steinbuch 1990):
   the L2 gain γ of (11) for a given design.
 
@@ -41,7 +43,8 @@ from robofdi.observers.residual import Residual
 from robofdi.observers.sliding_mode import CascadeSMO, SMOSettings, Stage, _mat
 
 __all__ = ["EquivalentInjection", "CanonicalForm", "ReconstructionDesign", "equivalent_injection", "canonical_form",
-           "reconstruction_design", "hinf_norm", "SMOReconstructor", "HAS_CVXPY"]
+           "reconstruction_design", "hinf_norm", "SMOReconstructor", "HAS_CVXPY", "SensorFaultSystem",
+           "sensor_fault_system", "sensor_fault_observer"]
 
 try:                                                    # pragma: no cover - depends on the install
     import cvxpy as _cp
@@ -399,11 +402,12 @@ class SMOReconstructor:
     (:class:`~robofdi.observers.sliding_mode.CascadeSMO`, one output stage per measurement, ``switching="unit"``,
     sub-stepped at ``settings.substep``). Residual: ν_eq (p entries ``nu_<measurement>``), the interval mean of ν
     over the diagnosis sample (the equivalent output error injection); estimate: f̂ = W ν_eq (10), one entry per
-    fault channel. ``rho`` [fault units × ‖M_o‖] must exceed the bound (9) on the fault."""
+    fault channel — or, with ``readout`` (q×n), readout·z (the §5 sensor-fault estimate f̂_o = C_f z_a). ``rho``
+    [fault units × ‖M_o‖] must exceed the bound (9) on the fault."""
 
     def __init__(self, A, B, C, G_l, G_n, W, rho: float, settings: SMOSettings, inputs: Sequence[str],
                  measurements: Sequence[str], faults: Sequence[str], measurement_units: Sequence[str] | None = None,
-                 fault_units: Sequence[str] | None = None, x0=None):
+                 fault_units: Sequence[str] | None = None, x0=None, readout=None):
         where = "SMOReconstructor"
         A = _square(A, where)
         n = A.shape[0]
@@ -413,7 +417,8 @@ class SMOReconstructor:
         G_l = _mat(G_l, "G_l", where, rows=n, cols=p)
         G_n = _mat(G_n, "G_n", where, rows=n, cols=p)
         W = _mat(W, "W", where, cols=p)
-        q = W.shape[0]
+        self.readout = None if readout is None else _mat(readout, "readout", where, cols=n)
+        q = W.shape[0] if self.readout is None else self.readout.shape[0]
         if not (is_number(rho) and rho > 0):
             raise RobofdiError(f"{where}: field 'rho' must be a gain > 0 (eq. 9: ρ ≥ k_1 + α + η), got {rho!r}")
         if settings.switching != "unit":
@@ -460,4 +465,63 @@ class SMOReconstructor:
         # e_y = C z − y: the kernel's ē = y − C z, and ψ = ē/‖ē‖, so ρψ = ν of (8) and the injection is G_n ν
         res = self._smo.update(y, u)
         nu = res.r
-        return Residual(nu.copy(), self.W @ nu)
+        est = self.W @ nu if self.readout is None else self.readout @ self._smo.state_estimate
+        return Residual(nu.copy(), est)
+
+
+# ----------------------------------------------------------------------------------------------------- §5
+@dataclass(frozen=True)
+class SensorFaultSystem:
+    """§5 (44)–(47): x_a = [x; f_o], ẋ_a = ``A_a`` x_a + ``B_a`` u + ``F_a`` φ, y = ``C_a`` x_a, f_o = ``C_f`` x_a;
+    ``observable``: (A_a, C_a) observable (Proposition 2)."""
+
+    A_a: np.ndarray
+    B_a: np.ndarray
+    C_a: np.ndarray
+    F_a: np.ndarray
+    C_f: np.ndarray
+    observable: bool
+
+
+def sensor_fault_system(A, B, C, F) -> SensorFaultSystem:
+    """Edwards et al. §5, eqs. (44)–(47): y = C x + F f_o with F (p×q, full column rank, q < p) the faulty sensors'
+    directions. The invariant zeros of (A_a, F_a, C_a) are the unobservable modes of (A, C1), C1 the healthy
+    outputs (seed digest §4, checked): the §3 design on it (A2) needs (A, C1) detectable."""
+    where = "sensor_fault_system"
+    A = _square(A, where)
+    n = A.shape[0]
+    C = _mat(C, "C", where, cols=n)
+    p = C.shape[0]
+    B = _mat(B, "B", where, rows=n) if np.size(B) else np.zeros((n, 0))
+    F = _mat(F, "F", where, rows=p)
+    q = F.shape[1]
+    if _rank(F) < q or q >= p:
+        raise RobofdiError(f"{where}: field 'F' must have full column rank q < p = {p} (eq. 39: n >= p > q), got rank "
+                           f"{_rank(F)} for {q} columns")
+    Aa = scipy.linalg.block_diag(A, np.zeros((q, q)))
+    Ba = np.vstack([B, np.zeros((q, B.shape[1]))])
+    Ca = np.hstack([C, F])
+    Fa = np.vstack([np.zeros((n, q)), np.eye(q)])
+    Cf = np.hstack([np.zeros((q, n)), np.eye(q)])
+    return SensorFaultSystem(Aa, Ba, Ca, Fa, Cf, not unobservable_modes(Aa, Ca))
+
+
+def sensor_fault_observer(A, B, C, F, rho: float, settings: SMOSettings, poles=None, A_s=None,
+                          inputs: Sequence[str] = (), measurements: Sequence[str] = (), faults: Sequence[str] = (),
+                          measurement_units: Sequence[str] | None = None, x0=None):
+    """§5 (48)–(54): the §3 reconstruction SMO on the augmented system of :func:`sensor_fault_system`, with the
+    estimate f̂_o = C_f z_a. In the canonical coordinates of (48) the fault rate φ does not enter the sliding-motion
+    error ẽ1 (M_c = [0; 0; M_o]), so f̂_o → f_o at the rate of eig(A11 + L_o A211) for any |φ| < ρ (Propositions
+    3–4). Returns (observer, design, augmented system); a non-minimum-phase (A_a, F_a, C_a) (an undetectable
+    (A, C1)) is refused naming A2 — the H∞ design of Remark 5 is not implemented."""
+    s = sensor_fault_system(A, B, C, F)
+    d = reconstruction_design(s.A_a, s.C_a, s.F_a, B=s.B_a, poles=poles, A_s=A_s)
+    fault_units = None
+    if measurement_units is not None:                 # f_o is in the unit of the sensor it corrupts most
+        fault_units = [list(measurement_units)[int(np.argmax(np.abs(s.C_a[:, s.C_a.shape[1] - s.C_f.shape[0] + j])))]
+                       for j in range(s.C_f.shape[0])]
+    obs = SMOReconstructor.from_design(s.A_a, s.B_a, s.C_a, d, rho, settings, inputs=list(inputs),
+                                       measurements=list(measurements), faults=list(faults),
+                                       measurement_units=measurement_units, fault_units=fault_units, x0=x0,
+                                       readout=s.C_f)
+    return obs, d, s
