@@ -327,3 +327,46 @@ def test_sensor_ftc_by_output_correction_keeps_nominal_tracking():
     nominal, faulty, corrected = run(False, False), run(True, False), run(True, True)
     assert corrected <= 1.05 * nominal
     assert faulty >= 2.0 * nominal
+
+
+# ------------------------------------------------------------------------------------------------ §4 cascade
+CA1 = np.array([[-0.5137, -0.5831, -0.6228, 0.0004, 0], [1.0064, -0.6284, -0.0352, -0.0021, 0],
+                [0, 0, -37.0, 0, 0], [0, 1.7171, 0, -0.0166, -9.8046], [1.0, 0, 0, 0, 0]])   # digest's A¹ (garbled print)
+CM1 = np.array([[0.0], [0], [37], [0], [0]])
+CC1 = np.hstack([np.zeros((2, 3)), np.eye(2)])
+CQ1 = np.vstack([np.eye(2), np.zeros((3, 2))])
+
+
+def test_civil_aircraft_model_numbers():
+    """[digest §3, example §4.1, checks 1–2, tol 1e-4] eig(A¹) and the Markov parameters of the fault channel."""
+    ev = np.linalg.eigvals(CA1)
+    want = [-0.5783 + 0.7613j, -0.5783 - 0.7613j, -0.0010 + 0.1258j, -0.0010 - 0.1258j, -37.0]
+    for w in want:
+        assert np.min(np.abs(ev - w)) < 1e-4
+    mk = [CC1 @ np.linalg.matrix_power(CA1, k) @ CM1 for k in range(4)]
+    np.testing.assert_allclose(mk[0], 0, atol=1e-12)
+    np.testing.assert_allclose(mk[1], 0, atol=1e-12)
+    np.testing.assert_allclose(mk[2].ravel(), [-2.2364, -23.0436], atol=1e-4)
+    np.testing.assert_allclose(mk[3].ravel(), [270.2993, 865.2101], atol=1e-4)
+
+
+def test_cascade_design_on_the_civil_aircraft_stops_at_stage_3():
+    """[digest §3, example §4.1, checks 3–4] filters A_Ω = −10 I, B_Ω = 10 I twice: r̄¹ = r̄² = 0, stage 3 has
+    rank(C³M³) = rank(M³) = 1 (k = 3: two fictitious stages, then the §3 design); every sliding matrix Hurwitz."""
+    from robofdi.observers.smo_reconstruction import cascade_design
+
+    st = cascade_design(CA1, CM1, CC1, CQ1, [(-10 * np.eye(2), 10 * np.eye(2))] * 2)
+    assert [s.rbar for s in st] == [0, 0, 1]
+    assert [s.last for s in st] == [False, False, True] and st[-1].q == 1
+    assert st[-1].m_next == 1
+    for s in st[:-1]:
+        assert np.max(s.sliding_poles.real) < 0
+
+
+def test_cascade_design_bad_input():
+    from robofdi.observers.smo_reconstruction import cascade_design
+
+    with pytest.raises(RobofdiError, match="field 'filters' must give a disturbance filter .* for stage 2"):
+        cascade_design(CA1, CM1, CC1, CQ1, [(-10 * np.eye(2), 10 * np.eye(2))])
+    with pytest.raises(RobofdiError, match=r"filters\[0\] must be \(A_Ω Hurwitz"):
+        cascade_design(CA1, CM1, CC1, CQ1, [(10 * np.eye(2), 10 * np.eye(2))] * 2)

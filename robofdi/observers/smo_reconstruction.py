@@ -15,6 +15,8 @@ Design functions (pure):
   needs cvxpy);
 * :func:`sensor_fault_system` — §5 (44)–(47): the incipient sensor fault f_o appended to the state, x_a = [x; f_o],
   A_a = [[A, 0], [0, 0]], F_a = [0; I_q], C_a = [C F]; φ = ḟ_o is the "actuator fault" of the §3 design, f̂_o = C_f z_a;
+* :func:`cascade_design` — §4 (17)–(38): the cascade of fictitious systems for rank(CM) < q and its stopping rule
+  (design only: the stages' ranks, L̄_o and sliding matrices);
 * :func:`hinf_norm` — ‖G‖∞ of a stable state-space system (Hamiltonian iteration, Bruinsma & Steinbuch 1990):
   the L2 gain γ of (11) for a given design.
 
@@ -44,7 +46,7 @@ from robofdi.observers.sliding_mode import CascadeSMO, SMOSettings, Stage, _mat
 
 __all__ = ["EquivalentInjection", "CanonicalForm", "ReconstructionDesign", "equivalent_injection", "canonical_form",
            "reconstruction_design", "hinf_norm", "SMOReconstructor", "HAS_CVXPY", "SensorFaultSystem",
-           "sensor_fault_system", "sensor_fault_observer"]
+           "sensor_fault_system", "sensor_fault_observer", "CascadeStage", "cascade_design"]
 
 try:                                                    # pragma: no cover - depends on the install
     import cvxpy as _cp
@@ -525,3 +527,129 @@ def sensor_fault_observer(A, B, C, F, rho: float, settings: SMOSettings, poles=N
                                        measurement_units=measurement_units, fault_units=fault_units, x0=x0,
                                        readout=s.C_f)
     return obs, d, s
+
+
+# ----------------------------------------------------------------------------------------------------- §4
+@dataclass(frozen=True)
+class CascadeStage:
+    """Stage i of the §4 cascade (17)–(38): its system's sizes (n, p, q, h), r̄ = rank(C M), the augmented
+    (Ā, M̄, Q̄, C̄) with the disturbance filter (23)–(25), L̄_o, the sliding matrix Ā_1 + L̄_o Ā_31 of (31) and its
+    eigenvalues; ``last``: rank(C M) = rank(M), the §3 design applies (the stopping rule)."""
+
+    n: int
+    p: int
+    q: int
+    h: int
+    rbar: int
+    m_next: int
+    A: np.ndarray
+    M: np.ndarray
+    Q: np.ndarray
+    C: np.ndarray
+    L_o: np.ndarray | None
+    sliding: np.ndarray | None
+    sliding_poles: np.ndarray | None
+    last: bool
+
+
+def _output_coordinates(A, M, Q, C):
+    """x ↦ [N_cᵀ; C] x: C = [0 I_p] (the form (17) assumes)."""
+    Nc = scipy.linalg.null_space(C)
+    T0 = np.vstack([Nc.T, C])
+    Ti = np.linalg.inv(T0)
+    return T0 @ A @ Ti, T0 @ M, T0 @ Q, C @ Ti
+
+
+def _proposition1(A, M, Q, p: int, rbar: int):
+    """Proposition 1 (19)–(22) for C = [0 I_p]: a fault scaling (column compression of CM) and an output rotation
+    with M = [[M11, 0], [0, 0], [0, M̄22]] (rows n − p, p − r̄, r̄; columns q − r̄, r̄); C stays [0 C2], C2 orthogonal."""
+    n, q = M.shape
+    r = n - p
+    Mb = M[r:]
+    if rbar:
+        _, _, Vt = np.linalg.svd(Mb)
+        T2i = np.hstack([Vt[rbar:].T, Vt[:rbar].T])               # columns: null(Mb) first, then the range part
+    else:
+        T2i = np.eye(q)
+    Ms = M @ T2i                                                   # fault scaling f' = T2 f
+    Mb2 = Ms[r:, q - rbar:]
+    Tr = np.eye(p)
+    if rbar:
+        Qf, _ = np.linalg.qr(Mb2, mode="complete")
+        Tr = np.vstack([Qf[:, rbar:].T, Qf[:, :rbar].T])
+    Tb = np.eye(n)
+    if rbar:
+        Tb[:r, r:] = -Ms[:r, q - rbar:] @ np.linalg.pinv(Ms[r:, q - rbar:])
+    T = scipy.linalg.block_diag(np.eye(r), Tr) @ Tb
+    Ti = np.linalg.inv(T)
+    return T @ A @ Ti, T @ Ms, T @ Q, np.hstack([np.zeros((p, r)), Tr.T])
+
+
+def cascade_design(A, M, C, Q, filters: Sequence[tuple], alpha: float = 10.0, max_stages: int = 6,
+                   tol: float = 1e-7) -> list[CascadeStage]:
+    """Edwards et al. §4 (Tan & Edwards 2010), the design recursion (17)–(38) and its stopping rule, for
+    rank(CM) < q: stage i augments its system with the disturbance filter (A_Ω^i, B_Ω^i) of ``filters[i−1]``
+    (23)–(25), brings it to the form of Proposition 1, chooses L̄_o (a Kalman-type gain: Ā_1 + L̄_o Ā_31 Hurwitz,
+    the sliding motion (31)), and builds the next fictitious system (35)–(38): x^{i+1} = [w; z_f],
+    y^{i+1} = [z_1; z_f], A^{i+1} = [[Ā_1 + L̄_o Ā_31, 0], [α Ā_32, −α I]], M^{i+1} = [M̄_1; [0 α M̄22]],
+    Q^{i+1} = [Q̄_1; 0] (errata 4–5: z_1 algebraic, index i throughout). It stops at the first stage with
+    rank(C^i M^i) = rank(M^i), where the §3 design applies (reported, not run). Design only: no observer is stepped.
+    ``m_next`` = p − r̄ is the size of z_1 (the outputs of the next system that the fault does not reach).
+
+    Refused (naming the condition): M without full column rank, a stage whose (Ā_1, Ā_31) is not detectable (the
+    sliding motion (31) cannot be made stable), too few ``filters``, or no stopping stage within ``max_stages``."""
+    where = "cascade_design"
+    A = _square(A, where)
+    n = A.shape[0]
+    C = _mat(C, "C", where, cols=n)
+    M = _mat(M, "M", where, rows=n)
+    Q = _mat(Q, "Q", where, rows=n)
+    if _rank(M) < M.shape[1]:
+        raise RobofdiError(f"{where}: field 'M' must have full column rank, got rank {_rank(M)} for {M.shape[1]}")
+    stages: list[CascadeStage] = []
+    for i in range(max_stages):
+        p, q = C.shape[0], _rank(M)
+        A, M, Q, C = _output_coordinates(A, M, Q, C)
+        rbar = _rank(np.where(np.abs(C @ M) > tol * max(1.0, np.abs(M).max()), C @ M, 0.0))
+        n = A.shape[0]
+        if rbar == q:
+            stages.append(CascadeStage(n, p, q, Q.shape[1], rbar, p - rbar, A, M, Q, C, None, None, None, True))
+            return stages
+        if i >= len(filters):
+            raise RobofdiError(f"{where}: field 'filters' must give a disturbance filter (A_Ω, B_Ω) for stage {i + 1} "
+                               f"(rank(C M) = {rbar} < q = {q} there)")
+        AO, BO = (np.atleast_2d(np.asarray(f, dtype=float)) for f in filters[i])
+        h = Q.shape[1]
+        if AO.shape != (h, h) or BO.shape[0] != h or np.max(np.linalg.eigvals(AO).real) >= 0:
+            raise RobofdiError(f"{where}: filters[{i}] must be (A_Ω Hurwitz {h}×{h}, B_Ω with {h} rows) (eq. 24), got "
+                               f"shapes {AO.shape}, {BO.shape}")
+        Ab = np.block([[A, Q], [np.zeros((h, n)), AO]])
+        Mb = np.vstack([M, np.zeros((h, M.shape[1]))])
+        Qb = np.vstack([np.zeros((n, BO.shape[1])), BO])
+        Cb = np.hstack([C, np.zeros((p, h))])
+        # put the filter states among the unmeasured ones: C̄ = [0 I_p]
+        nb = n + h
+        perm = list(range(n - p)) + list(range(n, nb)) + list(range(n - p, n))
+        P = np.eye(nb)[perm]
+        Ab, Mb, Qb, Cb = P @ Ab @ P.T, P @ Mb, P @ Qb, Cb @ P.T
+        Ab, Mb, Qb, Cb = _proposition1(Ab, Mb, Qb, p, rbar)
+        r = nb - p
+        m_next = p - rbar
+        A1, A3 = Ab[:r, :r], Ab[r:, :r]
+        A31, A32 = A3[:m_next], A3[m_next:]
+        X = scipy.linalg.solve_continuous_are(A1.T, A31.T, np.eye(r), np.eye(m_next)) if m_next else np.zeros((r, r))
+        L_o = -X @ A31.T
+        S = A1 + L_o @ A31
+        poles = np.linalg.eigvals(S)
+        if np.max(poles.real) >= 0:
+            raise RobofdiError(f"{where}: stage {i + 1}: (Ā_1, Ā_31) is not detectable, the sliding motion (31) cannot "
+                               f"be made stable (eigenvalue {format_mode(poles[np.argmax(poles.real)])})")
+        stages.append(CascadeStage(nb, p, q, h, rbar, m_next, Ab, Mb, Qb, Cb, L_o, S, poles, False))
+        M1 = Mb[:r]
+        M22 = Mb[r + m_next:, q - rbar:]
+        A = np.block([[S, np.zeros((r, rbar))], [alpha * A32, -alpha * np.eye(rbar)]])
+        M = np.vstack([M1, np.hstack([np.zeros((rbar, q - rbar)), alpha * M22])])
+        Q = np.vstack([Qb[:r], np.zeros((rbar, Qb.shape[1]))])
+        C = scipy.linalg.block_diag(A31, np.eye(rbar))
+    raise RobofdiError(f"{where}: no stage with rank(C M) = rank(M) within {max_stages} stages (the fault never reaches "
+                       "the outputs with relative degree one)")
