@@ -512,3 +512,55 @@ def test_arm_sliding_mode_observer_conforms_and_sees_a_torque_fault():
     before = np.abs(shift[(t > 0.05) & (t < 0.15)]).max()
     after = shift[t > 0.2].mean()
     assert abs(after - 20.0) < 0.3 * 20.0 and before < 0.3 * 20.0, (before, after)
+
+
+def test_smo_fault_reconstructor_conforms():
+    """Edwards, Alwi & Tan §3: the actuator-fault reconstruction SMO (7)–(10) on a 4-state harness system."""
+    import scipy.linalg
+
+    from robofdi.observers.sliding_mode import SMOSettings
+    from robofdi.observers.smo_reconstruction import SMOReconstructor, reconstruction_design
+
+    A = np.array([[-1.0, 1, 0, 0], [0, -2, 1, 0], [0, 0, 0, 1], [1, 0, -3, -1]])
+    B, M = np.array([[0.0], [1], [0], [1]]), np.array([[0.0], [0], [0], [1]])
+    C = np.array([[1.0, 0, 0, 0], [0, 0, 0, 1]])
+    T = 1e-3
+    Ad = scipy.linalg.expm(A * T)
+    Bd = np.linalg.solve(A, (Ad - np.eye(4)) @ B)
+    x, ys, us, u_prev = np.zeros(4), [], [], np.zeros(1)
+    for k in range(SAMPLES):                             # y(k) and ū(k−1), the input held over the last interval
+        ys.append(C @ x)
+        us.append(u_prev)
+        u_prev = np.array([np.sin(0.01 * k)])
+        x = Ad @ x + Bd @ u_prev
+    design = reconstruction_design(A, C, M, B=B, poles=[-2.0, -3.0])
+    st = SMOSettings(sample_time=T, substep=1e-5, tau=1e-3, switching="unit")
+    check_diagnoser(lambda: SMOReconstructor.from_design(A, B, C, design, 30.0, st, inputs=["u"],
+                                                        measurements=["y1", "y2"], faults=["f"],
+                                                        measurement_units=["m", "m/s"], fault_units=["N"]),
+                    (np.array(ys), np.array(us)), name="SMOReconstructor")
+
+
+def test_smo_sensor_fault_observer_conforms():
+    """Edwards, Alwi & Tan §5: the augmented-system SMO with the estimate f̂_o = C_f z_a (the readout form)."""
+    from robofdi.observers.sliding_mode import SMOSettings
+    from robofdi.observers.smo_reconstruction import sensor_fault_observer
+
+    A = np.array([[-1.0, 1, 0], [0, -2, 1], [-1, 0, -3]])
+    B, C, F = np.array([[0.0], [0], [1]]), np.array([[1.0, 0, 0], [0, 1, 0]]), np.array([[0.0], [1.0]])
+    import scipy.linalg
+
+    Ad = scipy.linalg.expm(A * 1e-3)
+    Bd = np.linalg.solve(A, (Ad - np.eye(3)) @ B)
+    x, ys, us, u_prev = np.zeros(3), [], [], np.zeros(1)
+    for k in range(SAMPLES):                             # the plant, fault-free: y(k) and ū(k−1)
+        ys.append(C @ x)
+        us.append(u_prev)
+        u_prev = np.array([np.sin(0.01 * k)])
+        x = Ad @ x + Bd @ u_prev
+    y, u = np.array(ys), np.array(us)
+    st = SMOSettings(sample_time=1e-3, substep=1e-5, tau=1e-3, switching="unit")
+    check_diagnoser(lambda: sensor_fault_observer(A, B, C, F, 5.0, st, poles=[-2.0, -3.0], inputs=["u"],
+                                                  measurements=["y1", "y2"], faults=["f_y2"],
+                                                  measurement_units=["m", "m/s"])[0], (y, u),
+                    name="sensor_fault_observer")
