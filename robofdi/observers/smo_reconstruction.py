@@ -297,7 +297,7 @@ def _lmi_design(f: CanonicalForm, margin: float, solver: str | None):
     """Minimise γ s.t. the bounded-real LMI on Ĝ(s) of (16) (variables P1 > 0, Y = P1 L_o, W_1, γ)."""
     where = "reconstruction_design"
     if not HAS_CVXPY:
-        raise RobofdiError(f"{where}: method 'lmi' needs cvxpy (pip install cvxpy; it brings the Clarabel/SCS solvers)"
+        raise RobofdiError(f"{where}: method 'lmi' needs cvxpy (pip install 'robofdi[lmi]'; it brings the Clarabel/SCS solvers)"
                            "; use method='place' with scipy only")
     if f.Q is None:
         raise RobofdiError(f"{where}: method 'lmi' minimises the L2 gain from ξ (11): field 'Q' must be given")
