@@ -1,5 +1,6 @@
 """Book chapter 6 — Leuschen, Walker & Cavallaro, "Nonlinear Fault Detection for Hydraulic Systems": the Rosie
-wheel-actuator rig ramped to 5 RPM, its Table-1 faults, and NLAR against linear AR, PLAR and NNAR.
+wheel-actuator rig ramped to 5 RPM, its Table-1 faults, and NLAR against linear AR, PLAR, NNAR (the book's, equal
+to NLAR on this rig) and a data-driven baseline (mlp_ar).
 
     robofdi run ch6-hydraulic --out DIR
 
@@ -35,7 +36,7 @@ from robofdi.systems.hydraulic import (
 )
 
 EXPERIMENTS = {"ch6-hydraulic": "Book ch. 6, hydraulic wheel actuator (Rosie rig): Table-1 faults, NLAR vs linear AR, "
-                                 "PLAR, NNAR; leak study"}
+                                 "PLAR, NNAR, mlp_ar; leak study"}
 SCENARIOS = ("baseline", *TABLE1)
 NLAR_TESTS = ("R1", "R2", "R4", "R5")
 LEAK_SIZES = (0.002, 0.004, 0.008, 0.016, 0.032, 0.064, 0.128)        # mm²

@@ -143,7 +143,7 @@ def _hydraulic_setup():
     from robofdi.systems import hydraulic
 
     sc = hydraulic.HydraulicScenario(duration=1.0)
-    names = ("nlar", "nlar_better", "linear_ar", "plar")
+    names = ("nlar", "nlar_better", "linear_ar", "plar", "nnar")
     rec = hydraulic.build_loop(sc, None, ()).run(1.0, seed=0)
     samples = _samples(rec, n=60)
     built = {n: hydraulic._diagnosers(sc, None, [n])[n] for n in names}      # PLAR's design takes seconds: copies
@@ -156,7 +156,7 @@ def _diagnoser_cases():
     cases += ["linear-observer_residual", "aircraft-lock_in_place_bank", "f16-adaptive_fault_estimator",
               "helicopter-kalman_fault_estimator", "refiner-gain_fault_observer"]
     cases += [f"auv-{n}" for n in AUV_DIAGNOSERS]
-    cases += [f"hydraulic-{n}" for n in ("nlar", "nlar_better", "linear_ar", "plar")]
+    cases += [f"hydraulic-{n}" for n in ("nlar", "nlar_better", "linear_ar", "plar", "nnar")]
     cases += ["robosuite-momentum", "dm_control-momentum"]
     return cases
 
@@ -259,7 +259,7 @@ def _system_options():
     return out
 
 
-SLOW_SYSTEMS = {"arm", "hydraulic"}   # arm: no cheap calibration in ArmOptions; hydraulic: its NNAR training (~1 min)
+SLOW_SYSTEMS = {"arm", "hydraulic"}   # arm: no cheap calibration in ArmOptions; hydraulic: its mlp_ar training (~1 min)
 
 
 def _system_params():
