@@ -157,7 +157,9 @@ def null_space_allocation(B, tau, lower, upper, effectiveness=None, iterations: 
         if float(np.max(np.abs(excess))) <= tol * scale:
             break
         u = u - N @ excess
-    return _result(B, e, np.clip(u, lo, hi), tau)
+    u = np.clip(u, lo, hi)
+    u[e == 0] = 0.0                                   # a failed thruster carries nothing (not round-off)
+    return _result(B, e, u, tau)
 
 
 def direction_preserving_allocation(B, tau, lower, upper, effectiveness=None) -> AllocationResult:
@@ -170,7 +172,9 @@ def direction_preserving_allocation(B, tau, lower, upper, effectiveness=None) ->
     Be = B * e
     u = _weighted_pinv(B, e) @ tau
     if np.all(u >= lo - 1e-12) and np.all(u <= hi + 1e-12) and np.allclose(Be @ u, tau, atol=1e-9 * max(1.0, np.abs(tau).max())):
-        return _result(B, e, np.clip(u, lo, hi), tau)
+        u = np.clip(u, lo, hi)
+        u[e == 0] = 0.0
+        return _result(B, e, u, tau)
     p = B.shape[1]
     c = np.zeros(p + 1)
     c[-1] = -1.0
@@ -201,8 +205,8 @@ class ThrustReallocation:
     """Accommodation: τ = B u_cmd re-allocated with effectiveness 0 for every thruster the health isolates.
 
     method: "column_deletion", "pseudo_inverse", "constrained" (QP within ±limit), "null_space" (null-space
-    redistribution within ±limit) or "direction_preserving" (the demand scaled down, keeping its direction). ``effectiveness`` in the
-    health's ``estimate`` is not used: a diagnosed thruster is treated as failed (the chapter's TCM modification).
+    redistribution within ±limit) or "direction_preserving" (the demand scaled down, keeping its direction).
+    ``effectiveness`` in the health's ``estimate`` is not used: a diagnosed thruster is treated as failed (the chapter's TCM modification).
     After each update, ``last`` holds the :class:`AllocationResult` and ``failed`` the thrusters taken out.
     """
 
