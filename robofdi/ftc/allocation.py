@@ -207,7 +207,8 @@ class ThrustReallocation:
     method: "column_deletion", "pseudo_inverse", "constrained" (QP within ±limit), "null_space" (null-space
     redistribution within ±limit) or "direction_preserving" (the demand scaled down, keeping its direction).
     ``effectiveness`` in the health's ``estimate`` is not used: a diagnosed thruster is treated as failed (the
-    chapter's TCM modification). After each update, ``last`` holds the :class:`AllocationResult` and ``failed`` the thrusters taken out.
+    chapter's TCM modification). After each update, ``last`` holds the :class:`AllocationResult` and ``failed``
+    the thrusters taken out.
     """
 
     def __init__(self, B, thrusters: Sequence[str], limit: float, method: str = "constrained"):
