@@ -235,6 +235,10 @@ def test_the_shipped_decisions_conform():
                    pos, name="SwitchingIndexDecision")
     check_decision(lambda: NisBankDecision(["n0", "n1", "n2"], np.full(3, 2.0), ["h1", "h2"]), pos * 2,
                    name="NisBankDecision")
+    from robofdi.decision.hotelling import HotellingT2Decision, hotelling_fit
+
+    fit = hotelling_fit(np.random.default_rng(1).normal(size=(200, 3)))
+    check_decision(lambda: HotellingT2Decision(["a", "b", "c"], fit, {"f": [3, 0, 0]}), r * 2, name="HotellingT2Decision")
 
 
 # ---------------------------------------------------------------------------------------------------- systems
