@@ -210,10 +210,8 @@ def rig_speed_check(record) -> dict:
     """The rig's (MuJoCo, mismatch, tachometer noise in the loop) nominal speed error from 3 s, true speed."""
     rpm = record.truth_state[:, 1] / RPM
     err = float(np.max(np.abs(rpm[record.time >= 3.0] - 5.0)))
-    return check("rig baseline: max |true speed − 5 rpm| from 3 s [rpm]", "≤ 0.01 (exact model, above)", err, 0.05,
-                 err <= 0.05, note="the rig, not the exact model: its tachometer noise (0.002 rad/s = 0.019 rpm) "
-                                   "enters the PI loop, so the rig is held to 0.05 rpm; the digest's 0.01 rpm is "
-                                   "checked on the exact model")
+    return check("rig baseline: max |true speed − 5 rpm| from 3 s [rpm]", "≤ 0.01", err, 0.01, err <= 0.01,
+                 note="the rig (MuJoCo, mismatch, tachometer noise in the loop), true speed")
 
 
 def _components(record, name):
