@@ -36,6 +36,7 @@ from robofdi.errors import RobofdiError
 from robofdi.evaluate.figures import save_figure
 from robofdi.evaluate import summarize
 from robofdi.evaluate.headline import recovery_section
+from robofdi.evaluate.reproduction import reproduction_check as check
 from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, write_run_folder
 from robofdi.faults import Fault
 from robofdi.ftc.allocation import capability
@@ -201,7 +202,7 @@ def _run_ch4_auv(name, run_dir, seed, progress, replay):
     main = records["diagnosed"]
     failed = np.ones(8)
     failed[[1, 5]] = 0.0
-    from robofdi.models.auv import AuvModel
+    from robofdi.models.auv import AuvModel, AuvModelMismatch
 
     B = AuvModel.from_mjcf(sc.mjcf, sc.mismatch).B
     summary = summarize(main, name, tracking=tracking,
@@ -224,6 +225,8 @@ def _run_ch4_auv(name, run_dir, seed, progress, replay):
                           {"quantity": "ratio to fault-free", "unit": "1",
                            "values": {labels[k]: rms[k] / base for k in labels}}],
         health_source=sc.health_source, method=f"reallocation ({sc.allocation}) around the isolated thrusters")
+    summary["reproduction"] = [*tcm_reproduction(AuvModel.from_mjcf(sc.mjcf, AuvModelMismatch.none()).B, sc.thrust_limit),
+                               *thruster_reproduction(), *run_reproduction(sc, records, summary)]
     with progress.stage("run folder: records, figures" + (", replay" if replay else "")):
         write_run_folder(run_dir, main, summary, {k: records[k] for k in ("fault_free", "no_ftc", "oracle")},
                          replay=False)
@@ -252,6 +255,12 @@ def _run_ch4_flooded(name, run_dir, seed, progress, replay):
     record, summary, cached = _single_run(name, sc, progress)
     regions = current_map_regions(record, sc.faults)
     summary["regions"] = regions
+    expected = {"component_thruster_flooding": "flooding", "actuator_float": "rotor_failure"}
+    summary["reproduction"] = [
+        check(f"{f}: current-map region (§3.2: flooding and rotor failure fall in different regions)",
+              expected.get(r["kind"]), r["region"], None, r["region"] == expected.get(r["kind"]),
+              note=f"isolated at {r['time']} s" if r["time"] is not None else "never isolated")
+        for f, r in regions.items()]
     summary["calibration_cached"] = cached
     _write(progress, replay, run_dir, record, summary)
     _plot_currents(record, sc, run_dir / "figures" / "fig8_currents.png")
@@ -274,9 +283,29 @@ def _run_ch4_depth_sensor(name, run_dir, seed, progress, replay):
         "units": {"onset": "s", "switch_time": "s", "switch_delay": "s", "max_depth_error_before_onset": "m",
                   "max_depth_error_after_onset": "m", "depth_error_below_0.1m_from": "s", "final_depth_error": "m"}}
     summary["calibration_cached"] = cached
+    summary["reproduction"] = depth_reproduction(summary)
     _write(progress, replay, run_dir, record, summary)
     _plot_depth(record, sc, switch, run_dir / "figures" / "depth_switch.png")
     return summary
+
+
+def depth_reproduction(summary: dict) -> list[dict]:
+    """ch4-depth-sensor (§6.7, §7 check 7): the pressure sensor isolated, the switch ≈ 1 s after the onset (the
+    programmed time; ± one 0.1 s vote sample, plus the detection), depth control recovered below 0.1 m."""
+    ds = summary["depth_switch"]
+    vote = summary["diagnosers"]["depth_vote"]["detections"]
+    isolated = vote[0].get("isolated") if vote else None
+    delay = ds["switch_delay"]
+    return [
+        check("the zeroed pressure depth isolated by the vote (R1, R2 large, R3 small)", "depth", isolated, None,
+              isolated == "depth"),
+        check("switch to the other sensor after the programmed time [s after onset]", 1.0, delay, 0.2,
+              delay is not None and 0.9 <= delay <= 1.2,
+              note="1 s persistence + up to one 0.1 s vote sample + detection; the digest allows ±0.1 s"),
+        check("depth error back below 0.1 m after the switch [m]", "< 0.1", ds["final_depth_error"], 0.1,
+              ds["depth_error_below_0.1m_from"] is not None and ds["final_depth_error"] < 0.1,
+              note=f"below 0.1 m from {ds['depth_error_below_0.1m_from']} s"),
+    ]
 
 
 def ekf_bank_isolation(record: Record, faults, window: float) -> dict:
@@ -337,6 +366,15 @@ def _run_ch4_roby2(name, run_dir, seed, progress, replay):
         "duration": FAULT_FREE_CHECK, "peak_nominal_nis": float(tr.residual[cal.blanking:, 0].max()),
         "nominal_alarm_samples": int(tr.alarm[:, 0].sum()), "declared": sorted({str(s) for s in tr.isolated} - {""}),
         "units": {"duration": "s", "peak_nominal_nis": "1", "nominal_alarm_samples": "1"}}
+    bank = summary["ekf_bank"]
+    summary["reproduction"] = [
+        *[check(f"{f}: the EKF bank declares {v['target']} within W + 1 s (§7 check 8) [s]", f"≤ {sc.ekf_window + 1:g}",
+                v["delay"], sc.ekf_window + 1.0, v["correct_within_W_plus_1s"], note=f"declared {v['declared']}")
+          for f, v in bank["faults"].items()],
+        check(f"nominal filter: no alarm over a {FAULT_FREE_CHECK:g} s fault-free run (χ² 99 %, W = {sc.ekf_window:g} s)",
+              0, bank["fault_free"]["nominal_alarm_samples"], 0, bank["fault_free"]["nominal_alarm_samples"] == 0,
+              note=f"peak NIS {bank['fault_free']['peak_nominal_nis']:.3g}, bound {bank['bound']:.3g}"),
+    ]
     summary["calibration_cached"] = cached
     _write(progress, replay, run_dir, record, summary)
     _plot_nis(record, sc, run_dir / "figures" / "nis_bank.png")
@@ -381,6 +419,163 @@ def _plot_currents(record: Record, sc: AuvScenario, path: Path) -> Path:
         ax.set_title(f"{f.name} ({f.kind})", fontsize=9)
         ax.legend(fontsize=7)
     return _save(fig, axes[-1], path)
+
+
+# ---- reproduction lists (the digest's checkable numbers; the survey itself has almost none) -------------------
+#: the digest's ODIN-like layout (FRD, §6.5): horizontal thrusters 1–4 at radius 0.40 m on the diagonals, vectored
+#: ±45°; vertical thrusters 5–8 at radius 0.35 m, z = −0.10 m, thrusting +z (its table rounds these to 4 decimals)
+_H, _V, _S = 0.40 / 2**0.5, 0.35 / 2**0.5, 0.5**0.5
+ODIN_LAYOUT = (
+    [(_H, _H, 0), (_H, -_H, 0), (-_H, -_H, 0), (-_H, _H, 0), (_V, _V, -0.10), (_V, -_V, -0.10), (-_V, -_V, -0.10),
+     (-_V, _V, -0.10)],
+    [(_S, -_S, 0), (_S, _S, 0), (_S, -_S, 0), (_S, _S, 0), (0, 0, 1), (0, 0, 1), (0, 0, 1), (0, 0, 1)])
+FLU_FROM_FRD = np.diag([1.0, -1.0, -1.0, 1.0, -1.0, -1.0])
+TAU_D = np.array([30.0, 15.0, 20.0, 2.0, 2.0, 5.0])          # the digest's representative wrench [N, N·m]
+ALLOCATION_TABLE = {(): [2.178, 19.035, 8.428, 12.785, 5.0, 0.959, 5.0, 9.041],
+                    (1,): [-16.857, 0, 27.463, 31.820, 5.0, 0.959, 5.0, 9.041],
+                    (1, 5): [-16.857, 0, 27.463, 31.820, 5.959, 0, 5.959, 8.081]}
+CAPACITY_TABLE = {(): [113.14, 113.14, 160, 39.60, 39.60, 64], (1,): [56.57, 56.57, 160, 39.60, 39.60, 32],
+                  (1, 5): [56.57, 56.57, 80, 19.80, 19.80, 32]}
+
+
+def tcm_reproduction(B_model: np.ndarray, limit: float = 40.0) -> list[dict]:
+    """The digest's TCM, allocation and capacity checks (§6.5, §6.6, §7 checks 1–2): eq. (6)'s pattern and the
+    ranks on the MJCF model's B, the tables on the digest's layout through :func:`thruster_matrix`."""
+    from itertools import combinations
+
+    from robofdi.ftc.allocation import column_deletion_allocation, pseudo_inverse_allocation
+    from robofdi.models.auv import thruster_matrix
+
+    B = thruster_matrix(np.array(ODIN_LAYOUT[0], float), np.array(ODIN_LAYOUT[1], float))     # FRD
+    model_frd = FLU_FROM_FRD @ B_model
+    rep = []
+    dev = float(np.abs(model_frd - B).max())
+    rep.append(check("TCM of assets/auv.xml (FLU → FRD) vs the digest's layout (§6.5)", "equal (4 decimals)", dev,
+                     2e-4, dev <= 2e-4, note="assets/auv.xml places the thrusters at the table's 4-decimal positions"))
+    pattern = np.abs(B_model) > 1e-6
+    eq6 = np.zeros((6, 8), bool)
+    eq6[np.ix_([0, 1, 5], range(4))] = True
+    eq6[np.ix_([2, 3, 4], range(4, 8))] = True
+    rep.append(check("TCM non-zero pattern (eq. (6))", "rows X,Y,N: thrusters 1-4; Z,K,M: 5-8", bool((pattern == eq6).all()),
+                     None, bool((pattern == eq6).all())))
+    rank = int(np.linalg.matrix_rank(B_model))
+    singles = [int(np.linalg.matrix_rank(np.delete(B_model, i, axis=1))) for i in range(8)]
+    lost = [(i + 1, j + 1) for i, j in combinations(range(8), 2) if np.linalg.matrix_rank(np.delete(B_model, [i, j], 1)) < 6]
+    same = [(i + 1, j + 1) for i, j in combinations(range(8), 2) if (i < 4) == (j < 4)]
+    rank26 = int(np.linalg.matrix_rank(np.delete(B_model, [1, 5], axis=1)))
+    rep.append(check("rank B; every single loss; the pair {2, 6}", {"B": 6, "single": 6, "{2,6}": 6},
+                     {"B": rank, "single": min(singles), "{2,6}": rank26}, 0, rank == 6 and min(singles) == 6 and rank26 == 6))
+    rep.append(check("pairs that drop the rank to 5: exactly the 12 same-group pairs", 12, len(lost), 0,
+                     lost == same and len(lost) == 12))
+    sv = np.linalg.svd(B, compute_uv=False)
+    expected_sv = [2, 1.4142, 1.4142, 0.8, 0.495, 0.495]
+    rep.append(check("singular values of B", expected_sv, sv.tolist(), 2e-3,
+                     bool(np.allclose(sv, expected_sv, atol=2e-3))))
+    mins = {"horizontal removed": float(np.linalg.svd(np.delete(B, 0, 1), compute_uv=False).min()),
+            "vertical removed": float(np.linalg.svd(np.delete(B, 4, 1), compute_uv=False).min())}
+    rep.append(check("min singular value after a single loss", {"horizontal removed": 0.495, "vertical removed": 0.2838},
+                     mins, 2e-3, abs(mins["horizontal removed"] - 0.495) <= 2e-3
+                     and abs(mins["vertical removed"] - 0.2838) <= 2e-3))
+    B26 = np.delete(B, [1, 5], axis=1)
+    cond = float(np.linalg.cond(B26))
+    rep.append(check("cond B_f after {2, 6} (square 6×6: no redundancy left)", 6.15, cond, 0.01, abs(cond - 6.15) <= 0.01))
+    n0, n26 = float(np.linalg.norm(np.linalg.pinv(B), 2)), float(np.linalg.norm(np.linalg.pinv(B26), 2))
+    rep.append(check("‖B⁺‖₂ healthy → after {2, 6}", [2.0203, 3.5237], [n0, n26], 1e-3,
+                     abs(n0 - 2.0203) <= 1e-3 and abs(n26 - 3.5237) <= 1e-3))
+    rep.append(check("chattering gain ‖B_f⁺‖/‖B⁺‖ (§6.5: the 'augmentation of the chattering')", 1.744, n26 / n0, 1e-3,
+                     abs(n26 / n0 - 1.744) <= 1e-3))
+    worst, peaks = 0.0, {}
+    for failed, table in ALLOCATION_TABLE.items():
+        e = np.ones(8)
+        e[list(failed)] = 0.0
+        deleted = column_deletion_allocation(B, TAU_D, failed)
+        weighted = pseudo_inverse_allocation(B, TAU_D, e)
+        worst = max(worst, float(np.abs(weighted.u - deleted.u).max()))
+        err = float(np.abs(deleted.u - table).max())
+        label = "healthy" if not failed else "thrusters " + ", ".join(str(i + 1) for i in failed) + " off"
+        peaks[label] = float(np.abs(deleted.u).max())
+        rep.append(check(f"minimum-norm allocation of τ_d, {label} (§6.6) [N]", table, deleted.u.tolist(), 1e-3,
+                         err <= 1e-3 and float(np.linalg.norm(deleted.unattained)) < 1e-9))
+    rep.append(check("weighted pseudo-inverse with zero weight = column deletion", 0.0, worst, 1e-12, worst <= 1e-12))
+    rise = peaks["thrusters 2, 6 off"] / peaks["healthy"]
+    rep.append(check("max thruster load rise after {2, 6}", 1.67, rise, 0.01, abs(rise - 1.67) <= 0.01))
+    for failed, table in CAPACITY_TABLE.items():
+        e = np.ones(8)
+        e[list(failed)] = 0.0
+        cap = capability(B, -limit, limit, e)[:, 1]
+        label = "healthy" if not failed else "thrusters " + ", ".join(str(i + 1) for i in failed) + " off"
+        rep.append(check(f"per-axis capacity (LP), {label} [N, N·m]", table, cap.tolist(), 5e-3,
+                         bool(np.allclose(cap, table, atol=5e-3)), note="the table is rounded to 2 decimals"))
+    return rep
+
+
+def thruster_reproduction() -> list[dict]:
+    """§7 check 5 as bounds: robofdi's thruster is a DC motor with back-EMF (not the digest's Ω̇ = −a|Ω|Ω + bV),
+    so the linear 1.6667 N/V holds only at full voltage and a zeroed drive brakes faster than Ω₀/(1 + aΩ₀t)."""
+    from robofdi.models.auv import ODIN_THRUSTER as th
+
+    gain = th.max_thrust() / th.max_voltage
+    rep = [check("steady thrust per volt at full voltage T(V_max)/V_max [N/V]", 1.6667, gain, 0.01 * 1.6667,
+                 abs(gain / 1.6667 - 1) <= 0.01, note="the DC-motor model's T(V) is not linear: only the full-voltage "
+                                                      "point is the digest's")]
+    w0 = float(th.steady_speed(th.max_voltage))
+    a, dt, w, t = th.torque_coefficient / th.inertia, 1e-5, w0, 0.0
+    ours, law = {}, {}
+    for mark in (0.1, 0.2, 0.6, 1.0):
+        while t < mark - 1e-12:
+            w += dt * float(th.speed_rate(w, 0.0))
+            t += dt
+        ours[f"{mark:g} s"] = float(th.thrust(w))
+        law[f"{mark:g} s"] = float(th.thrust(w0 / (1 + a * w0 * mark)))
+    ok = all(0 <= ours[k] <= law[k] for k in ours)
+    rep.append(check("voltage zeroing: thrust [N] at 0.1/0.2/0.6/1.0 s at most the hyperbolic decay Ω₀/(1 + aΩ₀t)",
+                     {"bound (digest: 17.78, 10.0, 2.5, 1.11 from 250 rad/s)": law}, ours, "upper bound", ok,
+                     note="the motor brakes through its back-EMF, so the decay is faster than the propeller-only law"))
+    return rep
+
+
+def _fault_free_window(sc: AuvScenario) -> tuple[float, float]:
+    return 10.0, min(f.onset for f in sc.faults)
+
+
+def run_reproduction(sc: AuvScenario, records: dict, summary: dict) -> list[dict]:
+    """The ch4-auv run checks (§6.8, §7 check 6): detection ≤ 0.5 s, bounded task error, the chattering growth
+    bound, the Hall residual's detectability, tracking recovered by reallocation."""
+    rep = []
+    diag = summary["diagnosers"][sc.health_source]
+    for d in diag["detections"]:
+        ok = d["delay"] is not None and d["delay"] <= 0.5 and d.get("isolated") == next(
+            f.target for f in sc.faults if f.name == d["fault"])
+        rep.append(check(f"{d['fault']}: isolated by the Hall residual within 0.5 s of onset [s]", "≤ 0.5", d["delay"], 0.5, ok,
+                         note=f"isolated: {d.get('isolated')}"))
+    rec = records["diagnosed"]
+    err = np.linalg.norm(rec.signals["reference"][:, :3] - rec.truth_state[:, :3], axis=1)
+    lo, first = _fault_free_window(sc)
+    last = max(f.onset for f in sc.faults)
+    pre = float(err[(rec.time >= lo) & (rec.time < first)].max())
+    post = float(err[rec.time >= last].max())
+    rep.append(check("max position error after the last failure ≤ 2 × the pre-fault max (§6.8-1) [m]", "≤ 2 × pre-fault",
+                     {"pre_fault": pre, "after": post, "ratio": post / pre}, 2.0, post <= 2 * pre,
+                     note=f"pre-fault window {lo:g} s to the first onset; diagnosed-health allocation"))
+    remaining = [i for i, n in enumerate(rec.columns["signals/u"]) if n not in {f.target for f in sc.faults}]
+    du = np.diff(rec.u_applied[:, remaining], axis=0)
+    t = rec.time[1:]
+    before = float(np.sqrt(np.mean(du[(t >= lo) & (t < first)] ** 2)))
+    after = float(np.sqrt(np.mean(du[t >= last + 1.0] ** 2)))
+    growth = after / before
+    rep.append(check("chattering: RMS thrust increment of the remaining thrusters, after / before (§6.8-2)",
+                     "grows, ≤ 1.744 (‖B_f⁺‖/‖B⁺‖)", growth, 1.744, 1.0 < growth <= 1.744,
+                     note="increments of the applied thrust, pre-fault window vs from 1 s after the last failure"))
+    det = summary["voltage_detectability"]
+    ok = all(v["detectable"] for v in det.values())
+    rep.append(check("Hall residual: each zeroed drive was commanded above the threshold, so detectable (§3.3, §7-6)",
+                     "|V_cmd| > threshold", {k: [v["commanded_voltage"], v["threshold"]] for k, v in det.items()}, None, ok))
+    tr = summary["tracking"]
+    ok = tr["diagnosed_rms"] < tr["no_ftc_rms"] and tr["oracle_rms"] < tr["no_ftc_rms"]
+    rep.append(check("the task is still performed: tracking RMS after the last failure, reallocation < none (Fig. 11)",
+                     "diagnosed, oracle < no accommodation", {k: tr[k] for k in ("no_ftc_rms", "oracle_rms", "diagnosed_rms")},
+                     None, ok))
+    return rep
 
 
 def run(name: str = "ch4-auv", out: str | Path = "runs", seed: int = 0, progress: bool = True, replay: bool = True):

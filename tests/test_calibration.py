@@ -117,6 +117,6 @@ def test_a_trained_hydraulic_calibration_is_stored_and_predicts_the_same(cache):
     assert (cached, cached_again) == (False, True) and len(calibration.entries()) == 1
     calibration._memory.clear()
     loaded = calibration.loads(calibration.entries()[0].read_bytes())
-    x = np.random.default_rng(0).normal(size=(40, cal.nnar.regressor_.n_features_in_))
-    np.testing.assert_array_equal(loaded.nnar.predict(x), cal.nnar.predict(x))
+    x = np.random.default_rng(0).normal(size=(40, cal.mlp_ar.regressor_.n_features_in_))
+    np.testing.assert_array_equal(loaded.mlp_ar.predict(x), cal.mlp_ar.predict(x))
     np.testing.assert_array_equal(loaded.thresholds["nlar"], cal.thresholds["nlar"])

@@ -150,7 +150,7 @@ def _hydraulic_setup():
     from robofdi.systems import hydraulic
 
     sc = hydraulic.HydraulicScenario(duration=1.0)
-    names = ("nlar", "nlar_better", "linear_ar", "plar")
+    names = ("nlar", "nlar_better", "linear_ar", "plar", "nnar")
     rec = hydraulic.build_loop(sc, None, ()).run(1.0, seed=0)
     samples = _samples(rec, n=60)
     built = {n: hydraulic._diagnosers(sc, None, [n])[n] for n in names}      # PLAR's design takes seconds: copies
@@ -163,7 +163,7 @@ def _diagnoser_cases():
     cases += ["linear-observer_residual", "aircraft-lock_in_place_bank", "f16-adaptive_fault_estimator",
               "helicopter-kalman_fault_estimator", "refiner-gain_fault_observer"]
     cases += [f"auv-{n}" for n in AUV_DIAGNOSERS]
-    cases += [f"hydraulic-{n}" for n in ("nlar", "nlar_better", "linear_ar", "plar")]
+    cases += [f"hydraulic-{n}" for n in ("nlar", "nlar_better", "linear_ar", "plar", "nnar")]
     cases += [f"flight-{n}" for n in ("hybrid_mm", "sensor_bias", "damage")]
     cases += ["robosuite-momentum", "dm_control-momentum"]
     return cases
@@ -262,6 +262,10 @@ def test_the_shipped_decisions_conform():
     status = np.hstack([pos[:, :1], np.round(pos[:, 1:] * 0.7)])          # switching index, two statuses 0/1/2
     check_decision(lambda: SupervisorStatusDecision(["I:nominal", "status:a", "status:b"], ["a", "b"]), status,
                    name="SupervisorStatusDecision")
+    from robofdi.decision.hotelling import HotellingT2Decision, hotelling_fit
+
+    fit = hotelling_fit(np.random.default_rng(1).normal(size=(200, 3)))
+    check_decision(lambda: HotellingT2Decision(["a", "b", "c"], fit, {"f": [3, 0, 0]}), r * 2, name="HotellingT2Decision")
 
 
 # ---------------------------------------------------------------------------------------------------- systems
@@ -289,7 +293,7 @@ def _system_options():
     return out
 
 
-SLOW_SYSTEMS = {"arm", "hydraulic"}   # arm: no cheap calibration in ArmOptions; hydraulic: its NNAR training (~1 min)
+SLOW_SYSTEMS = {"arm", "hydraulic"}   # arm: no cheap calibration in ArmOptions; hydraulic: its mlp_ar training (~1 min)
 
 
 def _system_params():

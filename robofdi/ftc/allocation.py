@@ -8,6 +8,10 @@ with E_f = J M⁻¹ B S_f) and saturation-aware allocation ([41]). Pure function
   [DERIVED] equivalence; 0 < e_i < 1 shifts effort to healthy thrusters);
 * :func:`constrained_allocation` — a QP honouring the thrust limits (qpsolvers with the clarabel backend):
   min ‖B diag(e) u − τ‖² + ε‖u‖² subject to lower ≤ u ≤ upper; it returns the unattained part of τ;
+* :func:`null_space_allocation` — u = B⁺τ + (I − B⁺B)z with z chosen to bring u inside the thrust limits
+  (alternating projections between {u : B diag(e) u = τ} and the box), the digest's null-space redistribution;
+* :func:`direction_preserving_allocation` — when τ is not attainable, the largest α ∈ (0, 1] with α τ attainable
+  (an LP), so the wrench keeps its direction and only its size is cut;
 * :func:`capability` — the largest wrench attainable along each axis (LP), "how much capability remains".
 
 :class:`ThrustReallocation` is the loop's :class:`~robofdi.protocols.Accommodation`: the controller's thrust demand
@@ -26,9 +30,10 @@ from robofdi.errors import RobofdiError, all_finite
 from robofdi.protocols import Health
 
 __all__ = ["AllocationResult", "check_allocation", "column_deletion_allocation", "pseudo_inverse_allocation",
-           "constrained_allocation", "capability", "ThrustReallocation", "ALLOCATORS"]
+           "constrained_allocation", "null_space_allocation", "direction_preserving_allocation", "capability",
+           "ThrustReallocation", "ALLOCATORS"]
 
-ALLOCATORS = ("column_deletion", "pseudo_inverse", "constrained")
+ALLOCATORS = ("column_deletion", "pseudo_inverse", "constrained", "null_space", "direction_preserving")
 
 
 @dataclass(frozen=True)
@@ -132,6 +137,56 @@ def constrained_allocation(B, tau, lower, upper, effectiveness=None, regularisat
     return _result(B, e, np.clip(sol, lo, hi), tau)
 
 
+def null_space_allocation(B, tau, lower, upper, effectiveness=None, iterations: int = 500,
+                          tol: float = 1e-9) -> AllocationResult:
+    """Null-space redistribution (Antonelli's survey, Sec. 5 / [41]): u = B⁺τ + (I − B⁺B) z, the null-space term
+    moving effort from saturated thrusters to free ones without changing B diag(e) u. z is found by alternating
+    projections (POCS) between the affine set {u : B diag(e) u = τ} and the box [lower, upper]: each step
+    u ← u − N (u − clip(u)), N = I − (B diag(e))⁺ B diag(e). Converges to a point of both when τ is attainable;
+    otherwise the clipped iterate is returned and ``unattained`` reports the rest."""
+    B, tau, e, lo, hi = check_allocation(B, tau, effectiveness, lower, upper)
+    if not isinstance(iterations, int) or iterations < 1:
+        raise RobofdiError(f"allocation: field 'iterations' must be an integer >= 1, got {iterations!r}")
+    Be = B * e
+    pinv = _weighted_pinv(B, e)
+    N = np.eye(B.shape[1]) - pinv @ Be
+    u = pinv @ tau
+    scale = max(1.0, float(np.max(np.abs(hi[np.isfinite(hi)]), initial=1.0)))
+    for _ in range(iterations):
+        excess = u - np.clip(u, lo, hi)
+        if float(np.max(np.abs(excess))) <= tol * scale:
+            break
+        u = u - N @ excess
+    u = np.clip(u, lo, hi)
+    u[e == 0] = 0.0                                   # a failed thruster carries nothing (not round-off)
+    return _result(B, e, u, tau)
+
+
+def direction_preserving_allocation(B, tau, lower, upper, effectiveness=None) -> AllocationResult:
+    """Direction-preserving scaling (the digest's saturation-aware step 3 for [41]): the minimum-norm u when it
+    fits the limits; otherwise the LP max α s.t. B diag(e) u = α τ, lower ≤ u ≤ upper, 0 ≤ α ≤ 1 (scipy linprog),
+    so the attained wrench is α τ — the demand's direction, cut in size. ``unattained`` = (1 − α) τ."""
+    B, tau, e, lo, hi = check_allocation(B, tau, effectiveness, lower, upper)
+    if not np.all(np.isfinite(lo)) or not np.all(np.isfinite(hi)):
+        raise RobofdiError("allocation: direction-preserving allocation needs finite saturation limits")
+    Be = B * e
+    u = _weighted_pinv(B, e) @ tau
+    if np.all(u >= lo - 1e-12) and np.all(u <= hi + 1e-12) and np.allclose(Be @ u, tau, atol=1e-9 * max(1.0, np.abs(tau).max())):
+        u = np.clip(u, lo, hi)
+        u[e == 0] = 0.0
+        return _result(B, e, u, tau)
+    p = B.shape[1]
+    c = np.zeros(p + 1)
+    c[-1] = -1.0
+    res = linprog(c, A_eq=np.hstack([Be, -tau[:, None]]), b_eq=np.zeros(6), bounds=[*zip(lo, hi), (0.0, 1.0)],
+                  method="highs")
+    if res.status != 0:
+        raise RobofdiError("allocation: the direction-preserving LP found no solution (scipy linprog)")
+    u = np.clip(res.x[:p], lo, hi)
+    u[e == 0] = 0.0                                   # a failed thruster's column is zero: any value is optimal
+    return _result(B, e, u, tau)
+
+
 def capability(B, lower, upper, effectiveness=None) -> np.ndarray:
     """(6, 2) largest attainable [−, +] wrench along each axis alone (the other axes held at 0) — an LP per axis
     and direction (scipy linprog); 0 where the axis is lost."""
@@ -149,9 +204,11 @@ def capability(B, lower, upper, effectiveness=None) -> np.ndarray:
 class ThrustReallocation:
     """Accommodation: τ = B u_cmd re-allocated with effectiveness 0 for every thruster the health isolates.
 
-    method: "column_deletion", "pseudo_inverse" or "constrained" (QP within ±limit). ``effectiveness`` in the
-    health's ``estimate`` is not used: a diagnosed thruster is treated as failed (the chapter's TCM modification).
-    After each update, ``last`` holds the :class:`AllocationResult` and ``failed`` the thrusters taken out.
+    method: "column_deletion", "pseudo_inverse", "constrained" (QP within ±limit), "null_space" (null-space
+    redistribution within ±limit) or "direction_preserving" (the demand scaled down, keeping its direction).
+    ``effectiveness`` in the health's ``estimate`` is not used: a diagnosed thruster is treated as failed (the
+    chapter's TCM modification). After each update, ``last`` holds the :class:`AllocationResult` and ``failed``
+    the thrusters taken out.
     """
 
     def __init__(self, B, thrusters: Sequence[str], limit: float, method: str = "constrained"):
@@ -188,6 +245,10 @@ class ThrustReallocation:
             self.last = constrained_allocation(self.B, tau, -self.limit, self.limit, e)
         elif self.method == "pseudo_inverse":
             self.last = pseudo_inverse_allocation(self.B, tau, e)
+        elif self.method == "null_space":
+            self.last = null_space_allocation(self.B, tau, -self.limit, self.limit, e)
+        elif self.method == "direction_preserving":
+            self.last = direction_preserving_allocation(self.B, tau, -self.limit, self.limit, e)
         else:
             self.last = column_deletion_allocation(self.B, tau, np.flatnonzero(e == 0))
         return self.last.u

@@ -26,7 +26,7 @@ import numpy as np
 
 from robofdi.errors import RobofdiError
 
-__all__ = ["skew", "thruster_matrix", "T_euler_from_body", "T_body_from_euler", "rotation_from_euler",
+__all__ = ["skew", "thruster_matrix", "phantom_thruster_matrix", "T_euler_from_body", "T_body_from_euler", "rotation_from_euler",
            "euler_from_rotation", "FossenParameters", "ThrusterParameters", "AuvModelMismatch", "AuvModel",
            "ODIN_LIKE", "ODIN_THRUSTER", "thruster_layout", "AXES"]
 
@@ -49,6 +49,25 @@ def thruster_matrix(positions: np.ndarray, directions: np.ndarray) -> np.ndarray
         raise RobofdiError("thruster_matrix: every thruster direction must be a finite non-zero vector")
     D = D / norms[:, None]
     return np.vstack([D.T, np.cross(P, D).T])
+
+
+def phantom_thruster_matrix(aft_x: float = -0.4, aft_y: float = 0.15, aft_z: float = 0.05, side_y: float = 0.2,
+                            side_angle: float = np.pi / 4) -> np.ndarray:
+    """The 6×4 thruster control matrix of a Phantom S3-like ROV, eq. (7) of Antonelli's survey: thrusters 1, 2
+    push fore-aft at (aft_x, ±aft_y, aft_z) [m] (rows X, M, N), thrusters 3, 4 are vectored in the y–z plane at
+    (0, ±side_y, 0), tilted ±``side_angle`` [rad] from vertical (rows Y, Z, K). Body frame FRD. Rank 4: not every
+    direction is independently actuated (the survey's point). Geometry is illustrative — the survey gives only the
+    non-zero pattern."""
+    for name, v in (("aft_x", aft_x), ("aft_y", aft_y), ("aft_z", aft_z), ("side_y", side_y), ("side_angle", side_angle)):
+        if not (isinstance(v, (int, float)) and np.isfinite(v)):
+            raise RobofdiError(f"phantom_thruster_matrix: field {name!r} must be a finite number, got {v!r}")
+    if aft_y == 0 or aft_z == 0 or side_y == 0 or not 0 < abs(side_angle) < np.pi / 2:
+        raise RobofdiError("phantom_thruster_matrix: aft_y, aft_z, side_y must be non-zero and side_angle in "
+                           "(0, π/2) rad, or the pattern of eq. (7) is lost")
+    s, c = np.sin(side_angle), np.cos(side_angle)
+    positions = [(aft_x, aft_y, aft_z), (aft_x, -aft_y, aft_z), (0.0, side_y, 0.0), (0.0, -side_y, 0.0)]
+    directions = [(1.0, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, s, c), (0.0, s, -c)]
+    return thruster_matrix(np.array(positions), np.array(directions))
 
 
 def T_euler_from_body(euler: np.ndarray) -> np.ndarray:

@@ -1,5 +1,6 @@
 """Analytical redundancy: nonlinear AR (symbolic derivation + generated code), derivative estimation, the linear
-parity-space, piecewise-linear (PLAR) and neural (NNAR) baselines, and the residual generators (Diagnoser protocol)."""
+parity-space, piecewise-linear (PLAR), nearly nonlinear (NNAR) and neural (mlp_ar) baselines, and the residual
+generators (Diagnoser protocol)."""
 from robofdi.redundancy.derivatives import DerivativeEstimator, SavitzkyGolay, estimate_derivatives
 from robofdi.models.control_affine import ControlAffineModel
 from robofdi.redundancy.nlar import NLARDesign, derivative_symbol, derive_nlar

@@ -1,6 +1,8 @@
 """Baselines for NLAR (Leuschen, Walker & Cavallaro, Sec. 9): linear AR on the linearised model, piecewise-linear
-AR (PLAR, nine regions of the valve-position / load-pressure workspace, blended near borders) and NNAR (a neural
-predictor of the model equations, scikit-learn's MLPRegressor, trained on fault-free data)."""
+AR (PLAR, nine regions of the valve-position / load-pressure workspace, blended near borders), the book's NNAR
+(the linear AR null space applied to the nonlinear equations, :mod:`robofdi.redundancy.nnar`), and a data-driven
+baseline that is not from the chapter, ``mlp_ar`` (a neural predictor of the model equations, scikit-learn's
+MLPRegressor, trained on fault-free data)."""
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -12,18 +14,37 @@ from robofdi.errors import RobofdiError
 from robofdi.models.hydraulic import HydraulicParameters, linearised_model
 from robofdi.redundancy.derivatives import SavitzkyGolay, estimate_derivatives
 from robofdi.redundancy.nlar import derive_nlar
+from robofdi.redundancy.nnar import derive_nnar
 from robofdi.redundancy.residuals import RedundancyResidual, SignalMap, nlar_residual
 
-__all__ = ["linear_ar_residual", "plar_regions", "plar_residual", "plar_classes", "train_nnar", "NNARResidual",
-           "smoothstep_weights"]
+__all__ = ["linear_ar_design", "linear_ar_residual", "plar_regions", "plar_residual", "plar_classes", "nnar_design",
+           "nnar_residual", "train_mlp_ar", "MLPARResidual", "smoothstep_weights"]
 
 _LINEAR_DOMAIN = {sp.Symbol("omega"): (0.1, 2.0), sp.Symbol("p_l"): (1e5, 5e6)}
+
+
+def linear_ar_design(params: HydraulicParameters, u0: float, p0: float):
+    """The linear AR design (continuous parity space, Chow & Willsky): the NLAR engine on the model linearised at
+    (u0, p0)."""
+    return derive_nlar(linearised_model(params, u0, p0), _LINEAR_DOMAIN)
 
 
 def linear_ar_residual(params: HydraulicParameters, u0: float, p0: float, measurements, inputs,
                        flt: SavitzkyGolay) -> RedundancyResidual:
     """Linear AR (continuous parity space, Chow & Willsky) — the NLAR engine on the model linearised at (u0, p0)."""
-    return nlar_residual(derive_nlar(linearised_model(params, u0, p0), _LINEAR_DOMAIN), measurements, inputs, flt)
+    return nlar_residual(linear_ar_design(params, u0, p0), measurements, inputs, flt)
+
+
+def nnar_design(design, params: HydraulicParameters, u0: float, p0: float):
+    """The book's NNAR (Sec. 9): the null space Ω of linear AR at (u0, p0) applied to the nonlinear equations of
+    ``design`` (an NLAR design of :func:`robofdi.models.hydraulic.hydraulic_model`); on this rig its tests equal
+    NLAR's (Sec. 5 footnote; :func:`robofdi.redundancy.nnar.derive_nnar`)."""
+    return derive_nnar(design, linear_ar_design(params, u0, p0))
+
+
+def nnar_residual(design, measurements, inputs, flt: SavitzkyGolay, signatures=()) -> RedundancyResidual:
+    """The NNAR tests of :func:`nnar_design` as a Diagnoser."""
+    return nlar_residual(design, measurements, inputs, flt, signatures)
 
 
 def plar_regions(params: HydraulicParameters) -> list[tuple[float, float]]:
@@ -92,7 +113,7 @@ def plar_residual(params: HydraulicParameters, measurements, inputs, flt: Savitz
                               first.signal_map, flt, first.signatures())
 
 
-# ---- NNAR ------------------------------------------------------------------------------------------------------
+# ---- mlp_ar: a data-driven baseline (not the book's NNAR) ---------------------------------------------------
 _FEATURES = ("shaft_speed", "load_pressure", "servovalve", "pump_pressure")
 
 
@@ -101,9 +122,10 @@ def _features(y: np.ndarray, u: np.ndarray) -> np.ndarray:
     return np.column_stack([y[:, 0], y[:, 1], np.r_[0.0, u[:-1, 0]], y[:, 2]])
 
 
-def train_nnar(records, flt: SavitzkyGolay, seed: int = 0, hidden=(32, 32)):
-    """NNAR predictor of (θ̇̇, ṗ_l) from (θ̇, p_l, u, p_L): scikit-learn MLPRegressor on fault-free records
-    (inputs and targets standardised), the neural analogue of R1 and R4 (Sec. 9)."""
+def train_mlp_ar(records, flt: SavitzkyGolay, seed: int = 0, hidden=(32, 32)):
+    """A data-driven predictor of (θ̈, ṗ_l) from (θ̇, p_l, u, p_L): scikit-learn MLPRegressor on fault-free records
+    (inputs and targets standardised), a neural analogue of R1 and R4. Not from the chapter (its NNAR is
+    :func:`nnar_design`): a model-free baseline."""
     from sklearn.compose import TransformedTargetRegressor
     from sklearn.neural_network import MLPRegressor
     from sklearn.pipeline import make_pipeline
@@ -121,7 +143,7 @@ def train_nnar(records, flt: SavitzkyGolay, seed: int = 0, hidden=(32, 32)):
     return model
 
 
-class NNARResidual(RedundancyResidual):
+class MLPARResidual(RedundancyResidual):
     """Diagnoser: N1 = measured θ̈ − predicted, N4 = measured ṗ_l − predicted, the trained network evaluated by its
     own weights (scikit-learn's coefs_ / intercepts_, ReLU) for speed."""
 

@@ -1,6 +1,6 @@
 """Residual generators over analytical-redundancy tests (Diagnoser protocol, :mod:`robofdi.protocols`).
 
-A test is a function of the measured signals and their time derivatives (NLAR, linear AR, PLAR, NNAR all are);
+A test is a function of the measured signals and their time derivatives (NLAR, linear AR, PLAR, NNAR, mlp_ar all are);
 :class:`RedundancyResidual` feeds it from a :class:`~robofdi.redundancy.derivatives.DerivativeEstimator`, sample by
 sample, so the same object runs in the closed loop, offline over a record, or on rig data.
 """

@@ -4,16 +4,17 @@ What a campaign engine needs, each a function of its own:
 
 * :func:`operating_profile` — a random target speed, ramp and load (throttle) drawn from a seed;
 * :data:`FAULT_TARGETS` — fault targets per family with their magnitude limits;
-* :func:`calibrate` — fault-free runs over random profiles → NNAR training + thresholds (a picklable
+* :func:`calibrate` — fault-free runs over random profiles → mlp_ar training + thresholds (a picklable
   :class:`HydraulicCalibration`), once;
 * :func:`run_scenario` — one run with the given faults and seed → :class:`~robofdi.record.Record`
   (:func:`robofdi.evaluate.summarize` gives its summary).
 
 Diagnosers (all built from the catalogue model or fault-free data, never from the rig's parameters):
 ``nlar`` (eqs. (15)–(19), load compensated), ``linear_ar`` (the same engine on the model linearised at the nominal
-operating point), ``plar`` (nine regions, blended near borders), ``nnar`` (MLP predictor of ẏ trained on fault-free
-runs), and ``nlar_better`` (better modelling: measured supply pressure, pressure-equation parameters calibrated on
-fault-free data).
+operating point), ``plar`` (nine regions, blended near borders), ``nnar`` (the book's nearly nonlinear AR: linear
+AR's null space applied to the nonlinear equations, Sec. 9; equal to NLAR on this rig), ``mlp_ar`` (a data-driven
+baseline, not from the chapter: an MLP predictor of ẏ trained on fault-free runs), and ``nlar_better`` (better
+modelling: measured supply pressure, pressure-equation parameters calibrated on fault-free data).
 
 The system (:class:`HydraulicSystem`, registered as ``hydraulic``: its options, fault targets, calibration per robot instance,
 missions drawn from a seed and runs; :class:`robofdi.protocols.System`) closes the module.
@@ -36,7 +37,9 @@ from robofdi.loop import ClosedLoop, Diagnosis, Rates, diagnose_record
 from robofdi.models.hydraulic import CATALOGUE, HydraulicParameters, hydraulic_domain, hydraulic_model, with_variants
 from robofdi.protocols import Mission, Parts, TargetLimit
 from robofdi.record import Record
-from robofdi.redundancy.baselines import NNARResidual, linear_ar_residual, plar_residual, train_nnar
+from robofdi.redundancy.baselines import (
+    MLPARResidual, linear_ar_residual, nnar_design, nnar_residual, plar_residual, train_mlp_ar,
+)
 from robofdi.redundancy.derivatives import SavitzkyGolay, estimate_derivatives
 from robofdi.redundancy.nlar import derive_nlar
 from robofdi.redundancy.residuals import nlar_residual
@@ -48,7 +51,7 @@ __all__ = ["HydraulicScenario", "HydraulicCalibration", "calibration", "operatin
            "calibrate", "run_scenario", "build_loop", "nominal_operating_point", "fit_pressure_parameters", "TABLE1",
            "table1_fault", "fault_free_rms", "leak_flow_share"]
 
-DIAGNOSERS = ("nlar", "linear_ar", "plar", "nnar", "nlar_better")
+DIAGNOSERS = ("nlar", "linear_ar", "plar", "nnar", "mlp_ar", "nlar_better")
 
 #: Fault targets per family, with the magnitude range a campaign may draw from (in the kind's unit).
 FAULT_TARGETS = {
@@ -64,6 +67,7 @@ FAULT_TARGETS = {
 SIGNATURES = {
     "nlar": (Signature("shaft_speed", {"R1"}, {"R2", "R4", "R5"}), Signature("servovalve", {"R4"}, {"R1", "R2", "R5"})),
 }
+SIGNATURES["nnar"] = SIGNATURES["nlar"]          # the same tests on this rig (Sec. 5 footnote)
 
 
 @dataclass(frozen=True)
@@ -144,13 +148,18 @@ def _design(load_model: str = "measured_pump_pressure"):
     return derive_nlar(m, hydraulic_domain(m))
 
 
+@lru_cache(maxsize=1)
+def _nnar_design():
+    return nnar_design(_design(), CATALOGUE, *nominal_operating_point())
+
+
 @dataclass
 class HydraulicCalibration:
-    """Thresholds per diagnoser (residual units), the trained NNAR, the calibrated pressure parameters, and the
-    profiles/seeds used. Picklable."""
+    """Thresholds per diagnoser (residual units), the trained mlp_ar network, the calibrated pressure parameters,
+    and the profiles/seeds used. Picklable."""
 
     thresholds: dict
-    nnar: object
+    mlp_ar: object
     better_params: dict
     blanking: int
     profiles: list = field(default_factory=list)
@@ -175,9 +184,11 @@ def _diagnosers(sc: HydraulicScenario, cal: HydraulicCalibration | None, names: 
         elif name == "plar":
             out[name] = plar_residual(CATALOGUE, meas, acts, flt)
         elif name == "nnar":
-            if cal is None or cal.nnar is None:
+            out[name] = nnar_residual(_nnar_design(), meas, acts, flt, SIGNATURES["nnar"])
+        elif name == "mlp_ar":
+            if cal is None or cal.mlp_ar is None:
                 continue
-            out[name] = NNARResidual(cal.nnar, meas, acts, flt)
+            out[name] = MLPARResidual(cal.mlp_ar, meas, acts, flt)
     return out
 
 
@@ -241,7 +252,7 @@ def calibration(base: HydraulicScenario, runs: int, seed: int, progress: Callabl
 
 def calibrate(base: HydraulicScenario | None = None, runs: int = 8, seed: int = 1000,
               progress: Callable[[int], None] | None = None) -> HydraulicCalibration:
-    """Fault-free runs on ``runs`` random operating profiles (seeds seed, seed+1, …): the first half trains the NNAR
+    """Fault-free runs on ``runs`` random operating profiles (seeds seed, seed+1, …): the first half trains mlp_ar
     and fits the better model, all of them set thresholds = margin × max |r| (Caccavale & Villani Sec. 6 rule)."""
     base = base or HydraulicScenario()
     if runs < 2:
@@ -254,9 +265,9 @@ def calibrate(base: HydraulicScenario | None = None, runs: int = 8, seed: int = 
         profiles.append({**prof, "seed": seed + i})
     flt = base.filter()
     half = records[: max(1, runs // 2)]
-    nnar = train_nnar(half, flt, seed=seed) if "nnar" in base.diagnosers else None
+    mlp = train_mlp_ar(half, flt, seed=seed) if "mlp_ar" in base.diagnosers else None
     better = fit_pressure_parameters(half, flt)
-    cal = HydraulicCalibration({}, nnar, better, flt.window, profiles, base.margin)
+    cal = HydraulicCalibration({}, mlp, better, flt.window, profiles, base.margin)
     for name, d in _diagnosers(base, cal, base.diagnosers).items():
         residuals = [diagnose_record(rec, Diagnosis(d), Rates(1000.0, 1000.0), progress).residual for rec in records]
         cal.thresholds[name] = calibrate_thresholds(residuals, base.margin, skip=flt.window)
@@ -305,7 +316,7 @@ class HydraulicOptions:
     """The ``[system]`` table of a hydraulic-rig campaign (:mod:`robofdi.systems.hydraulic`).
 
     robot_seeds: one calibration each (fault-free runs on the random operating profiles of seeds
-    1000·(1 + robot seed) + i); duration [s] of every run; calibration_runs (>= 2: half train the NNAR and fit the
+    1000·(1 + robot seed) + i); duration [s] of every run; calibration_runs (>= 2: half train mlp_ar and fit the
     better model, all set thresholds); margin: threshold margin >= 1."""
 
     robot_seeds: tuple = (0,)
