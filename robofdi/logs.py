@@ -164,6 +164,15 @@ def read_arm_log(path: str | Path, model: ManipulatorModel, columns: Mapping[str
         row = int(np.argmax(steps <= 0)) + 1
         raise RobofdiError(f"log {name}: column 'time' is not strictly increasing at row {row + 1} ({t[row - 1]!r} "
                            f"then {t[row]!r}); expected increasing time stamps [s]")
+    lo, hi = model.joint_range.T
+    for i, (j, unit, speed, torque_unit) in enumerate(zip(joints, *_units(model))):
+        _check_units(name, f"{j}_q", data[f"{j}_q"], lo[i], hi[i], unit)
+        _check_velocity(name, f"{j}_qd", t, data[f"{j}_q"], data[f"{j}_qd"], speed)
+        limit = float(model.torque_limit[i])
+        if np.abs(data[f"{j}_tau"]).max() > TORQUE_SLACK * limit:
+            raise RobofdiError(f"log {name}: column {j + '_tau'!r} reaches {np.abs(data[f'{j}_tau']).max():.4g}, "
+                               f"beyond {TORQUE_SLACK} × the drive's limit {limit:.4g} {torque_unit}; expected the "
+                               f"joint torque in {torque_unit}")
     median = float(np.median(steps))
     if rate is None:
         rate = round(1.0 / median, 1)
@@ -181,15 +190,6 @@ def read_arm_log(path: str | Path, model: ManipulatorModel, columns: Mapping[str
     q = np.column_stack([np.interp(grid, t, data[f"{j}_q"]) for j in joints])
     qd = np.column_stack([np.interp(grid, t, data[f"{j}_qd"]) for j in joints])
     tau = np.column_stack([data[f"{j}_tau"][held] for j in joints])
-    lo, hi = model.joint_range.T
-    for i, (j, unit, speed, torque_unit) in enumerate(zip(joints, *_units(model))):
-        _check_units(name, f"{j}_q", data[f"{j}_q"], lo[i], hi[i], unit)
-        _check_velocity(name, f"{j}_qd", t, data[f"{j}_q"], data[f"{j}_qd"], speed)
-        limit = float(model.torque_limit[i])
-        if np.abs(data[f"{j}_tau"]).max() > TORQUE_SLACK * limit:
-            raise RobofdiError(f"log {name}: column {j + '_tau'!r} reaches {np.abs(data[f'{j}_tau']).max():.4g}, "
-                               f"beyond {TORQUE_SLACK} × the drive's limit {limit:.4g} {torque_unit}; expected the "
-                               f"joint torque in {torque_unit}")
     return ArmLog(grid - grid[0], q, qd, tau, joints, float(rate), str(path), int(t.size), int(gaps.sum()),
                   float(steps[gaps].max()) if gaps.any() else 0.0, jitter, renamed)
 
