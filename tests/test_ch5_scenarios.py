@@ -6,7 +6,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from experiments.ch5_boskovic import sim2_faults, sim4_faults, tracking
+from robofdi.experiments.ch5_boskovic import sim2_faults, sim4_faults, tracking
 from robofdi.faults import Fault, Step
 from robofdi.models.flight import flight_surrogate
 from robofdi.systems.flight_surrogate import FlightScenario, build_loop
