@@ -271,8 +271,8 @@ def calibrate(scenario: ArmScenario, records: dict[str, Record],
 def calibration_steps(scenario: ArmScenario, records_duration: float, rates: Rates,
                       motions: Mapping | None = None) -> int:
     """Progress units of :func:`calibration`: control ticks simulated plus ticks replayed per scheme — exact when
-    the calibration ``motions`` are given (each run ticks once per sample, both ends; the consistency scheme
-    replays only its held-out motions), else estimated from their total duration."""
+    the calibration ``motions`` are given (each run ticks once per sample, both ends; a scheme with a learnt
+    design replays only the held-out motions), else estimated from their total duration."""
     designed = {s for s in scenario.schemes if scheme_calibration(s, scenario.settings).design}
     replays = 1 + len(scenario.schemes) + len([s for s in STATE_SPACE_SCHEMES if s in scenario.schemes])
     if motions is None:

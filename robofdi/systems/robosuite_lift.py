@@ -59,9 +59,7 @@ class RobosuiteLiftSystem(RobotInstances):
         return adapter("robofdi.adapters.robosuite_diagnosis", "robosuite").DIAGNOSERS
 
     def targets(self, options):
-        from robofdi.adapters.robosuite import RobotArm
-
-        arm = RobotArm(_lift_env())
+        arm = adapter("robofdi.adapters.robosuite", "robosuite").RobotArm(_lift_env())
         width = arm.joint_range[:, 1] - arm.joint_range[:, 0]
         sensors = {ch: TargetLimit(float(width[i % arm.n]), "rad" if i < arm.n else "rad/s")
                    for i, ch in enumerate(arm.sensor_channels)}          # velocity channels: one range per second
