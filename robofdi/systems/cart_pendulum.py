@@ -21,6 +21,7 @@ import numpy as np
 import scipy.signal
 
 from robofdi.errors import RobofdiError
+from robofdi.sims.integrate import rk4
 from robofdi.loop import ClosedLoop, Diagnosis, Rates
 from robofdi.observers.residual import Residual
 from robofdi.observers.sliding_mode import CascadeSMO, SMOSettings, Stage
@@ -82,18 +83,8 @@ class CartPendulumPlant:
         if u.shape != (1,) or not np.isfinite(u[0]):
             raise RobofdiError(f"CartPendulumPlant: input 'u' must be one finite voltage, got {u!r}")
         self.u_applied = self.saturate(u)
-        A, B, h = PENDULUM["A"], PENDULUM["B"][:, 0], self.physics_dt
-        x = self.x
-        for _ in range(self._sub):
-            v0, v1 = (self.u_applied[0] + self.r_ref(self.t + s) for s in (0.0, 0.5 * h))
-            v2 = self.u_applied[0] + self.r_ref(self.t + h)
-            k1 = A @ x + B * v0
-            k2 = A @ (x + 0.5 * h * k1) + B * v1
-            k3 = A @ (x + 0.5 * h * k2) + B * v1
-            k4 = A @ (x + h * k3) + B * v2
-            x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-            self.t += h
-        self.x = x
+        A, B, v = PENDULUM["A"], PENDULUM["B"][:, 0], self.u_applied[0]
+        self.x, self.t = rk4(lambda t, x: A @ x + B * (v + self.r_ref(t)), self.x, self.physics_dt, self._sub, self.t)
         return self._measure()
 
     def apply_component_fault(self, kind, target, value):

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from robofdi.errors import RobofdiError
+from robofdi.sims.integrate import rk4
 from robofdi.loop import ClosedLoop, Diagnosis, Rates
 from robofdi.observers.residual import Residual, check_measurement
 from robofdi.seeding import stream
@@ -99,14 +100,7 @@ class EnginePlant:
         if u.shape != (2,) or not np.all(np.isfinite(u)):
             raise RobofdiError(f"EnginePlant: input 'u' must be (θ, ω), 2 finite values, got {u!r}")
         self.u_applied = u.copy()
-        h, x = self.physics_dt, self.x
-        for _ in range(self._sub):
-            k1 = self._f(x, u)
-            k2 = self._f(x + 0.5 * h * k1, u)
-            k3 = self._f(x + 0.5 * h * k2, u)
-            k4 = self._f(x + h * k3, u)
-            x += h / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
-        self.x = x
+        self.x, _ = rk4(lambda t, x: self._f(x, u), self.x, self.physics_dt, self._sub)
         return self._measure()
 
     def apply_component_fault(self, kind, target, value):

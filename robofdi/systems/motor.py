@@ -26,6 +26,7 @@ import numpy as np
 
 from robofdi.checks import check_fields, is_number
 from robofdi.errors import RobofdiError
+from robofdi.sims.integrate import rk4
 from robofdi.faults import Fault, Ramp
 from robofdi.loop import ClosedLoop, Diagnosis, Rates
 from robofdi.observers.sliding_mode import CascadeSMO, SMOSettings, Stage
@@ -111,14 +112,7 @@ class MotorPlant:
         if u.shape != (2,) or not np.all(np.isfinite(u)):
             raise RobofdiError(f"MotorPlant: input 'u' must be 2 finite values (u1, u2), got {u!r}")
         self.u_applied = u.copy()
-        h, x = self.physics_dt, self.x
-        for _ in range(self._sub):
-            k1 = _f(x, u, MOTOR, self.d2)
-            k2 = _f(x + 0.5 * h * k1, u, MOTOR, self.d2)
-            k3 = _f(x + 0.5 * h * k2, u, MOTOR, self.d2)
-            k4 = _f(x + h * k3, u, MOTOR, self.d2)
-            x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-        self.x = x
+        self.x, _ = rk4(lambda t, x: _f(x, u, MOTOR, self.d2), self.x, self.physics_dt, self._sub)
         return self._measure()
 
     def apply_component_fault(self, kind, target, value):
