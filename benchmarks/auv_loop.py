@@ -88,7 +88,7 @@ def main() -> None:
     t = time.perf_counter()
     loop.run(60.0, sc.start_pose, seed=2)
     wall = time.perf_counter() - t
-    ticks = int(60.0 / sc.control_dt) + 1
+    ticks = int(60.0 / sc.plant.control_dt) + 1
     per_tick = wall / ticks * 1e6
     rows.append(("loop (per control tick)", per_tick, per_tick))
     mj = rows[0][1]

@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from robofdi.config import accepted, compose
 from robofdi.control import Quintic, Sequence
 from robofdi.errors import RobofdiError
 from robofdi.evaluate import summarize
@@ -69,15 +70,15 @@ def scenario(name: str, seed: int = 0, calibration_low_velocity_time: float = 20
     are checked at once (unknown fields, invalid values, fault targets)."""
     if name not in FAULTS:
         raise RobofdiError(f"unknown experiment {name!r}; expected one of {sorted(FAULTS)}")
-    fields = set(ArmScenario.__dataclass_fields__) - {"name"}
+    fields = {k for k, path in accepted(ArmScenario).items() if path} - {"name"}
     unknown = sorted(set(overrides) - fields)
     if unknown:
         raise RobofdiError(f"{name}: unknown override(s) {', '.join(unknown)}; "
-                           f"expected ArmScenario fields {', '.join(sorted(fields))}")
+                           f"expected fields of ArmScenario or its parts: {', '.join(sorted(fields))}")
     base = dict(motion=Quintic(Q0, DQ, 4.0), duration=4.0, faults=FAULTS[name], injection="offline", seed=seed,
                 rates=Rates(1000.0, 500.0), calibration=book_calibration(slow=calibration_low_velocity_time))
     base.update(overrides)
-    sc = ArmScenario(name, **base)
+    sc = compose(ArmScenario, base, name=name)
     check_scenario(sc)
     return sc
 

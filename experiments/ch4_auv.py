@@ -42,6 +42,7 @@ from robofdi.faults import Fault
 from robofdi.ftc.allocation import capability
 from robofdi.progress import Progress, run_ticks
 from robofdi.record import Record
+from robofdi.sims.auv import AuvPlant
 from robofdi.systems.auv import (
     AuvCalibration, AuvScenario, calibration, check_scenario, current_map_regions, depth_switch_time,
     run_scenario, tracking_rms,
@@ -85,8 +86,8 @@ def ch4_roby2_scenario(seed: int = 0, duration: float = 120.0, onset: float = 60
     """Roby-2-like vehicle (assets/roby2.xml): surge legs and turns on the spot in a 0.1 m/s head current; the left
     horizontal thruster's drive is zeroed at ``onset`` (mid-mission). No accommodation: with two horizontal
     thrusters, losing one leaves surge and yaw coupled (the chapter's Roby 2 experiments only diagnose)."""
-    return AuvScenario(name="ch4-roby2", mjcf="roby2.xml", mission="roby2", duration=duration, seed=seed,
-                       current=(0.10, 0.0, 0.0), variant="no_ftc", diagnosers=("ekf_bank", "voltage_residual"),
+    return AuvScenario(name="ch4-roby2", plant=AuvPlant(mjcf="roby2.xml", current=(0.10, 0.0, 0.0)), mission="roby2",
+                       duration=duration, seed=seed, variant="no_ftc", diagnosers=("ekf_bank", "voltage_residual"),
                        faults=(Fault("thruster_left_off", "actuator_float", "thruster_left", onset=onset),))
 
 
@@ -96,7 +97,7 @@ SCENARIOS = {"ch4-auv": ch4_auv_scenario, "ch4-flooded": ch4_flooded_scenario, "
 
 def _ticks(scenario: AuvScenario, duration: float | None = None) -> int:
     """Progress ticks of one run of ``duration`` (default: the scenario's) seconds."""
-    return run_ticks(scenario.duration if duration is None else duration, 1.0 / scenario.control_dt)
+    return run_ticks(scenario.duration if duration is None else duration, 1.0 / scenario.plant.control_dt)
 
 
 def _calibration(name: str, sc: AuvScenario, progress: Progress) -> tuple[AuvCalibration, bool]:
@@ -204,18 +205,20 @@ def _run_ch4_auv(name, run_dir, seed, progress, replay):
     failed[[1, 5]] = 0.0
     from robofdi.models.auv import AuvModel, AuvModelMismatch
 
-    B = AuvModel.from_mjcf(sc.mjcf, sc.mismatch).B
+    B = AuvModel.from_mjcf(sc.plant.mjcf, sc.mismatch).B
+    limit = sc.plant.thrust_limit
     summary = summarize(main, name, tracking=tracking,
                         variants={k: summaries[k]["diagnosers"] for k in ("no_ftc", "oracle")},
                         voltage_detectability=voltage_detectability(records["no_ftc"], cal.thresholds["voltage_residual"]),
                         allocation={"method": sc.allocation, "health_source": sc.health_source,
-                                    "capability_healthy": capability(B, -sc.thrust_limit, sc.thrust_limit)[:, 1],
-                                    "capability_after_2_6": capability(B, -sc.thrust_limit, sc.thrust_limit, failed)[:, 1],
+                                    "capability_healthy": capability(B, -limit, limit)[:, 1],
+                                    "capability_after_2_6": capability(B, -limit, limit, failed)[:, 1],
                                     "max_abs_thrust": {k: float(np.abs(r.u_applied).max()) for k, r in records.items()},
                                     "units": {"capability": "N, N, N, N·m, N·m, N·m (X Y Z K M N)", "max_abs_thrust": "N"}},
-                        scenario={"duration": sc.duration, "current": list(sc.current), "onsets": [f.onset for f in sc.faults],
+                        scenario={"duration": sc.duration, "current": list(sc.plant.current),
+                                  "onsets": [f.onset for f in sc.faults],
                                   "odin_onsets": list(ODIN_ONSETS), "time_scale": TIME_SCALE,
-                                  "sensors": asdict(sc.sensors), "mismatch": asdict(sc.mismatch)},
+                                  "sensors": asdict(sc.plant.sensors), "mismatch": asdict(sc.mismatch)},
                         calibration_cached=cached)
     labels = {"fault_free": "fault-free", "no_ftc": "no accommodation", "oracle": "oracle allocation",
               "diagnosed": "diagnosed allocation"}
@@ -225,7 +228,7 @@ def _run_ch4_auv(name, run_dir, seed, progress, replay):
                           {"quantity": "ratio to fault-free", "unit": "1",
                            "values": {labels[k]: rms[k] / base for k in labels}}],
         health_source=sc.health_source, method=f"reallocation ({sc.allocation}) around the isolated thrusters")
-    summary["reproduction"] = [*tcm_reproduction(AuvModel.from_mjcf(sc.mjcf, AuvModelMismatch.none()).B, sc.thrust_limit),
+    summary["reproduction"] = [*tcm_reproduction(AuvModel.from_mjcf(sc.plant.mjcf, AuvModelMismatch.none()).B, limit),
                                *thruster_reproduction(), *run_reproduction(sc, records, summary)]
     with progress.stage("run folder: records, figures" + (", replay" if replay else "")):
         write_run_folder(run_dir, main, summary, {k: records[k] for k in ("fault_free", "no_ftc", "oracle")},
@@ -390,7 +393,7 @@ def _plot_depth(record: Record, sc: AuvScenario, switch, path: Path) -> Path:
     ax.plot(record.time, -record.signals["reference"][:, 2], "k--", lw=0.8, label="reference")
     ax.plot(record.time, -record.truth_state[:, 2], lw=1.0, label="true depth")
     ax.plot(record.time, y[:, 2], lw=0.6, label="pressure sensor")
-    ax.plot(record.time, sc.floor_depth - y[:, 3], lw=0.6, label="sonar (H − altitude)")
+    ax.plot(record.time, sc.plant.floor_depth - y[:, 3], lw=0.6, label="sonar (H − altitude)")
     ax.axvline(sc.faults[0].onset, color="0.4", ls=":", label="onset")
     if switch is not None:
         ax.axvline(switch, color="C3", ls="--", lw=0.8, label="switch")

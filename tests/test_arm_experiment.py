@@ -75,7 +75,7 @@ def test_python_overrides_fail_at_once(tmp_path):
     with pytest.raises(RobofdiError, match="joint9"):
         run_ch3("ch3-actuator", tmp_path, faults=(Fault("x", "actuator_additive", "joint9", onset=1.0, magnitude=10.0),))
     with pytest.raises(RobofdiError, match="motion gives 6 joint positions.*7 joints"):
-        run_ch3("ch3-actuator", tmp_path, mjcf="arm7.xml", rates=None)
+        run_ch3("ch3-actuator", tmp_path, robot="arm7.xml", rates=None)
     with pytest.raises(RobofdiError, match="unknown override.*bogus"):
         run_ch3("ch3-actuator", tmp_path, bogus=1)
     with pytest.raises(RobofdiError, match="lock_in_place.*offline"):

@@ -46,7 +46,7 @@ def test_fault_free_random_mission_in_a_current_raises_no_alarm(cal):
     for name, metrics in summary["diagnosers"].items():
         assert metrics["false_alarms"] == 0, name
     assert tracking_rms(record, 5.0) < 0.15
-    assert np.all(np.abs(record.u_applied) <= sc.thrust_limit + 1e-9)
+    assert np.all(np.abs(record.u_applied) <= sc.plant.thrust_limit + 1e-9)
 
 
 @pytest.mark.parametrize("target, onset", [("thruster2", 20.0), ("thruster6", 8.0)])
@@ -89,7 +89,7 @@ def test_diagnosed_health_allocation_keeps_tracking_after_two_failures(cal):
     for variant in ("oracle", "diagnosed"):
         record = run_scenario(replace(sc, variant=variant), cal)
         rms[variant] = tracking_rms(record, 30.0)
-        assert np.all(np.abs(record.u_applied) <= sc.thrust_limit + 1e-9)
+        assert np.all(np.abs(record.u_applied) <= sc.plant.thrust_limit + 1e-9)
         if variant == "diagnosed":
             assert record.meta["health_source"] == "voltage_residual"
             after = record.time > 31.0         # health one sample late; then the failed drives get no demand

@@ -14,7 +14,7 @@ def test_auv_replay_marks_the_isolated_thruster_and_the_onset(tmp_path):
 
     sc = AuvScenario(duration=4.0, diagnosers=("voltage_residual",), variant="diagnosed",
                      faults=(Fault("thruster2_off", "actuator_float", "thruster2", onset=2.0),))
-    cal = AuvCalibration(np.zeros(3), {"voltage_residual": np.full(8, 1.0)}, 10, sc.control_dt)
+    cal = AuvCalibration(np.zeros(3), {"voltage_residual": np.full(8, 1.0)}, 10, sc.plant.control_dt)
     record = build_loop(sc, cal).run(sc.duration, sc.start_pose, seed=0)
     times = thruster_detection_times(record, "voltage_residual", [f"thruster{i}" for i in range(1, 9)])
     assert set(times) == {"thruster2"} and 2.0 <= times["thruster2"] <= 2.5

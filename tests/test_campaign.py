@@ -243,12 +243,12 @@ def test_shipped_specs_are_valid_and_installed():
     auv, hyd = load_spec("auv"), load_spec("hydraulic")
     assert {f.kind for f in auv.faults} >= {"actuator_float", "component_thruster_blocking", "component_thruster_flooding",
                                             "actuator_loss_of_effectiveness", "sensor_dropout", "sensor_bias"}
-    assert auv.faults[0].limits["thruster8"] == (40.0, "N") and auv.options.duration == 60.0
+    assert auv.faults[0].limits["thruster8"] == (40.0, "N") and auv.options.scenario.duration == 60.0
     assert {f.kind for f in hyd.faults} >= {"component_open_winding", "component_valve_sticking", "component_leak"}
     assert hyd.faults[2].limits["motor"] == (0.05, "mm^2")
     assert load_spec("helicopter").faults[0].targets == ("collective", "cyclic")
     arm = load_spec("arm")
-    assert arm.system == "arm" and arm.runs >= 200 and arm.options.robot == "arm6.xml"
+    assert arm.system == "arm" and arm.runs >= 200 and arm.options.plant.robot == "arm6.xml"
     # a magnitude as a fraction of the target's limit: the arm's motor torque limits from its MJCF
     additive = arm.faults[0]
     assert additive.limits["joint1"] == (400.0, "N·m") and additive.limits["joint6"] == (50.0, "N·m")

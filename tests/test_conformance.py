@@ -134,7 +134,7 @@ def _auv_setup():
                       reference_columns=cols, reference_units=units)
     rec = loop.run(3.0, sc.start_pose, seed=0)
     y = rec.signals["y_meas"]
-    theta = identify_current_characteristic(y[:, 13:13 + p], y[:, 13 + p:13 + 2 * p], sc.control_dt,
+    theta = identify_current_characteristic(y[:, 13:13 + p], y[:, 13 + p:13 + 2 * p], sc.plant.control_dt,
                                             sc.current_map_filter)
     arx = identify_depth_arx(*auv._arx_series([rec], model, 5))
     samples = _samples(rec)

@@ -126,7 +126,7 @@ class _BrokenEncoder(ArmSimulator):
 
 def test_a_failing_run_keeps_what_it_recorded(ch3):
     sc, cal = ch3
-    sim = _BrokenEncoder(sc.mjcf)
+    sim = _BrokenEncoder(sc.plant.robot)
     model = sim.nominal_model()
     d = arm_schemes(model, sc.scheme_settings(sc.rates), cal.theta0, ["recursive"])["recursive"]
     loop = ClosedLoop(sim, ComputedTorque(model), sc.motion, (), {"recursive": Diagnosis(d)}, Rates(1000, 500))

@@ -39,6 +39,7 @@ try:
 except ModuleNotFoundError:          # Python 3.10
     import tomli as tomllib
 
+from robofdi.config import compose
 from robofdi.protocols import System
 from robofdi.seeding import check_seed
 from robofdi.systems import fault_limit, get_system
@@ -284,12 +285,13 @@ def parse_spec(data: dict, source: str = "spec") -> CampaignSpec:
 
 
 def _options(where: str, system: System, table: dict):
-    cls = system.options_type
-    _known_keys(where, table, cls)
-    kwargs = {k: (tuple(v) if isinstance(v, list) else v) for k, v in table.items()}
+    if not isinstance(table, dict):
+        raise RobofdiError(f"{where}: expected a table, got {table!r}")
     try:
-        return cls(**kwargs)
+        return compose(system.options_type, table, where)   # flat names or nested tables per part
     except RobofdiError as exc:
+        if str(exc).startswith(f"{where}:"):
+            raise
         raise RobofdiError(f"{where}: {exc}".replace("system: system", "system")) from None
     except TypeError as exc:
         raise RobofdiError(f"{where}: {exc}") from None

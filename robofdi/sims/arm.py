@@ -40,14 +40,15 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
-from robofdi.checks import is_number
+from robofdi.checks import check_fields, is_number
+from robofdi.config import part
 from robofdi.errors import RobofdiError, all_finite
 from robofdi.mjcf import CompiledArm, compile_arm
 from robofdi.models.manipulator import ManipulatorModel, ModelMismatch, sensor_channel_names
 from robofdi.seeding import stream
 from robofdi.sims.noise import ChannelNoise
 
-__all__ = ["TorqueRipple", "StribeckFriction", "SensorModel", "ArmSettings", "ArmSimulator", "add_point_mass",
+__all__ = ["TorqueRipple", "StribeckFriction", "SensorModel", "ArmSettings", "ArmSimulator", "ArmPlant", "add_point_mass",
            "arm_settings", "full_mass_matrix"]
 
 _RIPPLE_MODES = ("physical", "low", "off")
@@ -282,6 +283,46 @@ def _as_slice(index: np.ndarray):
     if index.size and np.array_equal(index, np.arange(index[0], index[0] + index.size)):
         return slice(int(index[0]), int(index[0]) + index.size)
     return index
+
+
+@dataclass(frozen=True)
+class ArmPlant:
+    """The arm simulator's configuration (the truth), one part of every arm configuration (:mod:`robofdi.config`).
+
+    robot: MJCF file (a shipped asset name or a path); joints / torque_motors / drive_inertia [s²] / payload [kg] /
+    sensors: as :class:`ArmSimulator`; ripple_mode: :class:`TorqueRipple`'s mode. :meth:`simulator` builds the
+    plant for one robot instance (``seed``: its ripple phases) at a control period."""
+
+    robot: str = "arm6.xml"
+    joints: tuple | None = None
+    torque_motors: bool = False
+    drive_inertia: float = 0.0
+    ripple_mode: str = "physical"
+    sensors: SensorModel = part(SensorModel)
+    payload: float = 0.0
+
+    def __post_init__(self):
+        if isinstance(self.robot, Path):
+            object.__setattr__(self, "robot", str(self.robot))
+        if self.joints is not None and not isinstance(self.joints, str):
+            object.__setattr__(self, "joints", tuple(self.joints))
+        check_fields("ArmPlant", self, [
+            ("robot", isinstance(self.robot, str) and self.robot.strip(), "an MJCF file name or path"),
+            ("joints", self.joints is None or (isinstance(self.joints, tuple) and self.joints
+                                               and all(isinstance(j, str) for j in self.joints)),
+             "a non-empty list of joint names or none"),
+            ("torque_motors", isinstance(self.torque_motors, bool), "true or false"),
+            ("drive_inertia", is_number(self.drive_inertia) and self.drive_inertia >= 0, "a number >= 0 [s²]"),
+            ("ripple_mode", self.ripple_mode in _RIPPLE_MODES, f"one of {list(_RIPPLE_MODES)}"),
+            ("sensors", isinstance(self.sensors, SensorModel), "a SensorModel"),
+            ("payload", is_number(self.payload) and self.payload >= 0, "a finite mass >= 0 kg"),
+        ])
+
+    def simulator(self, seed: int = 0, control_dt: float | None = None) -> ArmSimulator:
+        """The plant of robot instance ``seed`` (ripple phases) at ``control_dt`` [s] (None: ≈ 1 ms)."""
+        return ArmSimulator(self.robot, control_dt=control_dt, ripple=TorqueRipple(self.ripple_mode),
+                            sensors=self.sensors, payload=self.payload, joints=self.joints,
+                            torque_motors=self.torque_motors, drive_inertia=self.drive_inertia, seed=seed)
 
 
 @dataclass(eq=False)

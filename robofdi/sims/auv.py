@@ -34,6 +34,8 @@ from pathlib import Path
 import mujoco
 import numpy as np
 
+from robofdi.checks import check_fields, is_number, is_positive
+from robofdi.config import part
 from robofdi.errors import RobofdiError, all_finite
 from robofdi.models.auv import (
     ODIN_LIKE, ODIN_THRUSTER, AuvModel, AuvModelMismatch, FossenParameters, ThrusterParameters, euler_from_rotation,
@@ -43,7 +45,7 @@ from robofdi.mjcf import resolve_asset
 from robofdi.seeding import stream
 from robofdi.sims.noise import ChannelNoise
 
-__all__ = ["AuvSensors", "AuvSimulator", "NAVIGATION_CHANNELS", "telemetry_channels"]
+__all__ = ["AuvSensors", "AuvSimulator", "AuvPlant", "NAVIGATION_CHANNELS", "telemetry_channels"]
 
 #: Navigation channels, in measurement order (then the thruster telemetry).
 NAVIGATION_CHANNELS = ("x", "y", "depth", "altitude", "roll", "pitch", "yaw", "u", "v", "w", "p", "q", "r")
@@ -292,3 +294,34 @@ class AuvSimulator:
             y = y + self._sigma * self._noise.draw()
             y[6] = (y[6] + np.pi) % (2 * np.pi) - np.pi
         return y
+
+
+@dataclass(frozen=True)
+class AuvPlant:
+    """The AUV simulator's configuration (the truth) as the AUV's configurations hold it (:mod:`robofdi.config`):
+    mjcf, control_dt [s], current [m/s], sensors, thrust_limit [N], floor_depth [m], with :class:`AuvSimulator`'s
+    defaults (declared there). :meth:`simulator` builds the plant; it validates every field."""
+
+    mjcf: str = AuvSimulator.mjcf
+    control_dt: float = AuvSimulator.control_dt
+    current: tuple = AuvSimulator.current
+    sensors: AuvSensors = part(AuvSensors)
+    thrust_limit: float = AuvSimulator.thrust_limit
+    floor_depth: float = AuvSimulator.floor_depth
+
+    def __post_init__(self):
+        if not isinstance(self.current, str):
+            object.__setattr__(self, "current", tuple(self.current))
+        check_fields("AuvPlant", self, [
+            ("mjcf", isinstance(self.mjcf, (str, Path)) and str(self.mjcf).strip(), "an MJCF file name or path"),
+            ("control_dt", is_positive(self.control_dt, 1.0), "a period in (0, 1] s"),
+            ("current", isinstance(self.current, tuple) and len(self.current) == 3
+             and all(is_number(c) for c in self.current), "three finite velocities [m/s] (world x, y, z)"),
+            ("sensors", isinstance(self.sensors, AuvSensors), "an AuvSensors"),
+            ("thrust_limit", is_positive(self.thrust_limit), "a force > 0 N"),
+            ("floor_depth", is_positive(self.floor_depth), "a depth > 0 m"),
+        ])
+
+    def simulator(self, seed: int = 0) -> AuvSimulator:
+        return AuvSimulator(self.mjcf, self.control_dt, current=self.current, sensors=self.sensors,
+                            thrust_limit=self.thrust_limit, floor_depth=self.floor_depth, seed=seed)

@@ -29,7 +29,8 @@ import mujoco
 import numpy as np
 
 from robofdi.calibration import cached
-from robofdi.checks import check_fields, is_int, is_number
+from robofdi.checks import check_fields, check_robot_seeds, is_int, is_number
+from robofdi.config import compose, part
 from robofdi.control import ComputedTorque, MotionLimits, calibration_motions, random_point_to_point
 from robofdi.decision import (
     STARTUP_BLANKING,
@@ -49,20 +50,28 @@ from robofdi.observers.spectral import ripple_initial_parameters
 from robofdi.protocols import Mission, Parts, TargetLimit
 from robofdi.record import Record
 from robofdi.seeding import rng
-from robofdi.sims import ArmSimulator, SensorModel, TorqueRipple
+from robofdi.sims import ArmSimulator
+from robofdi.sims.arm import ArmPlant
 from robofdi.systems import RobotInstances, register_system
 
-__all__ = ["ArmScenario", "arm_scenario", "Calibration", "calibration_trajectories", "calibration_records", "calibrate",
-           "calibration", "run_scenario", "build_loop", "check_scenario"]
+__all__ = ["ArmScenario", "ArmOptions", "ArmMissions", "ARM_MISMATCH", "arm_scenario", "Calibration",
+           "calibration_trajectories", "calibration_records", "calibrate",
+           "calibration", "parts", "run_scenario", "build_loop", "check_scenario"]
 
 ACCOMMODATIONS = (None, "compensation")
+#: The diagnosers' belief of an arm by default: 2 % mass and inertia, 5 % damping errors (seeded per robot instance).
+ARM_MISMATCH = ModelMismatch(mass=0.02, inertia=0.02, damping=0.05)
 #: Schemes whose thresholds are also calibrated in the book's state space (reported next to the book's).
 STATE_SPACE_SCHEMES = ("time_delayed", "recursive")
 
 
 @dataclass(frozen=True)
 class ArmScenario:
-    """Everything that defines one arm run.
+    """Everything that defines one arm run, composed (:mod:`robofdi.config`) of the simulator's configuration
+    ``plant`` (:class:`~robofdi.sims.arm.ArmPlant`: robot file, joints, drives, ripple, sensors, payload), the
+    nominal model's ``mismatch`` (:class:`~robofdi.models.ModelMismatch`, seeded by ``seed``) and the diagnosis
+    ``settings`` (:class:`~robofdi.observers.arm_schemes.ArmSchemeSettings`); :func:`robofdi.config.compose` /
+    :func:`~robofdi.config.evolve` name their fields flat (``evolve(sc, robot="ur5e.xml", payload=1.0)``).
 
     ``motion``: the reference, a trajectory giving (q_d, q̇_d, q̈_d) with an ``end`` [s]; the run starts at rest
     at its first pose. ``duration`` None = motion end + 1 s. ``seed`` draws the robot's ripple phases and the
@@ -70,8 +79,7 @@ class ArmScenario:
     record. ``rates`` None: control at the simulator's control period (≈ 1 kHz, a multiple of the physics step
     of the file), diagnosis at 500 Hz where that divides the control rate, else at the control rate.
     ``calibration``: fault-free calibration motions by name; None derives them from the robot.
-    ``drive_inertia`` [s²]: armature floor per unit torque limit, for files without rotor inertia
-    (:func:`robofdi.mjcf.compile_arm`). ``accommodation``: None or "compensation" (subtract the identified
+    ``accommodation``: None or "compensation" (subtract the identified
     actuator fault after isolation) with health from ``health_source`` (a scheme name or "oracle").
     """
 
@@ -80,18 +88,12 @@ class ArmScenario:
     duration: float | None = None
     faults: tuple = ()
     injection: str = "online"
-    mjcf: str = "arm6.xml"
-    joints: tuple | None = None
-    torque_motors: bool = False
-    drive_inertia: float = 0.0
+    plant: ArmPlant = part(ArmPlant)
+    mismatch: ModelMismatch = part(ModelMismatch, lambda: ARM_MISMATCH)
     seed: int = 0
     rates: Rates | None = None
     schemes: tuple = BOOK_SCHEMES
-    settings: ArmSchemeSettings = field(default_factory=ArmSchemeSettings)
-    mismatch: ModelMismatch = field(default_factory=lambda: ModelMismatch(mass=0.02, inertia=0.02, damping=0.05))
-    ripple_mode: str = "physical"
-    sensors: SensorModel = field(default_factory=SensorModel)
-    payload: float = 0.0
+    settings: ArmSchemeSettings = part(ArmSchemeSettings)
     threshold_margin: float = 1.2
     startup_blanking: float = STARTUP_BLANKING
     calibration: Mapping | None = None
@@ -101,6 +103,9 @@ class ArmScenario:
     def __post_init__(self):
         if not all(isinstance(f, Fault) for f in self.faults):
             raise RobofdiError("ArmScenario: field 'faults' must hold Fault objects")
+        for name, kind in (("plant", ArmPlant), ("mismatch", ModelMismatch), ("settings", ArmSchemeSettings)):
+            if not isinstance(getattr(self, name), kind):
+                raise RobofdiError(f"ArmScenario: field {name!r} must be a {kind.__name__}, got {getattr(self, name)!r}")
         object.__setattr__(self, "faults", tuple(self.faults))
         if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or self.seed < 0:
             raise RobofdiError(f"ArmScenario: field 'seed' must be an integer >= 0, got {self.seed!r}")
@@ -108,6 +113,15 @@ class ArmScenario:
             raise RobofdiError("ArmScenario: field 'motion' must be a trajectory (t -> (q, q̇, q̈), with .end)")
         if self.duration is not None and not (np.isfinite(self.duration) and self.duration > 0):
             raise RobofdiError(f"ArmScenario: field 'duration' must be None or > 0 s, got {self.duration}")
+        object.__setattr__(self, "schemes", tuple(self.schemes))
+        check_fields("ArmScenario", self, [
+            ("injection", self.injection in ("online", "offline"), "'online' or 'offline'"),
+            ("schemes", len(self.schemes) > 0, f"a non-empty subset of {list(SCHEMES)}"),
+            ("threshold_margin", is_number(self.threshold_margin) and self.threshold_margin >= 1, "a number >= 1"),
+            ("startup_blanking", is_number(self.startup_blanking) and 0 <= self.startup_blanking < self.run_duration,
+             "a time in [0, run duration) s"),
+            ("rates", self.rates is None or isinstance(self.rates, Rates), "None or a Rates"),
+        ])
         unknown = [s for s in self.schemes if s not in SCHEMES]
         if unknown:
             raise RobofdiError(f"ArmScenario: field 'schemes' has unknown scheme(s) {unknown}; "
@@ -129,11 +143,8 @@ class ArmScenario:
         return np.asarray(self.motion(0.0)[0], dtype=float)
 
     def simulator(self) -> ArmSimulator:
-        """The truth: the MJCF in MuJoCo with this scenario's ripple, sensors and payload (robot seed)."""
-        control_dt = None if self.rates is None else 1.0 / self.rates.control_hz
-        return ArmSimulator(self.mjcf, joints=self.joints, control_dt=control_dt,
-                            ripple=TorqueRipple(self.ripple_mode), sensors=self.sensors, payload=self.payload,
-                            seed=self.seed, torque_motors=self.torque_motors, drive_inertia=self.drive_inertia)
+        """The truth: the plant in MuJoCo for this scenario's robot instance (seed) and control rate."""
+        return self.plant.simulator(self.seed, None if self.rates is None else 1.0 / self.rates.control_hz)
 
     def nominal_model(self, sim: ArmSimulator) -> ManipulatorModel:
         """The diagnosers' belief: the same file read into Pinocchio, with this scenario's seeded errors."""
@@ -289,12 +300,12 @@ def _calibration_description(scenario: ArmScenario, sim: ArmSimulator, trajector
     (:mod:`robofdi.calibration` adds the code)."""
     return {
         "robot": hashlib.sha256(mujoco.MjSpec.from_file(str(sim.path)).to_xml().encode()).hexdigest(),
-        "joints": list(sim.joint_names), "torque_motors": scenario.torque_motors, "seed": scenario.seed,
-        "ripple": scenario.ripple_mode, "sensors": repr(scenario.sensors), "payload": scenario.payload,
+        "joints": list(sim.joint_names), "torque_motors": scenario.plant.torque_motors, "seed": scenario.seed,
+        "ripple": scenario.plant.ripple_mode, "sensors": repr(scenario.plant.sensors), "payload": scenario.plant.payload,
         "mismatch": repr(scenario.mismatch), "rates": repr(scenario.loop_rates(sim)), "settings": repr(scenario.settings),
         "schemes": list(scenario.schemes), "margin": scenario.threshold_margin, "blanking": scenario.startup_blanking,
         "motions": {k: repr(v) for k, v in trajectories.items()},
-    } | ({"drive_inertia": float(scenario.drive_inertia)} if scenario.drive_inertia else {})
+    } | ({"drive_inertia": float(scenario.plant.drive_inertia)} if scenario.plant.drive_inertia else {})
 
 
 def calibration(scenario: ArmScenario, progress: Callable[[int], None] | None = None,
@@ -347,22 +358,30 @@ def check_scenario(scenario: ArmScenario) -> None:
     check_faults(scenario.faults, sim, scenario.run_duration, scenario.injection)
 
 
-def run_scenario(scenario: ArmScenario, cal: Calibration, progress: Callable[[int], None] | None = None,
-                 run_key: str = "run") -> Record:
-    """The scenario's closed-loop run with every scheme and its threshold decision in the loop."""
+def parts(scenario: ArmScenario, cal: Calibration, run_key: str = "run", seed: int | None = None) -> Parts:
+    """The scenario's run, built once (:class:`~robofdi.protocols.Parts`): its closed loop (:func:`build_loop`) with
+    every scheme and its threshold decision, the start pose, the run's noise seed (default the scenario's, which
+    also seeds the robot instance) and the record's metadata. Experiments, the command line and campaigns
+    (:meth:`ArmSystem.build`) all run the arm through it."""
     loop = build_loop(scenario, cal)
-    sim = loop.simulator
+    sim, plant = loop.simulator, scenario.plant
     meta = {
         "mjcf": str(sim.path),
         "joint_names": list(sim.joint_names),
         "primary_diagnoser": "adaptive" if "adaptive" in loop.diagnoses else next(iter(loop.diagnoses), None),
-        "ripple_mode": scenario.ripple_mode,
-        "sensors": asdict(scenario.sensors),
+        "ripple_mode": plant.ripple_mode,
+        "sensors": asdict(plant.sensors),
         "mismatch": {k: getattr(scenario.mismatch, k) for k in ("mass", "inertia", "damping", "armature")},
-        "payload": scenario.payload,
+        "payload": plant.payload,
     }
-    return loop.run(scenario.run_duration, scenario.start_pose, seed=scenario.seed, run_key=run_key,
-                    scenario=scenario.name, meta=meta, progress=progress)
+    return Parts(loop, scenario.run_duration, scenario.start_pose, scenario.seed if seed is None else seed, run_key,
+                 scenario.name, meta)
+
+
+def run_scenario(scenario: ArmScenario, cal: Calibration, progress: Callable[[int], None] | None = None,
+                 run_key: str = "run") -> Record:
+    """The scenario's closed-loop run with every scheme and its threshold decision in the loop (:func:`parts`)."""
+    return parts(scenario, cal, run_key).run(progress)
 
 
 def _default_fault(joint_names, torque_limit: np.ndarray, motion_end: float, seed: int) -> Fault:
@@ -378,70 +397,76 @@ def arm_scenario(robot: str | Path = "arm6.xml", faults=(), seed: int = 0, joint
     online. ``faults``: Fault objects or SPEC strings (:mod:`robofdi.faults.spec`); none = a step of 25 % of the
     torque limit on a seeded random joint at 40 % of the motion. Every scheme runs (the book's, the momentum
     baseline and the consistency scheme) unless ``schemes`` says otherwise. Everything is checked at once,
-    before any calibration; ``overrides`` go to :class:`ArmScenario`."""
+    before any calibration; ``overrides`` name any field of :class:`ArmScenario` or of its parts, flat
+    (:func:`robofdi.config.compose`: ``payload=1.0``, ``velocity_noise=0.0``, ``mass=0.05``)."""
     overrides.setdefault("schemes", SCHEMES)
     faults = tuple(faults)
     if faults and all(isinstance(f, str) for f in faults):
         faults = parse_fault_specs(faults)
-    sim = ArmSimulator(robot, joints=joints, torque_motors=torque_motors, drive_inertia=drive_inertia, seed=seed)
+    plant = ArmPlant(robot, joints, torque_motors, drive_inertia)
+    sim = plant.simulator(seed)
     model = sim.nominal_model()          # the catalogue model plans the motion (belief, never the plant)
     limits = MotionLimits.from_ranges(sim.joint_range[:, 0], sim.joint_range[:, 1], model.torque_limit)
     motion = random_point_to_point(model, limits, seed)
     if not faults:
         faults = (_default_fault(sim.joint_names, model.torque_limit, motion.end, seed),)
-    sc = ArmScenario(f"arm-{sim.system}", motion=motion, faults=faults, mjcf=str(robot), joints=tuple(sim.joint_names),
-                     torque_motors=torque_motors, drive_inertia=drive_inertia, seed=seed, **overrides)
+    sc = compose(ArmScenario, overrides, name=f"arm-{sim.system}", motion=motion, faults=faults,
+                 plant=replace(plant, joints=tuple(sim.joint_names)), seed=seed)
     check_scenario(sc)
     return sc
 
 
 # ---------------------------------------------------------------------------------------------------- the system
 @dataclass(frozen=True)
-class ArmOptions:
-    """The ``[system]`` table of an arm campaign.
+class ArmMissions:
+    """How an arm campaign draws its missions: seeded point-to-point motions from random start poses
+    (:func:`robofdi.control.random_point_to_point`). speed: "fast" | "normal" | "slow" or a factor >= 1
+    (:data:`robofdi.control.SPEEDS`); segments: point-to-point segments per motion; tail: time after the
+    motion's end [s]."""
 
-    robot: MJCF file (default the shipped arm6.xml); joints / torque_motors / drive_inertia: as :class:`ArmScenario`;
-    robot_seeds: one robot instance per seed (ripple phases, nominal-model errors), one calibration each, runs
-    cycle through them; speed: "fast" | "normal" | "slow" or a factor >= 1 (:data:`robofdi.control.SPEEDS`);
-    segments: point-to-point segments per motion; tail: time after the motion's end [s]; injection: "online" |
-    "offline"."""
-
-    robot: str = "arm6.xml"
-    joints: tuple | None = None
-    torque_motors: bool = False
-    drive_inertia: float = 0.0
-    robot_seeds: tuple = (0,)
     speed: Any = "normal"
     segments: int = 1
     tail: float = 1.0
-    injection: str = "online"
 
     def __post_init__(self):
         from robofdi.control import SPEEDS
 
-        object.__setattr__(self, "robot_seeds", tuple(self.robot_seeds))
-        if self.joints is not None:
-            object.__setattr__(self, "joints", tuple(self.joints))
-        check_fields("system", self, [
-            ("robot", isinstance(self.robot, str) and self.robot, "an MJCF file name or path"),
-            ("robot_seeds", self.robot_seeds and all(is_int(s) for s in self.robot_seeds), "a non-empty list of integers >= 0"),
+        check_fields("ArmMissions", self, [
             ("speed", self.speed in SPEEDS or (isinstance(self.speed, (int, float)) and not isinstance(self.speed, bool)
                                                 and self.speed >= 1), f"one of {sorted(SPEEDS)} or a number >= 1"),
             ("segments", is_int(self.segments, 1), "an integer >= 1"),
             ("tail", isinstance(self.tail, (int, float)) and 0 <= self.tail < 60, "a time in [0, 60) s"),
-            ("injection", self.injection in ("online", "offline"), "'online' or 'offline'"),
-            ("torque_motors", isinstance(self.torque_motors, bool), "true or false"),
-            ("drive_inertia", is_number(self.drive_inertia) and self.drive_inertia >= 0, "a number >= 0 [s²]"),
         ])
+
+
+@dataclass(frozen=True)
+class ArmOptions:
+    """The arm system's configuration (a campaign's ``[system]`` table), composed of the simulator's
+    configuration ``plant`` (:class:`~robofdi.sims.arm.ArmPlant`: robot file, default the shipped arm6.xml;
+    joints, torque_motors, drive_inertia, ripple, sensors, payload), the nominal model's ``mismatch``
+    (:class:`~robofdi.models.ModelMismatch`) and the mission draw ``missions`` (:class:`ArmMissions`: speed,
+    segments, tail); fields are named flat or as nested tables (:mod:`robofdi.config`). robot_seeds: one robot
+    instance per seed (ripple phases, nominal-model errors), one calibration each, runs cycle through them;
+    injection: "online" | "offline"."""
+
+    plant: ArmPlant = part(ArmPlant)
+    mismatch: ModelMismatch = part(ModelMismatch, lambda: ARM_MISMATCH)
+    missions: ArmMissions = part(ArmMissions)
+    robot_seeds: tuple = (0,)
+    injection: str = ArmScenario.injection
+
+    def __post_init__(self):
+        check_robot_seeds(self)
+        check_fields("system", self, [("injection", self.injection in ("online", "offline"), "'online' or 'offline'")])
+        if self.mismatch.seed:
+            raise RobofdiError("system: field 'seed' is not an option of the arm: each robot instance's seed "
+                               "(robot_seeds) seeds its nominal-model errors, and the campaign's seed its runs")
 
 
 @functools.lru_cache(maxsize=8)
 def _arm(robot: str, joints, torque_motors: bool, drive_inertia: float):
     """(simulator, catalogue model, motion limits) of a robot, once per process (the catalogue model plans motions)."""
-    from robofdi.control import MotionLimits
-    from robofdi.sims import ArmSimulator
-
-    sim = ArmSimulator(robot, joints=joints, torque_motors=torque_motors, drive_inertia=drive_inertia)
+    sim = ArmPlant(robot, joints, torque_motors, drive_inertia).simulator()
     model = sim.nominal_model()
     return sim, model, MotionLimits.from_ranges(sim.joint_range[:, 0], sim.joint_range[:, 1], model.torque_limit)
 
@@ -456,13 +481,12 @@ class ArmSystem(RobotInstances):
 
     def _base(self, options: ArmOptions):
         try:
-            return _arm(options.robot, options.joints, options.torque_motors, options.drive_inertia)
+            p = options.plant
+            return _arm(p.robot, p.joints, p.torque_motors, p.drive_inertia)
         except RobofdiError as exc:
             raise RobofdiError(f"system.robot: {exc}") from None
 
     def diagnosers(self, options):
-        from robofdi.observers.arm_schemes import SCHEMES
-
         return SCHEMES
 
     def targets(self, options):
@@ -479,29 +503,26 @@ class ArmSystem(RobotInstances):
                 "component_mass": {b: masses[b] for b in sim.component_kinds["component_mass"]}}
 
     def _scenario(self, options, key, diagnosers, motion=None, duration=None, faults=()):
-
-        sim, model, limits = self._base(options)
+        sim, _, _ = self._base(options)
         if motion is None:
             motion = self.mission(options, key, rng(key, "campaign", "calibration-placeholder")).plan
         return ArmScenario("campaign-arm", motion=motion, duration=duration, faults=tuple(faults),
-                           injection=options.injection, mjcf=options.robot, joints=tuple(sim.joint_names),
-                           torque_motors=options.torque_motors, drive_inertia=options.drive_inertia, seed=int(key),
-                           schemes=tuple(diagnosers))
+                           injection=options.injection, plant=replace(options.plant, joints=tuple(sim.joint_names)),
+                           mismatch=options.mismatch, seed=int(key), schemes=tuple(diagnosers))
 
     def calibrate(self, options, key, diagnosers):
-
         return calibration(self._scenario(options, key, diagnosers))
 
     def mission(self, options, key, generator):
-        from robofdi.control import random_point_to_point
-
         _, model, limits = self._base(options)
-        motion = random_point_to_point(model, limits, generator, options.segments, speed=options.speed)
+        missions = options.missions
+        motion = random_point_to_point(model, limits, generator, missions.segments, speed=missions.speed)
         start = np.asarray(motion(0.0)[0], dtype=float)
-        return Mission(float(motion.end) + float(options.tail), motion,
+        return Mission(float(motion.end) + float(missions.tail), motion,
                        {"start_pose": [round(float(v), 6) for v in start], "motion_end": float(motion.end)})
 
     def build(self, options, calibration, key, mission, faults, seed, diagnosers):
         sc = self._scenario(options, key, diagnosers, mission.plan, mission.duration, faults)
-        return Parts(build_loop(sc, calibration), sc.run_duration, sc.start_pose, seed, "campaign", sc.name,
-                     {"robot_seed": int(key)})
+        built = parts(sc, calibration, "campaign", seed)    # the robot instance (key) seeded the plant and belief
+        built.meta["robot_seed"] = int(key)
+        return built

@@ -18,13 +18,14 @@ missions drawn from a seed and runs; :class:`robofdi.protocols.System`) closes t
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from robofdi.calibration import cached
 from robofdi.checks import check_fields, check_robot_seeds, is_int, is_positive
+from robofdi.config import part
 from robofdi.control.auv import POSE_NAMES, MissionLimits, TaskSpaceAuvControl, random_mission
 from robofdi.control.trajectory import Sequence as Mission
 from robofdi.decision import NisBankDecision, ThresholdDecision, calibrate_thresholds, startup_samples
@@ -49,7 +50,7 @@ from robofdi.protocols import Mission as CampaignMission
 from robofdi.protocols import Parts, TargetLimit
 from robofdi.record import Record
 from robofdi.seeding import rng
-from robofdi.sims.auv import AuvSensors, AuvSimulator
+from robofdi.sims.auv import AuvPlant, AuvSimulator
 from robofdi.systems import RobotInstances, register_system
 
 __all__ = ["AuvScenario", "AuvCalibration", "calibration", "calibration_description",
@@ -137,10 +138,13 @@ def draw_mission(seed: int, duration: float, limits: MissionLimits | None = None
 
 @dataclass(frozen=True)
 class AuvScenario:
-    """One AUV scenario: vehicle, mission, faults, diagnosers, accommodation.
+    """One AUV scenario: vehicle, mission, faults, diagnosers, accommodation; composed (:mod:`robofdi.config`) of
+    the simulator's configuration ``plant`` (:class:`~robofdi.sims.auv.AuvPlant`: mjcf, control_dt [s] — diagnosis
+    runs at the control rate —, current [m/s], sensors, thrust_limit [N], floor_depth [m]) and the belief's
+    ``mismatch`` (:class:`~robofdi.models.auv.AuvModelMismatch`).
 
     mission: "odin" (:func:`odin_mission`) or "random" (:func:`draw_mission` from ``seed``); duration [s];
-    current [m/s] world-frame ocean current; control_dt [s] (diagnosis at the control rate); allocation: one of
+    allocation: one of
     :data:`~robofdi.ftc.allocation.ALLOCATORS`; variant: one of :data:`VARIANTS`; health_source: the diagnoser whose
     health the "diagnosed" variant uses; calibration_runs × calibration_duration [s] of fault-free missions;
     threshold_margin ≥ 1; blanking [s] of start-up samples; current_map_filter [s]: time constant of the current
@@ -151,20 +155,16 @@ class AuvScenario:
     """
 
     name: str = "ch4-auv"
-    mjcf: str = AuvSimulator.mjcf                   # the simulator's defaults, declared once in AuvSimulator
+    plant: AuvPlant = part(AuvPlant)
+    mismatch: AuvModelMismatch = part(AuvModelMismatch)
     mission: str = "odin"
     duration: float = 120.0
     seed: int = 0
     faults: tuple = ()
-    current: tuple = AuvSimulator.current
-    control_dt: float = AuvSimulator.control_dt
-    sensors: AuvSensors = field(default_factory=AuvSensors)
-    mismatch: AuvModelMismatch = field(default_factory=AuvModelMismatch)
     diagnosers: tuple = DIAGNOSERS
     allocation: str = "constrained"
     variant: str = "diagnosed"
     health_source: str = "voltage_residual"
-    thrust_limit: float = AuvSimulator.thrust_limit
     calibration_runs: int = 3
     calibration_duration: float = 240.0
     threshold_margin: float = 2.0
@@ -172,7 +172,6 @@ class AuvScenario:
     start_depth: float = 5.0
     current_map_filter: float = 0.5
     depth_redundancy: bool = False
-    floor_depth: float = AuvSimulator.floor_depth
     ekf_window: float = 2.0
     ekf_margin: float = 1.1
     plan: Any = None
@@ -203,8 +202,7 @@ class AuvScenario:
                 raise RobofdiError(f"AuvScenario: field 'faults' must hold Fault objects, got {f!r}")
 
     def simulator(self) -> AuvSimulator:
-        return AuvSimulator(self.mjcf, self.control_dt, current=self.current, sensors=self.sensors,
-                            thrust_limit=self.thrust_limit, floor_depth=self.floor_depth, seed=self.seed)
+        return self.plant.simulator(self.seed)
 
     def nominal_model(self, sim: AuvSimulator) -> AuvModel:
         return sim.nominal_model(self.mismatch)
@@ -238,25 +236,26 @@ class AuvCalibration:
 
 
 def _depth_vote(scenario: AuvScenario, model: AuvModel, channels, arx) -> DepthVote:
-    return DepthVote(model, channels, scenario.control_dt, arx, scenario.floor_depth, thrust_limit=scenario.thrust_limit)
+    plant = scenario.plant
+    return DepthVote(model, channels, plant.control_dt, arx, plant.floor_depth, thrust_limit=plant.thrust_limit)
 
 
 def _ekf_bank(scenario: AuvScenario, model: AuvModel, channels, process_noise: float) -> EkfBank:
-    return EkfBank(model, channels, scenario.control_dt, process_noise, window=scenario.ekf_window,
-                   thrust_limit=scenario.thrust_limit)
+    return EkfBank(model, channels, scenario.plant.control_dt, process_noise, window=scenario.ekf_window,
+                   thrust_limit=scenario.plant.thrust_limit)
 
 
 def _diagnosers(scenario: AuvScenario, model: AuvModel, channels, characteristic, arx=None, ekf_q=None,
                 supply_resistance: float = 0.0) -> dict:
-    T = scenario.control_dt
+    T = scenario.plant.control_dt
     make = {
         "ekf_bank": lambda: _ekf_bank(scenario, model, channels, ekf_q or 1.0),
         "depth_vote": lambda: _depth_vote(scenario, model, channels, arx),
-        "voltage_residual": lambda: VoltageResidual(model, channels, T, thrust_limit=scenario.thrust_limit,
+        "voltage_residual": lambda: VoltageResidual(model, channels, T, thrust_limit=scenario.plant.thrust_limit,
                                                     supply_resistance=supply_resistance),
         "current_map": lambda: CurrentMap(model, channels, T, characteristic, tau=scenario.current_map_filter,
-                                          thrust_limit=scenario.thrust_limit),
-        "force_observer": lambda: ForceObserver(model, channels, T, thrust_limit=scenario.thrust_limit),
+                                          thrust_limit=scenario.plant.thrust_limit),
+        "force_observer": lambda: ForceObserver(model, channels, T, thrust_limit=scenario.plant.thrust_limit),
     }
     return {name: make[name]() for name in scenario.diagnosers}
 
@@ -266,7 +265,7 @@ def _controller(model: AuvModel) -> TaskSpaceAuvControl:
 
 
 def _allocation(scenario: AuvScenario, model: AuvModel) -> ThrustReallocation:
-    return ThrustReallocation(model.B, model.thrusters, scenario.thrust_limit, scenario.allocation)
+    return ThrustReallocation(model.B, model.thrusters, scenario.plant.thrust_limit, scenario.allocation)
 
 
 def _reference_columns() -> tuple[list[str], list[str]]:
@@ -322,13 +321,13 @@ def calibrate(scenario: AuvScenario, progress: Callable[[int], None] | None = No
     p = len(sim.actuators)
     speed = np.vstack([r.signals["y_meas"][:, 13:13 + p] for r in records])
     current = np.vstack([r.signals["y_meas"][:, 13 + p:13 + 2 * p] for r in records])
-    theta = identify_current_characteristic(speed, current, scenario.control_dt, scenario.current_map_filter)
+    theta = identify_current_characteristic(speed, current, scenario.plant.control_dt, scenario.current_map_filter)
     arx = identify_depth_arx(*_arx_series(records, model, 5))
-    skip = startup_samples(scenario.control_dt, scenario.blanking)
+    skip = startup_samples(scenario.plant.control_dt, scenario.blanking)
     ekf_q = None
     runs = [diagnoser_inputs(r) for r in records]
-    supply = identify_supply_resistance(VoltageResidual(model, channels, scenario.control_dt,
-                                                        thrust_limit=scenario.thrust_limit), runs)
+    supply = identify_supply_resistance(VoltageResidual(model, channels, scenario.plant.control_dt,
+                                                        thrust_limit=scenario.plant.thrust_limit), runs)
     if "ekf_bank" in scenario.diagnosers:
         ekf_q = calibrate_process_noise(runs, lambda q: _ekf_bank(scenario, model, channels, q), skip,
                                         scenario.ekf_margin)
@@ -339,7 +338,7 @@ def calibrate(scenario: AuvScenario, progress: Callable[[int], None] | None = No
             continue
         residuals = [diagnose_record(r, Diagnosis(diagnoser), progress=progress).residual for r in records]
         thresholds[name] = calibrate_thresholds(residuals, scenario.threshold_margin, skip)
-    return AuvCalibration(theta, thresholds, skip, scenario.control_dt, arx, ekf_q, supply)
+    return AuvCalibration(theta, thresholds, skip, scenario.plant.control_dt, arx, ekf_q, supply)
 
 
 def _arx_series(records: list[Record], model: AuvModel, decimation: int) -> tuple[np.ndarray, np.ndarray]:
@@ -359,9 +358,9 @@ def _arx_series(records: list[Record], model: AuvModel, decimation: int) -> tupl
 
 def build_loop(scenario: AuvScenario, cal: AuvCalibration) -> ClosedLoop:
     """The scenario's closed loop: controller, allocation (health per ``scenario.variant``), diagnoses, faults."""
-    if abs(cal.sample_time - scenario.control_dt) > 1e-12:
+    if abs(cal.sample_time - scenario.plant.control_dt) > 1e-12:
         raise RobofdiError(f"build_loop: the calibration is for a sample time of {cal.sample_time} s, the scenario "
-                           f"runs at {scenario.control_dt} s")
+                           f"runs at {scenario.plant.control_dt} s")
     sim = scenario.simulator()
     model = scenario.nominal_model(sim)
     diagnoses = {}
@@ -443,8 +442,9 @@ def run_scenario(scenario: AuvScenario, cal: AuvCalibration, progress: Callable[
 def parts(scenario: AuvScenario, cal: AuvCalibration, run_key: str = "run") -> Parts:
     """The scenario's run, built (:class:`~robofdi.protocols.Parts`): its closed loop (:func:`build_loop`), start
     pose, seed and record metadata."""
-    meta = {"mjcf": scenario.mjcf, "variant": scenario.variant, "allocation": scenario.allocation,
-            "current": list(scenario.current), "mission": scenario.mission, "thrust_limit": scenario.thrust_limit}
+    plant = scenario.plant
+    meta = {"mjcf": plant.mjcf, "variant": scenario.variant, "allocation": scenario.allocation,
+            "current": list(plant.current), "mission": scenario.mission, "thrust_limit": plant.thrust_limit}
     return Parts(build_loop(scenario, cal), scenario.duration, scenario.start_pose, scenario.seed, run_key,
                  scenario.name, meta)
 
@@ -454,51 +454,48 @@ def with_variant(scenario: AuvScenario, variant: str) -> AuvScenario:
 
 
 # ---------------------------------------------------------------------------------------------------- the system
+#: The scenario of an AUV campaign's runs: random missions of 60 s (the campaign draws each run's mission, faults
+#: and seed; :class:`AuvOptions` may change everything else).
+CAMPAIGN_SCENARIO = AuvScenario(name="campaign-auv", mission="random", duration=60.0)
+_DRAWN = ("name", "mission", "seed", "faults", "plan", "diagnosers")
+
+
 @dataclass(frozen=True)
 class AuvOptions:
-    """The ``[system]`` table of an AUV campaign (:mod:`robofdi.systems.auv`, the 8-thruster ODIN-like vehicle).
+    """The AUV system's configuration (a campaign's ``[system]`` table, :mod:`robofdi.systems.auv`, the 8-thruster
+    ODIN-like vehicle): the runs' ``scenario`` (:class:`AuvScenario`, itself composed of the simulator's
+    configuration and the belief's mismatch; default :data:`CAMPAIGN_SCENARIO`) and ``robot_seeds``. Any field of
+    the scenario or its parts is named flat or nested (:mod:`robofdi.config`): duration [s] of each random
+    mission (≤ 3600), calibration_runs × calibration_duration [s] of fault-free calibration missions, variant,
+    allocation, health_source, current [m/s], threshold_margin, … The campaign draws the mission, faults and seed
+    (and its ``diagnosers`` list names the diagnosers), so those are not options. robot_seeds: one calibration each
+    (its fault-free calibration missions and noise)."""
 
-    robot_seeds: one calibration each (its fault-free calibration missions and noise; the vehicle and its
-    nominal-model errors are those of :class:`~robofdi.models.auv.AuvModelMismatch`); duration [s]: each random
-    mission; calibration_runs × calibration_duration [s]: the fault-free calibration missions; variant /
-    allocation / health_source / current [m/s] / threshold_margin: those of :class:`~robofdi.systems.auv.AuvScenario`."""
-
+    scenario: AuvScenario = part(AuvScenario, lambda: CAMPAIGN_SCENARIO)
     robot_seeds: tuple = (0,)
-    duration: float = 60.0
-    calibration_runs: int = AuvScenario.calibration_runs          # the scenario's defaults, declared once there
-    calibration_duration: float = AuvScenario.calibration_duration
-    variant: str = AuvScenario.variant
-    allocation: str = AuvScenario.allocation
-    health_source: str = AuvScenario.health_source
-    current: tuple = AuvScenario.current
-    threshold_margin: float = AuvScenario.threshold_margin
 
     def __post_init__(self):
         check_robot_seeds(self)
-        object.__setattr__(self, "current", tuple(self.current))
-        check_fields("system", self, [
-            ("duration", is_positive(self.duration, 3600), "a time in (0, 3600] s"),
-            ("calibration_runs", is_int(self.calibration_runs, 1), "an integer >= 1"),
-            ("calibration_duration", is_positive(self.calibration_duration, 3600), "a time in (0, 3600] s"),
+        sc = self.scenario
+        for name in _DRAWN:
+            if getattr(sc, name) != getattr(CAMPAIGN_SCENARIO, name):
+                raise RobofdiError(f"system: field {name!r} is not an option: the campaign draws each run's mission, "
+                                   f"faults and seed, and its 'diagnosers' list names the diagnosers")
+        check_fields("system", sc, [
+            ("duration", is_positive(sc.duration, 3600), "a time in (0, 3600] s"),
+            ("calibration_runs", is_int(sc.calibration_runs, 1), "an integer >= 1"),
+            ("calibration_duration", is_positive(sc.calibration_duration, 3600), "a time in (0, 3600] s"),
         ])
-        try:
-            self.scenario(0)                        # the scenario validates the rest (variant, allocation, …)
-        except RobofdiError as exc:
-            raise RobofdiError(f"system: {exc}") from None
+        object.__setattr__(self, "scenario", replace(sc, duration=float(sc.duration),
+                                                      calibration_duration=float(sc.calibration_duration),
+                                                      threshold_margin=float(sc.threshold_margin)))
 
-    def scenario(self, seed: int, diagnosers=None, plan=None, faults=()):
-        """The :class:`~robofdi.systems.auv.AuvScenario` of these options (every diagnoser unless named)."""
-
+    def run_scenario(self, seed: int, diagnosers=None, plan=None, faults=()) -> AuvScenario:
+        """The scenario of one run (every diagnoser unless named, plus the accommodation's health source)."""
         names = tuple(ALL_DIAGNOSERS if diagnosers is None else diagnosers)
-        if self.variant == "diagnosed" and self.health_source not in names:
-            names += (self.health_source,)          # the health the accommodation uses must be diagnosed
-        return AuvScenario(name="campaign-auv", mission="random", duration=float(self.duration), seed=int(seed),
-                                   faults=tuple(faults), current=self.current, diagnosers=names,
-                                   allocation=self.allocation, variant=self.variant, health_source=self.health_source,
-                                   calibration_runs=self.calibration_runs,
-                                   calibration_duration=float(self.calibration_duration),
-                                   threshold_margin=float(self.threshold_margin), plan=plan)
-
+        if self.scenario.variant == "diagnosed" and self.scenario.health_source not in names:
+            names += (self.scenario.health_source,)          # the health the accommodation uses must be diagnosed
+        return replace(self.scenario, seed=int(seed), faults=tuple(faults), diagnosers=names, plan=plan)
 
 
 @register_system
@@ -516,23 +513,24 @@ class AuvSystem(RobotInstances):
     def targets(self, options):
         from robofdi.sims.auv import NAVIGATION_CHANNELS
 
-        sc = options.scenario(0)
+        sc = options.run_scenario(0)
         sim = sc.simulator()
-        ranges = {"m": 2 * sc.floor_depth, "rad": np.pi, "m/s": 2.0, "rad/s": 1.0}   # sensor ranges of the vehicle
+        ranges = {"m": 2 * sc.plant.floor_depth, "rad": np.pi, "m/s": 2.0, "rad/s": 1.0}   # sensor ranges of the vehicle
         thrusters = sim.actuators
         navigation = [(c, u) for c, u in zip(sim.sensor_channels, sim.units["y"]) if c in NAVIGATION_CHANNELS]
-        return {"actuator": {t: TargetLimit(sc.thrust_limit, "N") for t in thrusters},
+        return {"actuator": {t: TargetLimit(sc.plant.thrust_limit, "N") for t in thrusters},
                 "sensor": {c: TargetLimit(ranges[u], u) for c, u in navigation},
                 "component_thruster_blocking": {t: TargetLimit(1.0, "1") for t in thrusters},
                 "component_thruster_flooding": {t: TargetLimit(1.0, "1") for t in thrusters}}
 
     def calibrate(self, options, key, diagnosers):
-        return calibration(options.scenario(int(key)))
+        return calibration(options.run_scenario(int(key)))
 
     def mission(self, options, key, generator):
 
         seed = int(generator.integers(2**31))
-        return CampaignMission(float(options.duration), draw_mission(seed, float(options.duration)), {"mission_seed": seed})
+        duration = options.scenario.duration
+        return CampaignMission(duration, draw_mission(seed, duration), {"mission_seed": seed})
 
     def build(self, options, calibration, key, mission, faults, seed, diagnosers):
-        return parts(options.scenario(seed, diagnosers, mission.plan, faults), calibration, "campaign")
+        return parts(options.run_scenario(seed, diagnosers, mission.plan, faults), calibration, "campaign")

@@ -24,6 +24,7 @@ import numpy as np
 
 from robofdi.calibration import cached
 from robofdi.checks import check_fields, check_robot_seeds, is_int, is_positive
+from robofdi.config import part
 from robofdi.control.linear import StateFeedback, lqr_gain
 from robofdi.decision import Alarms, ThresholdDecision, calibrate_thresholds
 from robofdi.errors import RobofdiError
@@ -186,36 +187,42 @@ def fault_estimates(record: Record, sc: HelicopterScenario) -> tuple[np.ndarray,
 
 
 # ---------------------------------------------------------------------------------------------------- the system
+#: The scenario of a helicopter campaign's belief: 5 % seeded parameter errors (the paper's belief is exact), no
+#: fault (the campaign draws each run's faults and noise seed; the robot seed seeds the belief's errors).
+CAMPAIGN_SCENARIO = HelicopterScenario(faults=(), mismatch=0.05)
+_DRAWN = ("faults", "seed")
+
+
 @dataclass(frozen=True)
 class HelicopterOptions:
-    """The ``[system]`` table of a helicopter campaign (Jiang & Chowdhury 2005 Sec. V, :mod:`robofdi.systems.helicopter`):
-    robot_seeds: one belief (seeded relative parameter errors of size ``mismatch``) and calibration each;
-    duration [s]; noise: the paper's process and sensor noise; accommodation: u = (I − R̂)⁻¹u fed by the diagnosis;
-    calibration_runs: fault-free runs setting the thresholds."""
+    """The helicopter's configuration (a campaign's ``[system]`` table, Jiang & Chowdhury 2005 Sec. V,
+    :mod:`robofdi.systems.helicopter`): the runs' ``scenario`` (:class:`HelicopterScenario`, default
+    :data:`CAMPAIGN_SCENARIO`), any field named flat (:mod:`robofdi.config`) — duration [s] (≤ 600), mismatch (a
+    fraction in [0, 0.5)), noise, accommodation, calibration_runs, … — except the drawn faults and seed;
+    robot_seeds: one belief (seeded relative parameter errors of size ``mismatch``) and calibration each."""
 
+    scenario: HelicopterScenario = part(HelicopterScenario, lambda: CAMPAIGN_SCENARIO)
     robot_seeds: tuple = (0,)
-    duration: float = HelicopterScenario.duration       # the scenario's defaults, declared once there
-    mismatch: float = 0.05                              # a campaign's belief is imperfect (the paper's is exact)
-    noise: bool = HelicopterScenario.noise
-    accommodation: bool = HelicopterScenario.accommodation
-    calibration_runs: int = HelicopterScenario.calibration_runs
 
     def __post_init__(self):
         check_robot_seeds(self)
-        check_fields("system", self, [
-            ("duration", is_positive(self.duration, 600), "a time in (0, 600] s"),
-            ("mismatch", isinstance(self.mismatch, (int, float)) and 0 <= self.mismatch < 0.5, "a fraction in [0, 0.5)"),
-            ("noise", isinstance(self.noise, bool), "true or false"),
-            ("accommodation", isinstance(self.accommodation, bool), "true or false"),
-            ("calibration_runs", is_int(self.calibration_runs, 1), "an integer >= 1"),
+        sc = self.scenario
+        for name in _DRAWN:
+            if getattr(sc, name) != getattr(CAMPAIGN_SCENARIO, name):
+                raise RobofdiError(f"system: field {name!r} is not an option: the campaign draws each run's faults, "
+                                   f"and the robot seeds seed the belief")
+        check_fields("system", sc, [
+            ("duration", is_positive(sc.duration, 600), "a time in (0, 600] s"),
+            ("mismatch", isinstance(sc.mismatch, (int, float)) and 0 <= sc.mismatch < 0.5, "a fraction in [0, 0.5)"),
+            ("noise", isinstance(sc.noise, bool), "true or false"),
+            ("accommodation", isinstance(sc.accommodation, bool), "true or false"),
+            ("calibration_runs", is_int(sc.calibration_runs, 1), "an integer >= 1"),
         ])
+        object.__setattr__(self, "scenario", replace(sc, duration=float(sc.duration), mismatch=float(sc.mismatch)))
 
-    def scenario(self, key: int, faults=()):
+    def belief(self, key: int, faults=()) -> HelicopterScenario:
         """The scenario of belief ``key`` (its seed seeds the belief's errors; run noise comes from the run seed)."""
-
-        return HelicopterScenario(faults=tuple(faults), seed=int(key), duration=float(self.duration), noise=self.noise,
-                                  accommodation=self.accommodation, mismatch=float(self.mismatch),
-                                  calibration_runs=self.calibration_runs)
+        return replace(self.scenario, faults=tuple(faults), seed=int(key))
 
 
 @register_system
@@ -238,13 +245,13 @@ class HelicopterSystem(RobotInstances):
 
     def calibrate(self, options, key, diagnosers):
 
-        sc = options.scenario(key)
+        sc = options.belief(key)
         return cached("helicopter", {"scenario": repr(sc)}, lambda: calibrate(sc))
 
     def mission(self, options, key, generator):
-        return Mission(float(options.duration), None, {"excitation": "sin(pi t), cos(0.6 pi t)"})
+        return Mission(options.scenario.duration, None, {"excitation": "sin(pi t), cos(0.6 pi t)"})
 
     def build(self, options, calibration, key, mission, faults, seed, diagnosers):
-        sc = options.scenario(key, faults)
+        sc = options.belief(key, faults)
         return Parts(build_loop(sc, calibration), sc.duration, None, seed, "campaign", "campaign-helicopter",
                      {"noise": sc.noise, "robot_seed": int(key)})

@@ -29,6 +29,7 @@ import numpy as np
 
 from robofdi.calibration import cached
 from robofdi.checks import check_fields, check_robot_seeds, is_int, is_positive
+from robofdi.config import part
 from robofdi.control.speed import RPM, SpeedPID, SpeedRamp
 from robofdi.decision import Signature, ThresholdDecision, calibrate_thresholds
 from robofdi.errors import RobofdiError
@@ -74,7 +75,9 @@ SIGNATURES["nnar"] = SIGNATURES["nlar"]          # the same tests on this rig (S
 class HydraulicScenario:
     """One rig run: the operating profile (target speed [rpm], ramp time [s], load throttle area [m²]), faults,
     duration [s], seed (sensor noise), the derivative filter (window, order), diagnosers, threshold margin, and
-    the nlar tests R2 / R5 "corrected" (default) or "as_printed" (digest §4.3)."""
+    the nlar tests R2 / R5 "corrected" (default) or "as_printed" (digest §4.3). Composed (:mod:`robofdi.config`)
+    of the simulator's configuration: the ``rig`` (:class:`~robofdi.sims.hydraulic.RigParameters`, its throttle
+    area set by ``throttle_area``) and its ``sensors`` (:class:`~robofdi.sims.hydraulic.RigSensors`)."""
 
     name: str = "baseline"
     faults: tuple = ()
@@ -89,8 +92,8 @@ class HydraulicScenario:
     margin: float = 1.3
     r2_variant: str = "corrected"
     r5_variant: str = "corrected"
-    rig: RigParameters = field(default_factory=RigParameters)
-    sensors: RigSensors = field(default_factory=RigSensors)
+    rig: RigParameters = part(RigParameters)
+    sensors: RigSensors = part(RigSensors)
 
     def __post_init__(self):
         if not all(isinstance(f, Fault) for f in self.faults):
@@ -311,30 +314,38 @@ def leak_flow_share(area_mm2: float, rpm: float = 5.0, rig: RigParameters | None
 
 
 # ---------------------------------------------------------------------------------------------------- the system
+#: The scenario of a hydraulic campaign's runs (the campaign draws each run's operating profile, faults and seed).
+CAMPAIGN_SCENARIO = HydraulicScenario(name="campaign-hydraulic")
+_DRAWN = ("name", "faults", "seed", "diagnosers", "target_rpm", "ramp_time", "throttle_area")
+
+
 @dataclass(frozen=True)
 class HydraulicOptions:
-    """The ``[system]`` table of a hydraulic-rig campaign (:mod:`robofdi.systems.hydraulic`).
+    """The hydraulic rig's configuration (a campaign's ``[system]`` table, :mod:`robofdi.systems.hydraulic`): the
+    runs' ``scenario`` (:class:`HydraulicScenario` with its rig and sensors; default :data:`CAMPAIGN_SCENARIO`),
+    any of its fields named flat or nested (:mod:`robofdi.config`) — duration [s] of every run (3–600), margin
+    (threshold margin >= 1), window / order of the derivative filter, rig and sensor parameters — except what the
+    campaign draws (the operating profile, faults, seed; its ``diagnosers`` list). robot_seeds: one calibration each
+    (fault-free runs on the random operating profiles of seeds 1000·(1 + robot seed) + i); calibration_runs (>= 2:
+    half train mlp_ar and fit the better model, all set thresholds)."""
 
-    robot_seeds: one calibration each (fault-free runs on the random operating profiles of seeds
-    1000·(1 + robot seed) + i); duration [s] of every run; calibration_runs (>= 2: half train mlp_ar and fit the
-    better model, all set thresholds); margin: threshold margin >= 1."""
-
+    scenario: HydraulicScenario = part(HydraulicScenario, lambda: CAMPAIGN_SCENARIO)
     robot_seeds: tuple = (0,)
-    duration: float = HydraulicScenario.duration         # the scenario's defaults, declared once there
     calibration_runs: int = 8
-    margin: float = HydraulicScenario.margin
 
     def __post_init__(self):
         check_robot_seeds(self)
-        check_fields("system", self, [
-            ("duration", is_positive(self.duration, 600) and self.duration >= 3, "a time in [3, 600] s"),
-            ("calibration_runs", is_int(self.calibration_runs, 2), "an integer >= 2"),
-            ("margin", is_positive(self.margin) and self.margin >= 1, "a number >= 1"),
+        sc = self.scenario
+        for name in _DRAWN:
+            if getattr(sc, name) != getattr(CAMPAIGN_SCENARIO, name):
+                raise RobofdiError(f"system: field {name!r} is not an option: the campaign draws each run's operating "
+                                   f"profile, faults and seed, and its 'diagnosers' list names the diagnosers")
+        check_fields("system", sc, [
+            ("duration", is_positive(sc.duration, 600) and sc.duration >= 3, "a time in [3, 600] s"),
+            ("margin", is_positive(sc.margin) and sc.margin >= 1, "a number >= 1"),
         ])
-
-    def scenario(self, **kw):
-
-        return HydraulicScenario(name="campaign-hydraulic", duration=float(self.duration), margin=float(self.margin), **kw)
+        check_fields("system", self, [("calibration_runs", is_int(self.calibration_runs, 2), "an integer >= 2")])
+        object.__setattr__(self, "scenario", replace(sc, duration=float(sc.duration), margin=float(sc.margin)))
 
 
 @register_system
@@ -359,13 +370,13 @@ class HydraulicSystem(RobotInstances):
                 "sensor": {c: TargetLimit(*v) for c, v in limits.items()}, **comps}
 
     def calibrate(self, options, key, diagnosers):
-        return calibration(options.scenario(), options.calibration_runs, 1000 * (1 + int(key)))
+        return calibration(options.scenario, options.calibration_runs, 1000 * (1 + int(key)))
 
     def mission(self, options, key, generator):
 
         profile = operating_profile(int(generator.integers(2**31)))
-        return Mission(float(options.duration), profile, dict(profile))
+        return Mission(options.scenario.duration, profile, dict(profile))
 
     def build(self, options, calibration, key, mission, faults, seed, diagnosers):
-        sc = options.scenario(faults=tuple(faults), seed=int(seed), diagnosers=tuple(diagnosers), **mission.plan)
+        sc = replace(options.scenario, faults=tuple(faults), seed=int(seed), diagnosers=tuple(diagnosers), **mission.plan)
         return parts(sc, calibration, "campaign")

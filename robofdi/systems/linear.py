@@ -22,12 +22,13 @@ missions drawn from a seed and runs; :class:`robofdi.protocols.System`) closes t
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
 from robofdi.calibration import cached
-from robofdi.checks import check_fields, is_int, is_positive
+from robofdi.checks import check_robot_seeds, is_positive
+from robofdi.config import part
 from robofdi.control.linear import StateFeedback, lqr_gain
 from robofdi.decision import ThresholdDecision, calibrate_thresholds
 from robofdi.errors import RobofdiError
@@ -168,26 +169,17 @@ def linear_parts(mission: WheelSpeedMission, faults, thresholds: np.ndarray, rob
 
 # ---------------------------------------------------------------------------------------------------- the system
 @dataclass(frozen=True)
-class LinearOptions(LinearSettings):
-    """The ``[system]`` table of a linear-plant campaign (the wheel-speed plant of :mod:`robofdi.systems.linear`):
-    robot_seeds: one belief (seeded parameter errors) per seed, one calibration each; mismatch, margin,
-    calibration_runs, duration [s], blanking [s]: those of :class:`robofdi.systems.linear.LinearSettings`."""
+class LinearOptions:
+    """The linear plant's configuration (a campaign's ``[system]`` table, the wheel-speed plant of
+    :mod:`robofdi.systems.linear`): the runs' ``settings`` (:class:`LinearSettings`: mismatch, margin,
+    calibration_runs, duration [s], blanking [s]; named flat, :mod:`robofdi.config`) and robot_seeds: one belief
+    (seeded parameter errors) per seed, one calibration each (it depends on the settings and the robot seed)."""
 
+    settings: LinearSettings = part(LinearSettings)
     robot_seeds: tuple = (0,)
 
     def __post_init__(self):
-        object.__setattr__(self, "robot_seeds", tuple(self.robot_seeds))
-        check_fields("system", self, [("robot_seeds", self.robot_seeds and all(is_int(s) for s in self.robot_seeds),
-                                        "a non-empty list of integers >= 0")])
-        try:
-            super().__post_init__()
-        except RobofdiError as exc:
-            raise RobofdiError(f"system: {exc}") from None
-
-    @property
-    def settings(self):
-        """The scenario's settings alone (what a calibration depends on; the robot seed is its key)."""
-        return LinearSettings(**{f.name: getattr(self, f.name) for f in fields(LinearSettings)})
+        check_robot_seeds(self)
 
 
 @register_system
@@ -213,7 +205,7 @@ class LinearSystem(RobotInstances):
     def mission(self, options, key, generator):
 
         mission = draw_mission(generator)
-        return Mission(float(options.duration), mission, {k: list(v) for k, v in mission.__dict__.items()})
+        return Mission(float(options.settings.duration), mission, {k: list(v) for k, v in mission.__dict__.items()})
 
     def build(self, options, calibration, key, mission, faults, seed, diagnosers):
         return linear_parts(mission.plan, faults, calibration, int(key), seed, options.settings, run_key="campaign")
