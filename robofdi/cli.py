@@ -118,6 +118,13 @@ def _cmd_view(args) -> int:
         path = path / "record.h5"
     if not path.is_file():
         raise RobofdiError(f"RUN: no record at {str(path)!r}; expected a record .h5 file or a run folder holding record.h5")
+    if args.rerun is not None:
+        from robofdi.adapters import adapter
+
+        rrd = adapter("robofdi.viz.rerun_export", "rerun").export_rrd(
+            path, args.rerun or path.parent / "run.rrd", diagnoser=args.diagnoser)
+        print(f"rerun recording: {rrd} (open it with: rerun {rrd})")
+        return 0
     from robofdi.viz import view
 
     view(path, diagnoser=args.diagnoser, open_browser=not args.no_browser)
@@ -231,6 +238,8 @@ def build_parser() -> argparse.ArgumentParser:
     view.add_argument("--diagnoser", default=None,
                       help="whose detections light up the joints (default: the run's lead diagnoser, as in the table)")
     view.add_argument("--no-browser", action="store_true")
+    view.add_argument("--rerun", nargs="?", const="", default=None, metavar="RRD",
+                      help="write the run as a rerun recording instead (default RUN/run.rrd; needs robofdi[rerun])")
     view.set_defaults(func=_cmd_view)
     diag = sub.add_parser("diagnose", help="diagnose a real robot's log (CSV, Parquet or ROS 2 bag of q, q̇, commanded τ)")
     diag.add_argument("log", metavar="LOG", help="a .csv, .csv.gz or .parquet file: time [s], <joint>_q [rad], "
