@@ -60,7 +60,7 @@ napoleon_numpy_docstring = True
 
 # Optional dependencies (the robosuite / dm_control adapters, Dask): mocked when they are not installed, so the
 # reference builds with the ``docs`` extra alone; with the ``test`` extra installed they import for real.
-_OPTIONAL = ["robosuite", "dm_control", "dm_env", "dask", "distributed", "pynput"]
+_OPTIONAL = ["robosuite", "dm_control", "dm_env", "dask", "distributed", "pynput", "gymnasium", "mcap", "mcap_ros2", "rerun"]
 autodoc_mock_imports = [m for m in _OPTIONAL if importlib.util.find_spec(m) is None]
 
 # No network at build time: no intersphinx, no remote assets (the pages write their maths in Unicode).

@@ -118,6 +118,13 @@ def _cmd_view(args) -> int:
         path = path / "record.h5"
     if not path.is_file():
         raise RobofdiError(f"RUN: no record at {str(path)!r}; expected a record .h5 file or a run folder holding record.h5")
+    if args.rerun is not None:
+        from robofdi.adapters import adapter
+
+        rrd = adapter("robofdi.viz.rerun_export", "rerun").export_rrd(
+            path, args.rerun or path.parent / "run.rrd", diagnoser=args.diagnoser)
+        print(f"rerun recording: {rrd} (open it with: rerun {rrd})")
+        return 0
     from robofdi.viz import view
 
     view(path, diagnoser=args.diagnoser, open_browser=not args.no_browser)
@@ -170,7 +177,8 @@ def _cmd_diagnose(args) -> int:
     joints = [j.strip() for j in args.joints.split(",") if j.strip()] if args.joints else None
     record, summary = diagnose_log(args.log, args.robot, _segment(args.fault_free), columns=columns, rate=args.rate,
                                    schemes=schemes, margin=args.margin, joints=joints,
-                                   torque_motors=args.torque_motors, drive_inertia=args.drive_inertia or 0.0)
+                                   torque_motors=args.torque_motors, drive_inertia=args.drive_inertia or 0.0,
+                                   topics=args.topics)
     run_dir = Path(args.out) / f"diagnose-{Path(args.log).name.split('.')[0]}"
     run_dir.mkdir(parents=True, exist_ok=True)
     with keep_partial(run_dir):
@@ -230,14 +238,20 @@ def build_parser() -> argparse.ArgumentParser:
     view.add_argument("--diagnoser", default=None,
                       help="whose detections light up the joints (default: the run's lead diagnoser, as in the table)")
     view.add_argument("--no-browser", action="store_true")
+    view.add_argument("--rerun", nargs="?", const="", default=None, metavar="RRD",
+                      help="write the run as a rerun recording instead (default RUN/run.rrd; needs robofdi[rerun])")
     view.set_defaults(func=_cmd_view)
-    diag = sub.add_parser("diagnose", help="diagnose a real robot's log (CSV or Parquet of q, q̇, commanded τ)")
+    diag = sub.add_parser("diagnose", help="diagnose a real robot's log (CSV, Parquet or ROS 2 bag of q, q̇, commanded τ)")
     diag.add_argument("log", metavar="LOG", help="a .csv, .csv.gz or .parquet file: time [s], <joint>_q [rad], "
-                                                 "<joint>_qd [rad/s], <joint>_tau [N·m] (see --columns)")
+                                                 "<joint>_qd [rad/s], <joint>_tau [N·m] (see --columns); or a ROS 2 "
+                                                 "bag (.mcap) of sensor_msgs/JointState (see --topics)")
     diag.add_argument("--robot", required=True, metavar="FILE", help="the robot's MJCF or URDF (the nominal model)")
     diag.add_argument("--fault-free", required=True, metavar="T0:T1",
                       help="a segment of the log [s] known to be fault-free: the thresholds are calibrated on it")
     diag.add_argument("--columns", metavar="MAP", help="LOG_NAME=NAME,... or a JSON file with such a mapping")
+    diag.add_argument("--topics", metavar="STATE[,COMMAND]",
+                      help="a bag's JointState topics: positions and velocities, and the commanded torques as effort "
+                           "(default: /joint_states, its own effort; needs robofdi[mcap])")
     diag.add_argument("--rate", type=float, metavar="HZ", help="resample to this rate (default: the log's median)")
     diag.add_argument("--diagnosers", metavar="A,B", help="default: momentum,recursive,simple,time_delayed,position_only")
     diag.add_argument("--margin", type=float, default=1.2, help="threshold = margin × the segment's max |r| (1.2)")

@@ -4,13 +4,14 @@ The diagnosers run on a log exactly as they run on a simulated record (:func:`ro
 the same residual generators on the nominal model of the robot's file (MJCF or URDF), the same
 :class:`~robofdi.decision.ThresholdDecision`. What a log adds is the checking and the calibration:
 
-1. :func:`read_arm_log` reads CSV (``.csv``, ``.csv.gz``) or Parquet, renames the log's own columns
-   (``columns``: log name → robofdi name), and checks it: every column present and finite, time strictly
-   increasing, positions inside the joint ranges [rad or m], velocities consistent with the positions' derivative
-   [rad/s or m/s] and torques inside 1.5 × the drives' limits [N·m or N] (a log in degrees or in motor units is
-   refused, naming the column). It then puts the log on a uniform grid at ``rate`` (default: the median sample
-   rate): positions and velocities interpolated linearly, torques held from the last logged sample (zero-order
-   hold, as a drive holds its command); jitter and dropped rows are measured and reported.
+1. :func:`read_arm_log` reads CSV (``.csv``, ``.csv.gz``), Parquet or a ROS 2 bag (``.mcap`` of
+   ``sensor_msgs/msg/JointState``, :mod:`robofdi.rosbag`), renames the log's own columns (``columns``: log name →
+   robofdi name; a joint's name stands for its three columns), and checks it: every column present and finite, time
+   strictly increasing, positions inside the joint ranges [rad or m], velocities consistent with the positions'
+   derivative [rad/s or m/s] and torques inside 1.5 × the drives' limits [N·m or N] (a log in degrees or in motor
+   units is refused, naming the column). It then puts the log on a uniform grid at ``rate`` (default: the median
+   sample rate): positions and velocities interpolated linearly, torques held from the last logged sample
+   (zero-order hold, as a drive holds its command); jitter and dropped rows are measured and reported.
 2. :func:`calibrate_on_segment` sets each diagnoser's thresholds from a fault-free segment the user names,
    ρ_i = margin · max |r_i| (Caccavale & Villani Sec. 6, the book's rule), start-up samples blanked.
 3. :func:`diagnose_log` runs every chosen diagnoser over the whole log with its decision and returns the record
@@ -66,26 +67,58 @@ class ArmLog:
     longest_gap: float
     jitter: float
     renamed: dict = field(default_factory=dict)
+    origin: dict = field(default_factory=dict)
 
     def report(self) -> dict:
         return {"source": self.source, "rows": self.rows, "rate_hz": self.rate_hz, "samples": int(self.time.size),
                 "duration_s": float(self.time[-1] - self.time[0]), "dropouts": self.dropouts,
                 "longest_gap_s": round(self.longest_gap, 6), "jitter_s": float(f"{self.jitter:.3g}"),
-                "columns": dict(self.renamed)}
+                "columns": dict(self.renamed), **self.origin}
 
 
-def _read_table(path: Path):
+def parse_topics(topics) -> tuple[str, str | None]:
+    """``"STATE[,COMMAND]"`` (the CLI's ``--topics``) or a (state, command) pair → (state topic, command topic)."""
+    if topics is None:
+        return "/joint_states", None
+    parts = [p.strip() for p in topics.split(",")] if isinstance(topics, str) else [str(p) if p else "" for p in topics]
+    if not 1 <= len(parts) <= 2 or not parts[0] or not all(p.startswith("/") for p in parts if p):
+        raise RobofdiError(f"--topics: expected STATE[,COMMAND] ROS 2 topic names such as /joint_states,/joint_commands, "
+                           f"got {topics!r}")
+    return parts[0], (parts[1] or None) if len(parts) == 2 else None
+
+
+def _read_table(path: Path, topics=None):
+    """The log's table and what its format adds to the report (a bag: its topics and where the torques came from)."""
     import pandas as pd
 
     name = path.name.lower()
+    if name.endswith(".mcap"):
+        from robofdi.rosbag import read_joint_states
+
+        return read_joint_states(path, *parse_topics(topics))
+    if topics is not None:
+        raise RobofdiError(f"--topics: {path.name} is not a ROS 2 bag (.mcap); topics name a bag's JointState topics")
     try:
         if name.endswith((".csv", ".csv.gz")):
-            return pd.read_csv(path)
+            return pd.read_csv(path), {}
         if name.endswith((".parquet", ".pq")):
-            return pd.read_parquet(path)
+            return pd.read_parquet(path), {}
     except Exception as exc:                                    # malformed content: one line, naming the file
         raise RobofdiError(f"log {path.name}: cannot be read ({' '.join(str(exc).split())})") from None
-    raise RobofdiError(f"log {path.name}: unknown format; expected .csv, .csv.gz or .parquet")
+    raise RobofdiError(f"log {path.name}: unknown format; expected .csv, .csv.gz, .parquet or .mcap (a ROS 2 bag)")
+
+
+def _joint_renames(renamed: Mapping[str, str], columns) -> dict[str, str]:
+    """A mapping entry naming a joint (``shoulder_pan=joint1``: the log has ``shoulder_pan_q``, ``_qd``, ``_tau``)
+    stands for its three columns; every other entry is kept as it is."""
+    out = {}
+    for key, value in renamed.items():
+        triple = [f"{key}_{k}" for k in ("q", "qd", "tau")]
+        if key not in columns and all(c in columns for c in triple):
+            out.update({c: f"{value}_{k}" for c, k in zip(triple, ("q", "qd", "tau"))})
+        else:
+            out[key] = value
+    return out
 
 
 def parse_columns(text: str | Mapping[str, str] | None) -> dict[str, str]:
@@ -127,15 +160,18 @@ def _check_velocity(name: str, col: str, t: np.ndarray, q: np.ndarray, qd: np.nd
 
 
 def read_arm_log(path: str | Path, model: ManipulatorModel, columns: Mapping[str, str] | str | None = None,
-                 rate: float | None = None) -> ArmLog:
+                 rate: float | None = None, topics=None) -> ArmLog:
     """Read, check and resample a log of the arm ``model`` (its joint names, ranges and torque limits); see the
-    module docstring. ``rate`` [Hz]: the grid (default: the log's median sample rate, rounded to 0.1 Hz)."""
+    module docstring. ``rate`` [Hz]: the grid (default: the log's median sample rate, rounded to 0.1 Hz).
+    ``topics``: a ROS 2 bag's (state, command) JointState topics (:mod:`robofdi.rosbag`; default
+    ``/joint_states`` and no command topic)."""
     path = Path(path)
     name = path.name
     if not path.is_file():
         raise RobofdiError(f"log: file {str(path)!r} does not exist")
-    renamed = parse_columns(columns)
-    table = _read_table(path).rename(columns=renamed)
+    table, origin = _read_table(path, topics)
+    renamed = _joint_renames(parse_columns(columns), table.columns)
+    table = table.rename(columns=renamed)
     joints = tuple(model.joint_names)
     need = ["time"] + [f"{j}_{k}" for k in ("q", "qd", "tau") for j in joints]
     missing = [c for c in need if c not in table.columns]
@@ -191,7 +227,7 @@ def read_arm_log(path: str | Path, model: ManipulatorModel, columns: Mapping[str
     qd = np.column_stack([np.interp(grid, t, data[f"{j}_qd"]) for j in joints])
     tau = np.column_stack([data[f"{j}_tau"][held] for j in joints])
     return ArmLog(grid - grid[0], q, qd, tau, joints, float(rate), str(path), int(t.size), int(gaps.sum()),
-                  float(steps[gaps].max()) if gaps.any() else 0.0, jitter, renamed)
+                  float(steps[gaps].max()) if gaps.any() else 0.0, jitter, renamed, origin)
 
 
 def _units(model: ManipulatorModel) -> tuple[list[str], list[str], list[str]]:
@@ -269,13 +305,13 @@ def calibrate_on_segment(record: Record, model: ManipulatorModel, segment: tuple
 
 def diagnose_log(path: str | Path, robot: str | Path, fault_free: tuple[float, float], *, columns=None,
                  rate: float | None = None, schemes: Sequence[str] = LOG_SCHEMES, margin: float = 1.2,
-                 joints=None, torque_motors: bool = False, drive_inertia: float = 0.0) -> tuple[Record, dict]:
+                 joints=None, torque_motors: bool = False, drive_inertia: float = 0.0, topics=None) -> tuple[Record, dict]:
     """Read the log of ``robot`` (MJCF or URDF), calibrate on its ``fault_free`` segment, diagnose all of it.
     Returns (the record with every diagnoser's trace, a summary: the log's report, thresholds, and per
     diagnoser its alarms in the calibration segment, first alarm after it, isolated hypothesis and estimate)."""
     schemes = _check_schemes(schemes)
     model = ManipulatorModel(robot, joints=joints, torque_motors=torque_motors, drive_inertia=drive_inertia)
-    log = read_arm_log(path, model, columns, rate)
+    log = read_arm_log(path, model, columns, rate, topics)
     record = log_record(log, model)
     thresholds = calibrate_on_segment(record, model, fault_free, schemes, margin)
     T = 1.0 / log.rate_hz

@@ -40,3 +40,15 @@ def test_core_cli_and_campaigns_without_robosuite_say_what_to_install():
                              timeout=120)
         last = out.stderr.strip().splitlines()[-1]
         assert out.returncode != 0 and "pip install 'robofdi[robosuite]'" in last, out.stderr
+
+
+def test_rerun_export_without_rerun_says_what_to_install(monkeypatch):
+    import pytest
+
+    from robofdi.adapters import adapter
+    from robofdi.errors import RobofdiError
+
+    monkeypatch.setitem(sys.modules, "rerun", None)
+    monkeypatch.delitem(sys.modules, "robofdi.viz.rerun_export", raising=False)
+    with pytest.raises(RobofdiError, match=r"pip install 'robofdi\[rerun\]'"):
+        adapter("robofdi.viz.rerun_export", "rerun")

@@ -14,7 +14,7 @@ from robofdi.loop import ClosedLoop, diagnoser_inputs
 from robofdi.observers.residual import Residual, check_measurement
 from robofdi.testing import ConformanceError, check_decision, check_diagnoser, check_simulator, check_system
 
-HAS = {m: importlib.util.find_spec(m) is not None for m in ("robosuite", "dm_control")}
+HAS = {m: importlib.util.find_spec(m) is not None for m in ("robosuite", "dm_control", "gymnasium")}
 SAMPLES = 120          # diagnosis samples per diagnoser check
 AUV_DIAGNOSERS = ("ekf_bank", "depth_vote", "voltage_residual", "current_map", "force_observer")
 
@@ -165,7 +165,7 @@ def _diagnoser_cases():
     cases += [f"auv-{n}" for n in AUV_DIAGNOSERS]
     cases += [f"hydraulic-{n}" for n in ("nlar", "nlar_better", "linear_ar", "plar", "nnar")]
     cases += [f"flight-{n}" for n in ("hybrid_mm", "sensor_bias", "damage")]
-    cases += ["robosuite-momentum", "dm_control-momentum"]
+    cases += ["robosuite-momentum", "dm_control-momentum", "gymnasium-momentum"]
     return cases
 
 
@@ -204,6 +204,10 @@ def _diagnoser_case(case):
         if not HAS["dm_control"]:
             pytest.skip("dm_control is not installed (extra 'dm_control')")
         return _dm_control_setup()
+    if family == "gymnasium":
+        if not HAS["gymnasium"]:
+            pytest.skip("gymnasium is not installed (extra 'gymnasium')")
+        return _gymnasium_setup()
     raise AssertionError(case)
 
 
@@ -235,6 +239,17 @@ def _dm_control_setup():
                              dc.ThresholdDecision(["slider", "hinge_1"], np.ones(2), []), 60)
     y, u = rec.signals["y_meas"], np.vstack([np.zeros((1, 1)), rec.signals["u_cmd"][:-1]])
     return (lambda: dc.CartpoleDiagnoser(model, 0.01)), (y, u)
+
+
+@functools.cache
+def _gymnasium_setup():
+    import robofdi.adapters.gymnasium_diagnosis as gd
+
+    d = gd.momentum_diagnoser("Reacher-v5")
+    rec = gd.diagnose_episode("Reacher-v5", (), 0, d, gd.ThresholdDecision(d.components, np.ones(2), []), 60)
+    y = np.array([gd.READOUTS["Reacher"](o) for o in rec.signals["y_meas"]])
+    u = np.vstack([np.zeros((1, 2)), rec.signals["u_cmd"][:-1]])
+    return (lambda: gd.JointMomentumDiagnoser(d.model, d.observer.T)), (y, u)
 
 
 @pytest.mark.parametrize("case", _diagnoser_cases())

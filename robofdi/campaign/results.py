@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from robofdi.campaign.metrics import analyse, detection_curve
+from robofdi.campaign.metrics import analyse, clopper_pearson, detection_curve
 from robofdi.campaign.runs import UNITS
 from robofdi.errors import RobofdiError
 from robofdi.evaluate.figures import save_figure
@@ -127,6 +127,39 @@ def _ms(x) -> str:
     return "–" if x is None else f"{1e3 * x:.0f}"
 
 
+#: Below this many fault-free runs the report warns that the false-alarm interval is wide (0 of 30 → ≤ 11.6 %).
+SMALL_FAULT_FREE = 30
+#: Below this many faults on one (kind, target) the report marks the minimum detectable fault as a few draws.
+SMALL_FAULTS = 5
+
+
+def _cautions(summary: dict) -> list[str]:
+    """What a reader must know before quoting the numbers: a prefix of the spec, few fault-free runs, few faults."""
+    spec, runs = summary["spec"], summary["runs"]
+    total = int(spec.get("fault_free_runs", 0)) + int(spec.get("faulty_runs", 0))
+    out = []
+    if total and runs["finished"] < total:
+        out.append(f"- **A prefix:** {runs['finished']} of the spec's {total} runs (run indices 0–{runs['finished'] - 1}, "
+                   f"from `--runs` or an interrupted campaign; fault-free and faulty runs are interleaved, so the prefix "
+                   f"mixes both). The other {total - runs['finished']} runs are not in these numbers; `--resume` without "
+                   "`--runs` completes the campaign.")
+    rates = [m["false_alarm_rate"]["of"] for m in summary["diagnosers"].values() if "false_alarm_rate" in m]
+    n = int(min(rates)) if rates else int(runs["fault_free"])       # the rate's own n: runs that raised are left out
+    if n < SMALL_FAULT_FREE:
+        ci = clopper_pearson(0, n)
+        width = "no fault-free run: no false-alarm rate" if ci is None else (
+            f"even 0 false-alarm runs give a 95 % interval of [0, {100 * ci[1]:.1f}] %")
+        out.append(f"- **Few fault-free runs:** {n} ({width}); {SMALL_FAULT_FREE} are needed to bound the rate below "
+                   f"{100 * clopper_pearson(0, SMALL_FAULT_FREE)[1]:.1f} %.")
+    few = sorted({(k, t, d["faults"]) for m in summary["diagnosers"].values() for k, ts in m.get("detectability", {}).items()
+                  for t, d in ts.items() if d["faults"] < SMALL_FAULTS})
+    if few:
+        listed = ", ".join(f"{k} on {t} (n={c})" for k, t, c in few[:6]) + (" …" if len(few) > 6 else "")
+        out.append(f"- **Few faults per target:** the minimum detectable fault of {listed} comes from fewer than "
+                   f"{SMALL_FAULTS} draws (marked ⚠ below): a few outcomes, not a fitted curve.")
+    return out
+
+
 def report_markdown(summary: dict) -> str:
     """report.md from campaign.json."""
     spec = summary["spec"]
@@ -134,9 +167,12 @@ def report_markdown(summary: dict) -> str:
              f"({summary['runs']['fault_free']} fault-free, {summary['runs']['faulty']} faulty, "
              f"{summary['runs']['errors']} errors)", "",
              f"Seed {spec['seed']}; system options `{json.dumps(spec['system_options'])}`; results table "
-             "`results.parquet` (one row per run × diagnoser × fault).", "",
-             "| diagnoser | false-alarm runs (95 % CI) | detected | correctly isolated | isolation accuracy | "
-             "delay median / p90 [ms] |", "|---|---|---|---|---|---|"]
+             "`results.parquet` (one row per run × diagnoser × fault).", ""]
+    cautions = _cautions(summary)
+    if cautions:
+        lines += ["## Read with care", "", *cautions, ""]
+    lines += ["| diagnoser | false-alarm runs (95 % CI) | detected | correctly isolated | isolation accuracy | "
+              "delay median / p90 [ms] |", "|---|---|---|---|---|---|"]
     for name, m in summary["diagnosers"].items():
         fa, f = m["false_alarm_rate"], m["faulty"]
         ci = "–" if fa["ci95"] is None else f"[{100 * fa['ci95'][0]:.1f}, {100 * fa['ci95'][1]:.1f}] %"
@@ -164,13 +200,14 @@ def report_markdown(summary: dict) -> str:
             for n in names:
                 d = summary["diagnosers"][n]["detectability"].get(k, {}).get(t)
                 unit = "" if d is None or d["unit"] == "1" else f" {d['unit']}"
+                warn = "" if d is None or d["faults"] >= SMALL_FAULTS else " ⚠"
                 if d is None:
                     cells.append("–")
                 elif d["min_detectable_magnitude"] is None:
-                    cells.append(f"not reached ≤ {d['size_range'][1] * d['limit']:.3g}{unit} (n={d['faults']})")
+                    cells.append(f"not reached ≤ {d['size_range'][1] * d['limit']:.3g}{unit} (n={d['faults']}){warn}")
                 else:
                     at_most = "≤ " if d.get("min_detectable_at_most") else ""
-                    cells.append(f"{at_most}{d['min_detectable_magnitude']:.3g}{unit} (n={d['faults']})")
+                    cells.append(f"{at_most}{d['min_detectable_magnitude']:.3g}{unit} (n={d['faults']}){warn}")
             lines.append(f"| {k} | {t} | " + " | ".join(cells) + " |")
     ex = summary.get("execution", {})
     cal = ex.get("calibration") or {}

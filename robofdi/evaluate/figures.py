@@ -24,9 +24,13 @@ def save_figure(fig, path: str | Path, dpi: int = 110) -> Path:
     return path
 
 
-def _onsets(ax, faults):
+def _onsets(ax, faults, label: bool = False):
+    """Dotted lines at the true fault onsets; ``label``: each named (``<fault> on <target>``) at the panel's top."""
     for f in faults:
         ax.axvline(f["onset"], color="0.5", lw=0.8, ls=":")
+        if label:
+            ax.text(f["onset"], 1.0, f" {f.get('name', 'fault')} on {f.get('target', '?')}", transform=ax.get_xaxis_transform(),
+                    fontsize=6, color="0.3", va="bottom", ha="left", clip_on=False)
 
 
 def plot_residuals(record: Record, diagnoser: str, path: str | Path) -> Path:
@@ -47,7 +51,7 @@ def plot_residuals(record: Record, diagnoser: str, path: str | Path) -> Path:
         hit = tr.alarm[:, j]
         if hit.any():
             ax.plot(tr.time[hit], r[hit], ".", ms=2, color="C3")
-        _onsets(ax, faults)
+        _onsets(ax, faults, label=j % rows == 0)
         unit = (tr.units.get("residual") or [""] * m)[j]
         ax.set_ylabel(f"|{comp}| [{unit}]" if unit else comp, fontsize=7)
         ax.tick_params(labelsize=7)
@@ -55,7 +59,8 @@ def plot_residuals(record: Record, diagnoser: str, path: str | Path) -> Path:
         ax.set_ylim(floor, max(r.max(), thr) * 2)
     for ax in axes[-1]:
         ax.set_xlabel("time [s]")
-    fig.suptitle(f"{record.scenario}: {diagnoser} residuals |r_i| vs thresholds (dashed); alarms in red", fontsize=9)
+    fig.suptitle(f"{record.scenario}: {diagnoser} residuals |r_i| vs thresholds (dashed); alarms in red; true fault "
+                 "onsets dotted", fontsize=9)
     return save_figure(fig, path)
 
 

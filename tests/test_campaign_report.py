@@ -1,0 +1,35 @@
+"""The campaign report says when its numbers are thin: a prefix of the spec, few fault-free runs, few faults."""
+from __future__ import annotations
+
+from robofdi.campaign.metrics import clopper_pearson
+from robofdi.campaign.results import report_markdown
+
+
+def _summary(fault_free: int, faulty: int, spec_runs: tuple[int, int], faults_on_target: int) -> dict:
+    rate = {"count": 0, "of": fault_free, "rate": 0.0, "ci95": clopper_pearson(0, fault_free)}
+    det = {"count": faulty, "of": faulty, "rate": 1.0, "ci95": clopper_pearson(faulty, faulty)}
+    block = {"faults": faulty, "detection": det, "isolation_accuracy": det, "correctly_isolated": det,
+             "delay_median": 0.01, "delay_p90": 0.02, "runs_with_false_alarm_before_onset": 0}
+    diag = {"false_alarm_rate": rate, "faulty": block, "by_kind": {"actuator_additive": block},
+            "by_kind_profile": {"actuator_additive~step": block}, "confusion": {},
+            "detectability": {"actuator_additive": {"joint2": {
+                "faults": faults_on_target, "detected": faults_on_target, "size_range": [0.2, 0.2],
+                "min_detectable_size": 0.2, "min_detectable_magnitude": 20.0, "min_detectable_at_most": True,
+                "unit": "N·m", "limit": 100.0}}}}
+    return {"spec": {"system": "arm", "seed": 0, "system_options": {}, "detection_level": 0.9,
+                     "fault_free_runs": spec_runs[0], "faulty_runs": spec_runs[1]},
+            "runs": {"finished": fault_free + faulty, "fault_free": fault_free, "faulty": faulty, "errors": 0},
+            "diagnosers": {"momentum": diag}, "execution": {}}
+
+
+def test_a_small_prefix_is_flagged():
+    text = report_markdown(_summary(5, 15, (100, 100), 1))
+    assert "## Read with care" in text
+    assert "20 of the spec's 200 runs (run indices 0–19" in text
+    assert "Few fault-free runs:** 5 (even 0 false-alarm runs give a 95 % interval of [0, 52.2] %)" in text
+    assert "actuator_additive on joint2 (n=1)" in text and "(n=1) ⚠" in text
+
+
+def test_a_full_campaign_reads_plainly():
+    text = report_markdown(_summary(100, 100, (100, 100), 20))
+    assert "Read with care" not in text and "⚠" not in text
