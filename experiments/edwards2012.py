@@ -247,11 +247,11 @@ def _cascade(run_dir: Path, progress: Progress) -> dict:
     fig, axes = plt.subplots(2, 1, figsize=(7, 5), sharex=True)
     axes[0].plot(recon["t"], recon["f"], "k--", lw=0.9, label="fault f")
     axes[0].plot(recon["t"], recon["f_hat"], lw=0.8, label="reconstruction f̂")
-    axes[0].set_ylabel("elevator fault [deg]")
+    axes[0].set_ylabel("elevator fault [input units]")
     axes[0].legend(fontsize=7)
     axes[0].set_title("Fig. 6 (like): fault and its cascade reconstruction, ΔA¹ = 0", fontsize=9)
     axes[1].plot(recon["t"], recon["f_hat"] - recon["f"], lw=0.8)
-    axes[1].set_ylabel("f̂ − f [deg]")
+    axes[1].set_ylabel("f̂ − f [input units]")
     axes[1].set_xlabel("time [s]")
     save_figure(fig, run_dir / "figures" / "fig6_cascade_reconstruction.png")
     out = {"stages": lines, "rbar": rbar, "m_last": stages[-1].m_next, "reproduction": reproduction,
