@@ -4,16 +4,18 @@ the diagnosed thruster effectiveness, side by side with the chapter-4 allocators
     robofdi run edwards-auv-ftc [--seed N] [--out DIR]
 
 The mission and faults are those of ``ch4-auv`` (ODIN task of 120 s in a current; thruster 2 (horizontal) and
-thruster 6 (vertical) switched off at 78 s and 90 s). The SMC-CA loop (``allocation = "smc_ca"``:
-:class:`robofdi.ftc.smc_auv.SlidingModeAuvControl` + :class:`robofdi.ftc.smc_auv.HealthWeightedAllocation`) flies it
-fault-free, without FTC (W = I), with the oracle health and with the health diagnosed by each of the
-``voltage_residual``, ``current_map`` and ``force_observer`` diagnosers (W = I − K̂, k̂ = 1 for an isolated
-thruster, floored at w_min = 0.05). The chapter-4 controller with each of its five allocators flies the same
-mission with the same noise (voltage-residual health; fault-free, no-FTC and oracle with the default
-"constrained" allocator). All of them use the "constrained" allocator's calibration: it is from fault-free
-missions with every thruster healthy, where the allocators differ only when a thruster saturates. By default the
-SMC-CA loop shares that calibration too (the diagnosers' thresholds are on thruster-level residuals);
-``own_calibration=True`` calibrates under SMC-CA instead (three more 240 s missions).
+thruster 6 (vertical) switched off at 78 s and 90 s). Seven runs with the same noise by default: the SMC-CA loop
+(``allocation = "smc_ca"``: :class:`robofdi.ftc.smc_auv.SlidingModeAuvControl` +
+:class:`robofdi.ftc.smc_auv.HealthWeightedAllocation`) fault-free, without FTC (W = I), with the oracle health and
+with the health diagnosed by the voltage residual (W = I − K̂, k̂ = 1 for an isolated thruster, floored at
+w_min = 0.05); the chapter-4 controller with its default "constrained" allocator fault-free, without FTC and
+diagnosed. ``run(..., full=True)`` adds SMC-CA with the ``current_map`` and ``force_observer`` health, the ch4
+oracle, and the other four ch4 allocators (diagnosed): 15 runs.
+
+All runs use the "constrained" allocator's calibration: it comes from fault-free missions with every thruster
+healthy, where the allocators differ only when a thruster saturates. The SMC-CA loop shares it too (the
+diagnosers' thresholds are on thruster-level residuals); ``own_calibration=True`` calibrates under SMC-CA instead
+(three more 240 s missions).
 
 The design-time part of §6 is checked too: (66) on the AUV linearised at rest (B1 = 0: γ1 = γ2 = 0, the condition is
 0 and the sliding motion is independent of W), γ0 of Proposition 5, and the thruster patterns for which B W Bᵀ is
