@@ -216,12 +216,17 @@ class SMCCAController:
         self.last_unattained = np.zeros(self.d.l)
 
     def update(self, x, w_hat) -> np.ndarray:
+        """u for the state error x and the diagnosed effectiveness ``w_hat``: :meth:`allocate` of :meth:`virtual`."""
+        return self.allocate(self.virtual(x), w_hat)
+
+    def virtual(self, x) -> np.ndarray:
+        """ν̂ of (67)–(69) in the scaled coordinates (B2 B2ᵀ = I) for the state error x; steps the adaptive gain
+        (70) by ``dt`` and keeps σ."""
         d = self.d
         n = self._T.shape[0]
         x = np.asarray(x, dtype=float)
         if x.shape != (n,) or not np.all(np.isfinite(x)):
             raise RobofdiError(f"SMCCAController: input 'x' must be {n} finite state errors, got {x!r}")
-        w = np.clip(np.asarray(w_hat, dtype=float), d.w_min, 1.0)
         xh = self._T @ x
         r = n - d.l
         x1 = xh[:r]
@@ -232,6 +237,13 @@ class SMCCAController:
         nu_hat = -d.A21t @ x1 - d.A22t @ sigma + self.Phi @ sigma - (rho + self.eta) * sigma / (ns + self.delta)
         self.r += self.dt * (self.a * gain * (ns if ns >= self.eps else 0.0) - self.b * self.r)   # (70)
         self.sigma = sigma
+        return nu_hat
+
+    def allocate(self, nu_hat, w_hat) -> np.ndarray:
+        """u = B2^† ν with ν = (B2 W B2ᵀ)(B2 W² B2ᵀ)⁻¹ ν̂ (inverting (60)), W = diag(ŵ) clipped to [w_min, 1] (57);
+        the W-weighted bounded least squares when u exceeds ``limit``."""
+        d = self.d
+        w = np.clip(np.asarray(w_hat, dtype=float), d.w_min, 1.0)
         B2 = d.B2
         G1, G2 = (B2 * w) @ B2.T, (B2 * (w * w)) @ B2.T
         nu = G1 @ np.linalg.solve(G2, nu_hat)                 # inverts ν̂ = (B2 W² B2ᵀ)(B2 W B2ᵀ)⁻¹ ν (60)

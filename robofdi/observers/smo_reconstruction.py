@@ -338,13 +338,15 @@ def reconstruction_design(A, C, M, B=None, Q=None, poles: Sequence[complex] | No
 
     1. canonical form (:func:`canonical_form`, A1 and A2 checked);
     2. L_o with A11 + L_o A211 Hurwitz: ``poles`` placed on (A11ᵀ, A211ᵀ) (method "place"; p = q: A11 is already the
-       zero dynamics), or the bounded-real LMI minimising ‖Ĝ‖∞ over (L_o, W_1) (method "lmi", cvxpy);
+       zero dynamics), the Kalman-type gain L_o = −X A211ᵀ of the Riccati equation on (A11ᵀ, A211ᵀ) (method
+       "riccati": needs only detectability, so it leaves the invariant zeros where they are), or the bounded-real
+       LMI minimising ‖Ĝ‖∞ over (L_o, W_1) (method "lmi", cvxpy);
     3. G_l = Tt⁻¹ T_L⁻¹ [Ã12; Ã22 − A_s] Tᵀ with T_L = [[I, L], [0, I]], Ã = T_L A_c T_L⁻¹ (A_s Hurwitz, default −5 I):
        then A − G_l C has the eigenvalues eig(Ã11) ∪ eig(A_s);
     4. G_n = Tt⁻¹ [−L Tᵀ; Tᵀ] (erratum: the printed (14) has +L), W = [W_1 M_o⁻¹] Tᵀ (W_1 = 0 by default, eq. 10)."""
     where = "reconstruction_design"
-    if method not in ("place", "lmi"):
-        raise RobofdiError(f"{where}: field 'method' must be 'place' or 'lmi', got {method!r}")
+    if method not in ("place", "lmi", "riccati"):
+        raise RobofdiError(f"{where}: field 'method' must be 'place', 'lmi' or 'riccati', got {method!r}")
     f = canonical_form(A, M, C, Q=Q, B=B)
     n, p, q = f.n, f.p, f.q
     r = n - p
@@ -353,6 +355,14 @@ def reconstruction_design(A, C, M, B=None, Q=None, poles: Sequence[complex] | No
         if poles is not None or W_1 is not None:
             raise RobofdiError(f"{where}: method 'lmi' designs L_o and W_1 itself: leave 'poles' and 'W_1' unset")
         L_o, W1, gamma_lmi = _lmi_design(f, margin, solver)
+    elif method == "riccati":
+        if poles is not None:
+            raise RobofdiError(f"{where}: method 'riccati' designs L_o itself: leave 'poles' unset")
+        L_o = np.zeros((r, p - q))
+        if r and p > q:                                   # a Kalman-type gain: works for detectable (A11, A211)
+            X = scipy.linalg.solve_continuous_are(f.A11.T, f.A211.T, np.eye(r), np.eye(p - q))
+            L_o = -X @ f.A211.T
+        W1 = np.zeros((q, p - q)) if W_1 is None else _mat(W_1, "W_1", where, rows=q, cols=p - q)
     else:
         if p == q or r == 0:
             L_o = np.zeros((r, p - q))
@@ -550,14 +560,18 @@ class CascadeStage:
     sliding: np.ndarray | None
     sliding_poles: np.ndarray | None
     last: bool
+    #: the state map of this stage: its final coordinates = ``T`` × [x^i; ξ^i] (x^i in the coordinates the stage
+    #: was given; for the last stage x^i alone)
+    T: np.ndarray | None = None
 
 
-def _output_coordinates(A, M, Q, C):
+def _output_coordinates(A, M, Q, C, with_T: bool = False):
     """x ↦ [N_cᵀ; C] x: C = [0 I_p] (the form (17) assumes)."""
     Nc = scipy.linalg.null_space(C)
     T0 = np.vstack([Nc.T, C])
     Ti = np.linalg.inv(T0)
-    return T0 @ A @ Ti, T0 @ M, T0 @ Q, C @ Ti
+    out = (T0 @ A @ Ti, T0 @ M, T0 @ Q, C @ Ti)
+    return (*out, T0) if with_T else out
 
 
 def _proposition1(A, M, Q, p: int, rbar: int):
@@ -582,7 +596,7 @@ def _proposition1(A, M, Q, p: int, rbar: int):
         Tb[:r, r:] = -Ms[:r, q - rbar:] @ np.linalg.pinv(Ms[r:, q - rbar:])
     T = scipy.linalg.block_diag(np.eye(r), Tr) @ Tb
     Ti = np.linalg.inv(T)
-    return T @ A @ Ti, T @ Ms, T @ Q, np.hstack([np.zeros((p, r)), Tr.T])
+    return T @ A @ Ti, T @ Ms, T @ Q, np.hstack([np.zeros((p, r)), Tr.T]), T, T2i
 
 
 def cascade_design(A, M, C, Q, filters: Sequence[tuple], alpha: float = 10.0, max_stages: int = 6,
@@ -609,11 +623,11 @@ def cascade_design(A, M, C, Q, filters: Sequence[tuple], alpha: float = 10.0, ma
     stages: list[CascadeStage] = []
     for i in range(max_stages):
         p, q = C.shape[0], _rank(M)
-        A, M, Q, C = _output_coordinates(A, M, Q, C)
+        A, M, Q, C, T0 = _output_coordinates(A, M, Q, C, with_T=True)
         rbar = _rank(np.where(np.abs(C @ M) > tol * max(1.0, np.abs(M).max()), C @ M, 0.0))
         n = A.shape[0]
         if rbar == q:
-            stages.append(CascadeStage(n, p, q, Q.shape[1], rbar, p - rbar, A, M, Q, C, None, None, None, True))
+            stages.append(CascadeStage(n, p, q, Q.shape[1], rbar, p - rbar, A, M, Q, C, None, None, None, True, T0))
             return stages
         if i >= len(filters):
             raise RobofdiError(f"{where}: field 'filters' must give a disturbance filter (A_Ω, B_Ω) for stage {i + 1} "
@@ -632,7 +646,7 @@ def cascade_design(A, M, C, Q, filters: Sequence[tuple], alpha: float = 10.0, ma
         perm = list(range(n - p)) + list(range(n, nb)) + list(range(n - p, n))
         P = np.eye(nb)[perm]
         Ab, Mb, Qb, Cb = P @ Ab @ P.T, P @ Mb, P @ Qb, Cb @ P.T
-        Ab, Mb, Qb, Cb = _proposition1(Ab, Mb, Qb, p, rbar)
+        Ab, Mb, Qb, Cb, T1, _ = _proposition1(Ab, Mb, Qb, p, rbar)
         r = nb - p
         m_next = p - rbar
         A1, A3 = Ab[:r, :r], Ab[r:, :r]
@@ -644,7 +658,8 @@ def cascade_design(A, M, C, Q, filters: Sequence[tuple], alpha: float = 10.0, ma
         if np.max(poles.real) >= 0:
             raise RobofdiError(f"{where}: stage {i + 1}: (Ā_1, Ā_31) is not detectable, the sliding motion (31) cannot "
                                f"be made stable (eigenvalue {format_mode(poles[np.argmax(poles.real)])})")
-        stages.append(CascadeStage(nb, p, q, h, rbar, m_next, Ab, Mb, Qb, Cb, L_o, S, poles, False))
+        stages.append(CascadeStage(nb, p, q, h, rbar, m_next, Ab, Mb, Qb, Cb, L_o, S, poles, False,
+                                   T1 @ P @ scipy.linalg.block_diag(T0, np.eye(h))))
         M1 = Mb[:r]
         M22 = Mb[r + m_next:, q - rbar:]
         A = np.block([[S, np.zeros((r, rbar))], [alpha * A32, -alpha * np.eye(rbar)]])

@@ -62,6 +62,9 @@ DIAGNOSERS = ("voltage_residual", "current_map", "force_observer", "ekf_bank")
 #: Every diagnoser a scenario may run (depth_vote: the ODIN depth-sensor scheme, with its ARX virtual sensor).
 ALL_DIAGNOSERS = DIAGNOSERS + ("depth_vote",)
 VARIANTS = ("no_ftc", "oracle", "diagnosed")
+#: The allocation choices: the chapter-4 allocators, and "smc_ca" (Edwards, Alwi & Tan §6: sliding-mode control with
+#: the on-line allocation W = I − K̂, :mod:`robofdi.ftc.smc_auv`; it replaces the controller too).
+ALLOCATIONS = ALLOCATORS + ("smc_ca",)
 
 
 def thruster_names(n: int = 8) -> list[str]:
@@ -186,8 +189,8 @@ class AuvScenario:
         unknown = [d for d in self.diagnosers if d not in ALL_DIAGNOSERS]
         if unknown:
             raise RobofdiError(f"AuvScenario: unknown diagnoser {unknown[0]!r}; expected some of {ALL_DIAGNOSERS}")
-        if self.allocation not in ALLOCATORS:
-            raise RobofdiError(f"AuvScenario: field 'allocation' must be one of {ALLOCATORS}, got {self.allocation!r}")
+        if self.allocation not in ALLOCATIONS:
+            raise RobofdiError(f"AuvScenario: field 'allocation' must be one of {ALLOCATIONS}, got {self.allocation!r}")
         if self.variant not in VARIANTS:
             raise RobofdiError(f"AuvScenario: field 'variant' must be one of {VARIANTS}, got {self.variant!r}")
         if self.variant == "diagnosed" and self.health_source not in self.diagnosers:
@@ -260,12 +263,21 @@ def _diagnosers(scenario: AuvScenario, model: AuvModel, channels, characteristic
     return {name: make[name]() for name in scenario.diagnosers}
 
 
-def _controller(model: AuvModel) -> TaskSpaceAuvControl:
+def _controller(model: AuvModel, allocation: str = "constrained"):
+    if allocation == "smc_ca":
+        from robofdi.ftc.smc_auv import SlidingModeAuvControl
+
+        return SlidingModeAuvControl(model)
     return TaskSpaceAuvControl(model, kp=(1.0, 1.0, 1.0, 4.0, 4.0, 4.0), kv=(2.0, 2.0, 2.0, 4.0, 4.0, 4.0))
 
 
-def _allocation(scenario: AuvScenario, model: AuvModel) -> ThrustReallocation:
-    return ThrustReallocation(model.B, model.thrusters, scenario.plant.thrust_limit, scenario.allocation)
+def _allocation(scenario: AuvScenario, model: AuvModel):
+    limit = scenario.plant.thrust_limit
+    if scenario.allocation == "smc_ca":
+        from robofdi.ftc.smc_auv import HealthWeightedAllocation
+
+        return HealthWeightedAllocation(model.B, model.thrusters, limit)
+    return ThrustReallocation(model.B, model.thrusters, limit, scenario.allocation)
 
 
 def _reference_columns() -> tuple[list[str], list[str]]:
@@ -289,7 +301,7 @@ def calibration_records(scenario: AuvScenario, progress: Callable[[int], None] |
     for k in range(scenario.calibration_runs):
         draw = roby2_mission if scenario.mission == "roby2" else draw_mission
         ref = draw(scenario.seed, scenario.calibration_duration, CALIBRATION_LIMITS, name=f"calibration{k}")
-        loop = ClosedLoop(sim, _controller(model), ref, accommodation=_allocation(scenario, model),
+        loop = ClosedLoop(sim, _controller(model, scenario.allocation), ref, accommodation=_allocation(scenario, model),
                           reference_columns=cols, reference_units=units)
         records.append(loop.run(scenario.calibration_duration, scenario.start_pose, seed=scenario.seed,
                                 run_key=f"calibration{k}", scenario=f"calibration:{k}", progress=progress))
@@ -373,7 +385,7 @@ def build_loop(scenario: AuvScenario, cal: AuvCalibration) -> ClosedLoop:
         diagnoses[name] = Diagnosis(d, decision)
     health = {"no_ftc": None, "oracle": ORACLE, "diagnosed": scenario.health_source}[scenario.variant]
     cols, units = _reference_columns()
-    controller = _controller(model)
+    controller = _controller(model, scenario.allocation)
     if scenario.depth_redundancy:
         controller = DepthSwitchingControl(controller, _depth_vote(scenario, model, sim.sensor_channels, cal.arx))
     return ClosedLoop(sim, controller, scenario.reference(), scenario.faults, diagnoses,
