@@ -161,9 +161,11 @@ class DiagnosisRunner:
         if d.decision is not None:
             d.decision.reset()
         self.identification.reset()
-        self.health = HEALTHY
+        self._health, self._last = HEALTHY, None
         self._held = None                 # the sum (or the first) of the inputs of the diagnosis interval
         self._count = 0
+        self._ratio, self._mean = self.rates.ratio, self.rates.input_hold == "mean"
+        self._isolated, self._joined = (), ""
         self._rows: dict[str, Column] = {k: Column(self.chunk)
                                          for k in ("time", "residual", "alarm", "isolated", "estimate")}
 
@@ -173,12 +175,12 @@ class DiagnosisRunner:
         # ū: the mean of the interval's inputs summed in order (bit-identical to sum(inputs) / len), or the first
         if self._count == 0:
             self._held = np.array(u_prev, dtype=float)
-        elif self.rates.input_hold == "mean":
+        elif self._mean:
             self._held += u_prev
         self._count += 1
-        if j % self.rates.ratio:
+        if j % self._ratio:
             return False
-        u = self._held / self._count if self.rates.input_hold == "mean" else self._held
+        u = self._held / self._count if self._mean else self._held
         self._count = 0
         res = self.diagnosis.diagnoser.update(y, u)
         decision = self.diagnosis.decision
@@ -192,11 +194,21 @@ class DiagnosisRunner:
         rows["time"].append(t)
         rows["residual"].append(res.r)
         rows["alarm"].append(alarm)
-        rows["isolated"].append("+".join(isolated))
+        if isolated != self._isolated:
+            self._isolated, self._joined = isolated, "+".join(isolated)
+        rows["isolated"].append(self._joined)
         rows["estimate"].append(estimate)
-        if isolated:
-            self.health = Health(t, tuple(isolated), self.identification.magnitudes(estimate, isolated), self.name)
+        if isolated:                      # the health is made when it is read (the health source's, one late)
+            self._last, self._health = (t, isolated, estimate), None
         return True
+
+    @property
+    def health(self) -> Health:
+        """The health after the last diagnosis sample: the isolated faults and their identified magnitudes."""
+        if self._health is None:
+            t, isolated, estimate = self._last
+            self._health = Health(t, tuple(isolated), self.identification.magnitudes(estimate, isolated), self.name)
+        return self._health
 
     def take(self) -> dict[str, np.ndarray]:
         """The trace rows since the last take (time, residual, alarm, isolated, estimate), forgotten here — a
