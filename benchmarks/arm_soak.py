@@ -84,6 +84,18 @@ def alarm_report(path: Path, name: str, diagnosis_hz: float) -> dict:
                 "nrms_last_minute": nrms(max(0, n - minute), n), "samples": n}
 
 
+def _peak_mb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0          # KiB on Linux
+
+
+def _rss_mb() -> float:
+    try:
+        with open("/proc/self/statm") as fh:
+            return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
+    except OSError:
+        return float("nan")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--minutes", type=float, default=10.0, help="simulated minutes (default 10)")
@@ -104,14 +116,26 @@ def main(argv=None) -> int:
     else:
         tmp = tempfile.TemporaryDirectory(prefix="robofdi-soak-")
         out = Path(tmp.name)
+    print(f"calibration {'from the cache' if cached else 'computed'}; peak {_peak_mb():.0f} MB before the run",
+          flush=True)
     t1 = time.perf_counter()
     c1 = time.process_time()
-    path = loop.run_to_file(out / "record.h5", sc.run_duration, sc.start_pose, seed=sc.seed, scenario=sc.name)
+    ticks_per_minute = int(round(60.0 * loop.rates.control_hz))
+    done = [0]
+
+    def progress(k: int) -> None:       # the resident set every simulated minute: flat when memory is bounded
+        done[0] += k
+        if done[0] % ticks_per_minute == 0:
+            print(f"  t = {done[0] / loop.rates.control_hz:6.0f} s simulated, {time.perf_counter() - t1:6.0f} s wall: "
+                  f"rss {_rss_mb():.0f} MB, peak {_peak_mb():.0f} MB", flush=True)
+
+    path = loop.run_to_file(out / "record.h5", sc.run_duration, sc.start_pose, seed=sc.seed, scenario=sc.name,
+                            progress=progress)
     wall, cpu = time.perf_counter() - t1, time.process_time() - c1
     ticks = int(round(sc.run_duration * loop.rates.control_hz)) + 1
     reports = {name: alarm_report(path, name, loop.rates.diagnosis_hz) for name in loop.diagnoses}
     size_mb = path.stat().st_size / 2**20
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0          # KiB on Linux
+    peak = _peak_mb()
 
     print(__doc__.splitlines()[0])
     print(f"arm6, seed {sc.seed}, {sc.run_duration:g} s simulated ({ticks} control ticks, motion of "

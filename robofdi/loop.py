@@ -616,7 +616,7 @@ class ClosedLoop:
                 u_prev_diag = u_diag
                 if j < steps:
                     y = sim.step(u_plant)
-                    rec.append(u_applied=sim.u_applied)
+                    rec.append(u_applied=sim.u_applied.copy())
                 else:
                     rec.append(u_applied=sim.saturate(u_plant))
                 if writer is not None and (j + 1) % chunk == 0:
@@ -678,7 +678,10 @@ class ClosedLoop:
     def _record(self, rec: Recorder, bank: DiagnosisBank, scenario, seed, run_key, duration, meta) -> Record:
         sim = self.simulator
         column = rec.rows["reference"]
-        reference = _stack_references(column.rows if column.is_list else column.array())
+        try:
+            reference = _stack_references(column.rows if column.is_list else column.array())
+        except ValueError:                       # ragged rows (tuples of vectors of different lengths)
+            reference = _stack_references(list(column))
         columns, units = self._layout(reference.shape[1])
         faults = {f.name: f for f in self.faults}
         n_u, n_y, n_x = len(sim.actuators), len(sim.sensor_channels), len(sim.state_names)

@@ -23,6 +23,7 @@ def test_a_column_gives_back_exactly_what_was_appended_blocked_or_listed():
         c.append(r)
     np.testing.assert_array_equal(c.array(), np.asarray(rows))
     np.testing.assert_array_equal(c[-1], rows[-1])
+    assert c._count == 8 and len(c._items) == 2          # two chunks converted, two rows still listed
     np.testing.assert_array_equal(c[5], rows[5])
     assert len(c) == 10 and not c.is_list
     first = c.take()
@@ -34,7 +35,7 @@ def test_a_column_gives_back_exactly_what_was_appended_blocked_or_listed():
     for v in (True, False, True):
         flags.append(v)
     assert flags.array().dtype == bool and flags.array().tolist() == [True, False, True]
-    words = Column()                         # strings, then a ragged row: kept as lists, as appended
+    words = Column(chunk=1)                  # strings: kept as a list, as appended
     words.append("a+b")
     assert words.is_list and words.take() == ["a+b"]
     mixed = Column(chunk=2)
