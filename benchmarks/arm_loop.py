@@ -24,7 +24,9 @@ below the median, something else was using the CPU):
                   bookkeeping per tick (with a stub diagnoser).
 * ``loop (a/b/c)`` ``ClosedLoop.run`` over 2 s of simulated time (2000 control ticks, no faults), wall
                   time / 2000: (a) no diagnoser, (b) the adaptive diagnoser with its ThresholdDecision
-                  (thresholds 1e9, so no alarm), (c) all six diagnosers, each with its ThresholdDecision.
+                  (thresholds 1e9, so no alarm), (m) the momentum observer with its decision, (c) the six
+                  book schemes, each with its ThresholdDecision, (d) every arm scheme (the six and the
+                  consistency scheme, its design learnt from the pre-recorded run) with its decision.
                   Includes everything ``run`` does: recording every signal, building the Record at the
                   end. The repeats go round-robin over (a), (b), (c). ``RTF`` = simulated seconds / wall
                   seconds (> 1: faster than real time).
@@ -37,13 +39,15 @@ update) than in a tight loop of itself — plus measurement noise.
 The floor is the raw model cost of one control tick: 2 × mj_step (2 physics steps per tick) + 1 rnea (the
 controller's inverse dynamics) + 1 aba (a diagnoser's forward dynamics). ``loop/floor`` says how many
 times slower the loop is than that floor, i.e. the Python overhead factor; the very last line,
-``loop/floor ratio: R``, is for loop (b). Absolute numbers depend on the machine and its load; the
+``loop/floor ratio: R``, is for loop (b); the one before, ``all-diagnosers loop/floor ratio: R``, for
+loop (d). Absolute numbers depend on the machine and its load; the
 ratios travel better.
 """
 from __future__ import annotations
 
 import argparse
 import gc
+import os
 import statistics
 import sys
 import time
@@ -57,9 +61,11 @@ from robofdi.control import ComputedTorque
 from robofdi.decision import ThresholdDecision
 from robofdi.control import Quintic
 from robofdi.faults import FaultInjector
-from robofdi.loop import ClosedLoop, Diagnosis, DiagnosisRunner, Rates, diagnose_record
+from robofdi.loop import ClosedLoop, Diagnosis, DiagnosisRunner, Rates, diagnose_record, diagnoser_inputs
 from robofdi.observers import DiagnosticObserver
-from robofdi.observers.arm_schemes import BOOK_SCHEMES as SCHEMES, arm_schemes
+from robofdi.observers.arm_schemes import BOOK_SCHEMES as SCHEMES
+from robofdi.observers.arm_schemes import SCHEMES as ALL_SCHEMES
+from robofdi.observers.arm_schemes import arm_schemes, scheme_calibration
 from robofdi.observers.spectral import ripple_initial_parameters
 from robofdi.systems.arm import ArmScenario
 from robofdi.sims import ArmSimulator, SensorModel, StribeckFriction, TorqueRipple
@@ -68,6 +74,7 @@ from robofdi.sims import ArmSimulator, SensorModel, StribeckFriction, TorqueRipp
 Q0 = (np.pi / 2, -2 * np.pi / 3, np.pi / 6, -np.pi / 2, np.pi / 2, 0.0)
 DQ = (np.pi / 4, np.pi / 4, -np.pi / 4, 0.0, -np.pi / 2, np.pi / 2)
 LOOP_SECONDS = 2.0           # simulated time per timed closed-loop run
+CLOCK = time.perf_counter    # --clock cpu: time.process_time (this process's CPU time; steadier on a loaded machine)
 RECORD_SECONDS = 2.0         # pre-recorded run that feeds the diagnosers
 
 
@@ -91,10 +98,10 @@ def bench(fn, number: int, repeats: int, setup=None) -> Timing:
         if setup is not None:
             setup()
         gc.collect()
-        t0 = time.perf_counter()
+        t0 = CLOCK()
         for i in range(number):
             fn(i)
-        dt = time.perf_counter() - t0
+        dt = CLOCK() - t0
         if rep:                       # repeat 0 is the warm-up
             samples.append(dt / number * 1e6)
     return Timing(samples)
@@ -107,7 +114,7 @@ def previous_harness() -> ArmSimulator:
                         sensors=SensorModel.ideal(), friction=StribeckFriction(breakaway=0.0))
 
 
-def build_loop(scenario: ArmScenario, diagnoser_names=(), theta0=None, sim=None) -> ClosedLoop:
+def build_loop(scenario: ArmScenario, diagnoser_names=(), theta0=None, sim=None, designs=None) -> ClosedLoop:
     """The loop of ``scenarios.arm.build_loop`` / ``run_scenario``: fault-free, online injection, the honest
     harness (ripple harmonics, Stribeck friction, encoder quantisation and velocity noise) unless ``sim``."""
     sim = sim or scenario.simulator()
@@ -116,7 +123,7 @@ def build_loop(scenario: ArmScenario, diagnoser_names=(), theta0=None, sim=None)
     diagnoses = {}
     if diagnoser_names:
         settings = scenario.scheme_settings(scenario.rates)
-        for name, d in arm_schemes(model, settings, theta0, diagnoser_names).items():
+        for name, d in arm_schemes(model, settings, theta0, diagnoser_names, designs=designs).items():
             decision = ThresholdDecision(d.components, np.full(len(d.components), 1e9), d.signatures())
             diagnoses[name] = Diagnosis(d, decision)
     return ClosedLoop(sim, controller, scenario.motion, (), diagnoses, scenario.rates, scenario.injection)
@@ -133,9 +140,9 @@ def time_loops(loops: dict, q0, repeats: int) -> dict:
         for key, loop in loops.items():
             ticks = int(round(LOOP_SECONDS * loop.rates.control_hz))
             gc.collect()
-            t0 = time.perf_counter()
+            t0 = CLOCK()
             loop.run(LOOP_SECONDS, q0)
-            samples[key].append((time.perf_counter() - t0) / ticks * 1e6)
+            samples[key].append((CLOCK() - t0) / ticks * 1e6)
     return {key: Timing(v) for key, v in samples.items()}
 
 
@@ -162,7 +169,11 @@ def main(argv=None) -> int:
     ap.add_argument("--profile", action="store_true", help="cProfile loop (b) and list the top robofdi functions")
     ap.add_argument("--repeats", type=int, default=11, help="repeats of each micro-benchmark (default 11)")
     ap.add_argument("--loop-repeats", type=int, default=7, help="repeats of each closed-loop run (default 7)")
+    ap.add_argument("--clock", choices=("wall", "cpu"), default="wall",
+                    help="wall time (time.perf_counter, default) or this process's CPU time (time.process_time)")
     args = ap.parse_args(argv)
+    global CLOCK
+    CLOCK = time.process_time if args.clock == "cpu" else time.perf_counter
     R, LR = args.repeats, args.loop_repeats
     t_start = time.perf_counter()
 
@@ -259,10 +270,15 @@ def main(argv=None) -> int:
     rows.append(("piece/DiagnosisRunner.push, own cost per tick", t_run, "mean of ū, identification, trace rows"))
 
     # ---- the full closed loop --------------------------------------------------------------------------
+    # the consistency scheme's learnt design, from the pre-recorded run (what calibration learns from its motions)
+    designs = {"consistency": scheme_calibration("consistency", settings).design(
+        model, [diagnoser_inputs(record, scenario.rates)], settings, skip)}
     loops = {
         "a": ("loop (a) no diagnoser", build_loop(scenario)),
         "b": ("loop (b) adaptive + decision", build_loop(scenario, ("adaptive",), theta0)),
+        "m": ("loop (m) momentum + decision", build_loop(scenario, ("momentum",), theta0)),
         "c": ("loop (c) all six + decisions", build_loop(scenario, SCHEMES, theta0)),
+        "d": ("loop (d) all seven arm schemes", build_loop(scenario, ALL_SCHEMES, theta0, designs=designs)),
         "a0": ("loop (a0) = (a), previous harness", build_loop(scenario, sim=previous_harness())),
         "b0": ("loop (b0) = (b), previous harness", build_loop(scenario, ("adaptive",), theta0, previous_harness())),
     }
@@ -275,6 +291,7 @@ def main(argv=None) -> int:
     print(f"python {sys.version.split()[0]}, mujoco {mujoco.__version__}, pinocchio {pin.__version__}, "
           f"numpy {np.__version__}; control {scenario.rates.control_hz:g} Hz, diagnosis "
           f"{scenario.rates.diagnosis_hz:g} Hz, physics {1 / sim.physics_dt:g} Hz ({sim.substeps} substeps/tick)")
+    print(f"clock: {args.clock}; load average {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
     print(f"µs per call: median (and fastest) of {R} repeats, {LR} interleaved repeats of {LOOP_SECONDS:g} s for the loops")
     print()
     w = max(len(r[0]) for r in rows)
@@ -308,6 +325,8 @@ def main(argv=None) -> int:
     print(f"loop/floor ratio (a): {t_loop['a'] / t_floor:.2f}")
     print(f"loop/floor ratio (c): {t_loop['c'] / t_floor:.2f}")
     print(f"loop/floor ratio (b0), the previous harness's plant: {t_loop['b0'] / t_floor:.2f}")
+    print(f"momentum loop/floor ratio (m): {t_loop['m'] / t_floor:.2f}")
+    print(f"all-diagnosers loop/floor ratio: {t_loop['d'] / t_floor:.2f}")
     print(f"loop/floor ratio: {t_loop['b'] / t_floor:.2f}")
     return 0
 

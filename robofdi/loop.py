@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from robofdi.columns import CHUNK, Column
 from robofdi.decision import Identification
 from robofdi.errors import RobofdiError
 from robofdi.faults import FAULT_KINDS, Fault, FaultInjector, check_faults
@@ -147,8 +148,8 @@ class RunInterrupted(Interrupted):
 class DiagnosisRunner:
     """Steps one diagnosis at the diagnosis rate from control-rate samples, keeps its trace and its health."""
 
-    def __init__(self, diagnosis: Diagnosis, rates: Rates, name: str = ""):
-        self.diagnosis, self.rates, self.name = diagnosis, rates, name
+    def __init__(self, diagnosis: Diagnosis, rates: Rates, name: str = "", chunk: int = CHUNK):
+        self.diagnosis, self.rates, self.name, self.chunk = diagnosis, rates, name, chunk
         d = diagnosis.diagnoser
         self.identification = (diagnosis.identification if diagnosis.identification is not None
                                else Identification(d.estimate_components, d.estimate_modes))
@@ -160,18 +161,27 @@ class DiagnosisRunner:
         if d.decision is not None:
             d.decision.reset()
         self.identification.reset()
-        self.health = HEALTHY
-        self._inputs: list[np.ndarray] = []
-        self._rows: dict[str, list] = {k: [] for k in ("time", "residual", "alarm", "isolated", "estimate")}
+        self._health, self._last = HEALTHY, None
+        self._held = None                 # the sum (or the first) of the inputs of the diagnosis interval
+        self._count = 0
+        self._ratio, self._mean = self.rates.ratio, self.rates.input_hold == "mean"
+        self._isolated, self._joined = (), ""
+        self._rows: dict[str, Column] = {k: Column(self.chunk)
+                                         for k in ("time", "residual", "alarm", "isolated", "estimate")}
 
     def push(self, j: int, t: float, y: np.ndarray, u_prev: np.ndarray) -> bool:
         """Control tick j at time t: y measured now, u_prev the input held over the tick that just ended
         (zeros at the first tick, which only initialises the diagnoser). True when a diagnosis sample was taken."""
-        self._inputs.append(u_prev)
-        if j % self.rates.ratio:
+        # ū: the mean of the interval's inputs summed in order (bit-identical to sum(inputs) / len), or the first
+        if self._count == 0:
+            self._held = np.array(u_prev, dtype=float)
+        elif self._mean:
+            self._held += u_prev
+        self._count += 1
+        if j % self._ratio:
             return False
-        u = sum(self._inputs) / len(self._inputs) if self.rates.input_hold == "mean" else self._inputs[0]
-        self._inputs = []
+        u = self._held / self._count if self._mean else self._held
+        self._count = 0
         res = self.diagnosis.diagnoser.update(y, u)
         decision = self.diagnosis.decision
         if decision is not None:
@@ -184,11 +194,34 @@ class DiagnosisRunner:
         rows["time"].append(t)
         rows["residual"].append(res.r)
         rows["alarm"].append(alarm)
-        rows["isolated"].append("+".join(isolated))
+        if isolated != self._isolated:
+            self._isolated, self._joined = isolated, "+".join(isolated)
+        rows["isolated"].append(self._joined)
         rows["estimate"].append(estimate)
-        if isolated:
-            self.health = Health(t, tuple(isolated), self.identification.magnitudes(estimate, isolated), self.name)
+        if isolated:                      # the health is made when it is read (the health source's, one late)
+            self._last, self._health = (t, isolated, estimate), None
         return True
+
+    @property
+    def health(self) -> Health:
+        """The health after the last diagnosis sample: the isolated faults and their identified magnitudes."""
+        if self._health is None:
+            t, isolated, estimate = self._last
+            self._health = Health(t, tuple(isolated), self.identification.magnitudes(estimate, isolated), self.name)
+        return self._health
+
+    def take(self) -> dict[str, np.ndarray]:
+        """The trace rows since the last take (time, residual, alarm, isolated, estimate), forgotten here — a
+        chunk of a streamed record (arrays valid until the next push)."""
+        d = self.diagnosis.diagnoser
+        widths = {"residual": len(d.components), "alarm": len(d.components), "estimate": len(d.estimate_components)}
+        out = {}
+        for key, column in self._rows.items():
+            rows = column.take()
+            dtype = object if key == "isolated" else bool if key == "alarm" else float
+            rows = np.asarray(rows, dtype=dtype)
+            out[key] = rows.reshape(-1, widths[key]) if key in widths else rows
+        return out
 
     def trace(self) -> DiagnoserTrace:
         d, rows = self.diagnosis, self._rows
@@ -213,11 +246,12 @@ class DiagnosisBank:
     :attr:`health` is the health of ``health_source`` (a name in ``diagnoses``; None: always healthy) one diagnosis
     sample late — what the accommodation may use at this tick without an algebraic loop."""
 
-    def __init__(self, diagnoses: Mapping[str, Diagnosis], rates: Rates, health_source: str | None = None):
+    def __init__(self, diagnoses: Mapping[str, Diagnosis], rates: Rates, health_source: str | None = None,
+                 chunk: int = CHUNK):
         if health_source is not None and health_source not in diagnoses:
             raise RobofdiError(f"DiagnosisBank: field 'health_source' must be one of the diagnoses "
                                f"{sorted(diagnoses)}, got {health_source!r}")
-        self.runners = {name: DiagnosisRunner(d, rates, name) for name, d in diagnoses.items()}
+        self.runners = {name: DiagnosisRunner(d, rates, name, chunk) for name, d in diagnoses.items()}
         self._source = self.runners.get(health_source) if health_source is not None else None
         self.health = self._pending = HEALTHY
 
@@ -246,15 +280,22 @@ class DiagnosisBank:
     def traces(self) -> dict[str, DiagnoserTrace]:
         return {name: r.trace() for name, r in self.runners.items()}
 
+    def take(self) -> dict[str, dict[str, np.ndarray]]:
+        """:meth:`DiagnosisRunner.take` of every diagnosis."""
+        return {name: r.take() for name, r in self.runners.items()}
+
 
 class Recorder:
-    """The rows of one run, appended tick by tick, and the arrays of its :class:`~robofdi.record.Record`.
+    """The rows of one run, appended tick by tick into preallocated blocks (:class:`robofdi.columns.Column`), and
+    the arrays of its :class:`~robofdi.record.Record`.
 
-    ``keys``: the row series; ``label_names``: the faults whose (active, value) labels are kept."""
+    ``keys``: the row series; ``label_names``: the faults whose (active, value) labels are kept; ``chunk``: rows
+    per block (and per chunk handed out by :meth:`take` when the record is streamed to disk)."""
 
-    def __init__(self, keys: Sequence[str], label_names: Sequence[str] = ()):
-        self.rows: dict[str, list] = {k: [] for k in keys}
-        self.labels: dict[str, tuple[list, list]] = {name: ([], []) for name in label_names}
+    def __init__(self, keys: Sequence[str], label_names: Sequence[str] = (), chunk: int = CHUNK):
+        self.chunk = chunk
+        self.rows: dict[str, Column] = {k: Column(chunk) for k in keys}
+        self.labels: dict[str, tuple[Column, Column]] = {name: (Column(chunk), Column(chunk)) for name in label_names}
 
     def append(self, **values) -> None:
         rows = self.rows
@@ -264,22 +305,36 @@ class Recorder:
     def append_labels(self, labels: Mapping[str, tuple[bool, float]]) -> None:
         """One tick of :attr:`robofdi.faults.FaultInjector.labels` (name → (active, value))."""
         for name, (active, value) in labels.items():
-            self.labels[name][0].append(active)
-            self.labels[name][1].append(value)
+            columns = self.labels[name]
+            columns[0].append(bool(active))
+            columns[1].append(float(value))
 
     def last(self, key: str, default=None):
         rows = self.rows[key]
-        return rows[-1] if rows else default
+        return rows[-1] if len(rows) else default
+
+    def __len__(self) -> int:
+        """Ticks recorded (and not yet taken) in full: the shortest series."""
+        return min([len(c) for c in self.rows.values()] + [len(c) for pair in self.labels.values() for c in pair])
 
     def array(self, key: str, width: int | None = None, dtype=float) -> np.ndarray:
         """The rows of ``key`` as an array ((N,) for scalars; (N, width) when ``width`` is given)."""
-        a = np.asarray(self.rows[key], dtype=dtype)
+        a = self.rows[key].array(dtype)
         return a if width is None else a.reshape(-1, width)
 
     def fault_labels(self, units: Mapping[str, str]) -> dict[str, FaultLabels]:
         """The labels as :class:`~robofdi.record.FaultLabels`, ``units``: fault name → unit of its value."""
-        return {k: FaultLabels(np.asarray(a, dtype=bool), np.asarray(v, dtype=float), units[k])
-                for k, (a, v) in self.labels.items()}
+        return {k: FaultLabels(a.array(bool), v.array(float), units[k]) for k, (a, v) in self.labels.items()}
+
+    def take(self, rows: int | None = None) -> tuple[dict, dict]:
+        """(series, labels) of the rows since the last take, every one cut to ``rows`` (None: all), and forget
+        them — a chunk of a streamed record (arrays valid until the next append)."""
+        def cut(a):
+            return a if rows is None else a[:rows]
+
+        series = {k: cut(c.take()) for k, c in self.rows.items()}
+        labels = {k: (cut(a.take()), cut(v.take())) for k, (a, v) in self.labels.items()}
+        return series, labels
 
 
 def _record_rates(record: Record) -> Rates:
@@ -372,8 +427,10 @@ def _flat(reference) -> np.ndarray:
 
 def _stack_references(refs: list) -> np.ndarray:
     """(N, k) array of the references recorded as they came (arrays, or tuples of arrays such as (q, q̇, q̈))."""
-    if not refs:
+    if len(refs) == 0:
         return np.zeros((0, 0))
+    if isinstance(refs, np.ndarray):
+        return np.asarray(refs, dtype=float).reshape(len(refs), -1)
     try:                          # the usual case, every tick alike: one vectorised conversion
         return np.asarray(refs, dtype=float).reshape(len(refs), -1)
     except ValueError:            # ragged parts (e.g. a tuple of vectors of different lengths)
@@ -455,6 +512,34 @@ class ClosedLoop:
         "faults")``). Runs with different ``run_key`` (e.g. calibration runs and test runs) never share noise.
         If anything fails part-way, :class:`RunAborted` carries the record of what was done so far.
         """
+        return self._simulate(duration, initial_state, seed, run_key, scenario, meta, progress, None, CHUNK)
+
+    def run_to_file(
+        self,
+        path,
+        duration: float,
+        initial_state: Any = None,
+        *,
+        seed: int | None = None,
+        run_key: str = "run",
+        scenario: str = "",
+        meta: dict | None = None,
+        progress=None,
+        chunk: int = CHUNK,
+    ):
+        """:meth:`run`, the record streamed to the HDF5 file ``path`` as the run goes, every ``chunk`` control
+        ticks (:class:`robofdi.record.RecordWriter`: the layout of :meth:`Record.save`, read back by
+        :func:`robofdi.record.load`), so memory stays bounded whatever ``duration``; returns ``path``. The same
+        seed gives the same series as :meth:`run`. If the run fails or is interrupted, what was recorded stays in
+        ``record.partial_name(path)`` (attribute ``partial`` = 1); :class:`RunAborted` / :class:`RunInterrupted`
+        carry ``record`` None and that ``partial_path``. A crash keeps everything up to the last chunk there."""
+        from pathlib import Path
+
+        if isinstance(chunk, bool) or not isinstance(chunk, (int, np.integer)) or chunk < 1:
+            raise RobofdiError(f"run_to_file: field 'chunk' must be an integer >= 1 (control ticks), got {chunk!r}")
+        return self._simulate(duration, initial_state, seed, run_key, scenario, meta, progress, Path(path), int(chunk))
+
+    def _simulate(self, duration, initial_state, seed, run_key, scenario, meta, progress, path, chunk):
         if not (np.isfinite(duration) and duration > 0):
             raise RobofdiError(f"run: field 'duration' must be > 0 s, got {duration}")
         sim, rates = self.simulator, self.rates
@@ -462,7 +547,7 @@ class ClosedLoop:
         steps = int(round(duration / dt))
         inj = self._injector(stream(seed, run_key))
         oracle = self.health_source == ORACLE
-        bank = DiagnosisBank(self.diagnoses, rates, None if oracle else self.health_source)
+        bank = DiagnosisBank(self.diagnoses, rates, None if oracle else self.health_source, chunk)
         accommodation = self.accommodation
         if hasattr(self.controller, "reset"):     # stateful parts start every run afresh
             self.controller.reset()
@@ -471,11 +556,37 @@ class ClosedLoop:
         online = self.injection == "online"
         components = inj.has_component_faults
         rec = Recorder(("time", "state", "u_applied", "reference", "u_cmd", "u", "u_diag", "y_true", "y_meas"),
-                       inj.label_names)
+                       inj.label_names, chunk)
         fault_by_name = {f.name: f for f in self.faults}
+        writer = None
+        if path is not None:
+            from robofdi import __version__
+            from robofdi.record import RecordWriter
+            from robofdi.seeding import check_seed
+
+            if seed is not None:
+                check_seed("run: field 'seed'", seed)
+            writer = RecordWriter(path, {"system": sim.system, "scenario": scenario, "seed": seed,
+                                         "rates": self.rates.as_dict(sim.physics_dt), "version": __version__,
+                                         "meta": self._meta(duration, run_key, meta)})
+            label_units = {f.name: _label_unit(f, sim) for f in self.faults if f.name in inj.label_names}
+            traces = {}
 
         def record() -> Record:
             return self._record(rec, bank, scenario, seed, run_key, duration, meta)
+
+        def flush(rows=None) -> None:
+            series, labels = rec.take(rows)
+            reference = series.pop("reference")
+            reference = _stack_references(reference)
+            columns, units = self._layout(reference.shape[1] if reference.ndim == 2 else 0)
+            names = {"state": "truth/state", "u_applied": "truth/u_applied"}
+            out = {names.get(k, k if k == "time" else f"signals/{k}"): v for k, v in series.items()}
+            out["signals/reference"] = reference
+            if not traces:
+                traces.update(bank.traces())
+            writer.append(out, columns, units, {k: (a, v, label_units[k]) for k, (a, v) in labels.items()},
+                          bank.take(), traces)
 
         try:
             y = sim.reset(initial_state, seed=stream(seed, run_key, "sensors"))
@@ -508,22 +619,52 @@ class ClosedLoop:
                     rec.append(u_applied=sim.u_applied.copy())
                 else:
                     rec.append(u_applied=sim.saturate(u_plant))
+                if writer is not None and (j + 1) % chunk == 0:
+                    flush()
                 if progress is not None:
                     progress(1)
+            if writer is not None:
+                flush()
+                return writer.close()
         except KeyboardInterrupt as exc:         # SIGINT or SIGTERM (robofdi.interrupts): stop, keep the record
             signum = signal_of(exc)
-            raise RunInterrupted(f"run interrupted by {signal.Signals(signum).name} at t = "
-                                 f"{rec.last('time', 0.0):.3f} s", _trim(record()), signum) from None
+            message = f"run interrupted by {signal.Signals(signum).name} at t = {rec.last('time', 0.0):.3f} s"
+            if writer is not None:
+                err = RunInterrupted(message, None, signum)
+                err.partial_path = self._abort_stream(writer, flush, rec)
+                raise err from None
+            raise RunInterrupted(message, _trim(record()), signum) from None
         except Exception as exc:
-            raise RunAborted(f"run failed at t = {rec.last('time', 0.0):.3f} s: {exc}", _trim(record())) from exc
+            message = f"run failed at t = {rec.last('time', 0.0):.3f} s: {exc}"
+            if writer is not None:
+                err = RunAborted(message, None)
+                err.partial_path = self._abort_stream(writer, flush, rec)
+                raise err from exc
+            raise RunAborted(message, _trim(record())) from exc
         return record()
 
-    def _record(self, rec: Recorder, bank: DiagnosisBank, scenario, seed, run_key, duration, meta) -> Record:
+    @staticmethod
+    def _abort_stream(writer, flush, rec: Recorder):
+        """Write the rows every series reached, close the file as partial; its path (None if that failed too)."""
+        try:
+            flush(len(rec))
+        except (Exception, KeyboardInterrupt):
+            pass
+        try:
+            return writer.close(aborted=True)
+        except (Exception, KeyboardInterrupt):
+            return None
+
+    def _meta(self, duration, run_key, meta) -> dict:
+        return {"injection": self.injection, "duration": duration, "faults": [f.to_dict() for f in self.faults],
+                "accommodation": type(self.accommodation).__name__ if self.accommodation is not None else None,
+                "health_source": self.health_source, "run_key": run_key, **(meta or {})}
+
+    def _layout(self, width: int) -> tuple[dict, dict]:
+        """Columns and units of every control-rate dataset; ``width`` of the flattened reference."""
         sim = self.simulator
         u_cols, u_units = list(sim.actuators), list(sim.units.get("u", [""] * len(sim.actuators)))
         y_cols, y_units = list(sim.sensor_channels), list(sim.units.get("y", [""] * len(sim.sensor_channels)))
-        reference = _stack_references(rec.rows["reference"])
-        width = reference.shape[1]
         ref_cols = list(self.reference_columns) if self.reference_columns else [f"reference[{i}]" for i in range(width)]
         columns = {"truth/state": list(sim.state_names), "truth/u_applied": u_cols, "signals/reference": ref_cols}
         units = {"truth/state": list(sim.units.get("state", [])), "truth/u_applied": u_units,
@@ -532,8 +673,18 @@ class ClosedLoop:
             columns[f"signals/{key}"], units[f"signals/{key}"] = u_cols, u_units
         for key in ("y_true", "y_meas"):
             columns[f"signals/{key}"], units[f"signals/{key}"] = y_cols, y_units
+        return columns, units
+
+    def _record(self, rec: Recorder, bank: DiagnosisBank, scenario, seed, run_key, duration, meta) -> Record:
+        sim = self.simulator
+        column = rec.rows["reference"]
+        try:
+            reference = _stack_references(column.rows if column.is_list else column.array())
+        except ValueError:                       # ragged rows (tuples of vectors of different lengths)
+            reference = _stack_references(list(column))
+        columns, units = self._layout(reference.shape[1])
         faults = {f.name: f for f in self.faults}
-        n_u, n_y, n_x = len(u_cols), len(y_cols), len(sim.state_names)
+        n_u, n_y, n_x = len(sim.actuators), len(sim.sensor_channels), len(sim.state_names)
         return Record(
             system=sim.system,
             scenario=scenario,
@@ -547,9 +698,7 @@ class ClosedLoop:
                      "u_diag": rec.array("u_diag", n_u), "y_true": rec.array("y_true", n_y),
                      "y_meas": rec.array("y_meas", n_y)},
             diagnosers=bank.traces(),
-            meta={"injection": self.injection, "duration": duration, "faults": [f.to_dict() for f in self.faults],
-                  "accommodation": type(self.accommodation).__name__ if self.accommodation is not None else None,
-                  "health_source": self.health_source, "run_key": run_key, **(meta or {})},
+            meta=self._meta(duration, run_key, meta),
             columns=columns,
             units=units,
         )

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import io
 import json
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -27,7 +28,7 @@ import numpy as np
 
 from robofdi.errors import RobofdiError
 
-__all__ = ["FaultLabels", "DiagnoserTrace", "Record", "load"]
+__all__ = ["FaultLabels", "DiagnoserTrace", "Record", "RecordWriter", "load", "partial_name"]
 
 
 @dataclass
@@ -173,6 +174,102 @@ def _put(group, name: str, data, columns=None, units=None) -> None:
     units = list(units) if units else [""] * len(columns)
     ds.attrs["columns"] = json.dumps(list(columns))
     ds.attrs["units"] = json.dumps(units)
+
+
+def partial_name(path: str | Path) -> Path:
+    """Where :class:`RecordWriter` keeps a record while it is written, and a run that stopped keeps it:
+    ``record.h5`` → ``record.partial.h5``."""
+    path = Path(path)
+    return path.with_name(f"{path.stem}.partial{path.suffix or '.h5'}")
+
+
+class RecordWriter:
+    """A record written to HDF5 chunk by chunk as its run goes — the layout, columns and units of
+    :meth:`Record.save` (datasets chunked along time, gzip-compressed; :func:`load` reads both alike), with
+    memory bounded by one chunk whatever the run length.
+
+    The file is ``partial_name(path)`` with the top-level attribute ``partial = 1`` until :meth:`close` renames
+    it to ``path``; after every :meth:`append` of a whole chunk it is flushed, so a run that crashes keeps
+    everything up to its last chunk (under the partial name, marked partial). ``attrs``: system, scenario,
+    seed, rates, version, meta — as :meth:`Record.save` writes them."""
+
+    def __init__(self, path: str | Path, attrs: dict):
+        self.path = Path(path)
+        self.partial = partial_name(self.path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.meta = dict(attrs.get("meta") or {})
+        try:
+            self._file = h5py.File(self.partial, "w")
+        except OSError as exc:
+            raise OSError(exc.errno, exc.strerror or str(exc), str(self.partial)) from None
+        f = self._file
+        f.attrs["partial"] = 1
+        f.attrs.update(system=attrs["system"], scenario=attrs["scenario"],
+                       seed=-1 if attrs["seed"] is None else int(attrs["seed"]), rates=json.dumps(attrs["rates"]),
+                       version=attrs["version"], meta=json.dumps(self.meta))
+
+    def _extend(self, name: str, rows, columns=None, units=None, strings: bool = False) -> None:
+        f = self._file
+        rows = np.asarray(rows, dtype=object) if strings else np.asarray(rows)
+        ds = f.get(name)
+        if ds is None:
+            shape = rows.shape[1:]
+            dtype = h5py.string_dtype() if strings else rows.dtype
+            chunk_rows = max(1, min(4096, 65536 // max(1, int(np.prod(shape, dtype=int)))))
+            ds = f.create_dataset(name, shape=(0, *shape), maxshape=(None, *shape), dtype=dtype,
+                                  chunks=(chunk_rows, *shape), compression="gzip", compression_opts=4,
+                                  shuffle=not strings)
+            if not columns:
+                width = shape[0] if len(shape) == 1 else 1
+                columns = [f"{name.rsplit('/', 1)[-1]}[{i}]" for i in range(width)]
+            ds.attrs["columns"] = json.dumps(list(columns))
+            ds.attrs["units"] = json.dumps(list(units) if units else [""] * len(columns))
+        n = ds.shape[0]
+        if len(rows):
+            ds.resize(n + len(rows), axis=0)
+            ds[n:] = rows.astype(h5py.string_dtype()) if strings else rows
+
+    def append(self, series: dict, columns: dict, units: dict, faults: dict, diagnosers: dict,
+               traces: dict) -> None:
+        """One chunk: ``series`` dataset path ("time", "truth/state", "signals/u", ...) → rows; ``faults`` name →
+        (active rows, value rows, unit); ``diagnosers`` name → {time, residual, alarm, isolated, estimate} rows,
+        ``traces`` name → the :class:`DiagnoserTrace` giving its threshold, components and units (rows ignored)."""
+        for key, rows in series.items():
+            self._extend(key, rows, columns.get(key, ["time"] if key == "time" else None),
+                         units.get(key, ["s"] if key == "time" else None))
+        for name, (active, value, unit) in faults.items():
+            self._extend(f"truth/faults/{name}/active", active, [name], ["1"])
+            self._extend(f"truth/faults/{name}/value", value, [name], [unit])
+        for name, rows in diagnosers.items():
+            tr = traces[name]
+            ru, eu = tr.units.get("residual"), tr.units.get("estimate")
+            base = f"diagnosers/{name}"
+            if base not in self._file:
+                g = self._file.create_group(base)
+                _put(g, "threshold", tr.threshold, tr.components, ru)
+                g.attrs["components"] = json.dumps(list(tr.components))
+                g.attrs["estimate_components"] = json.dumps(list(tr.estimate_components))
+            self._extend(f"{base}/time", rows["time"], ["time"], ["s"])
+            self._extend(f"{base}/residual", rows["residual"], tr.components, ru)
+            self._extend(f"{base}/alarm", rows["alarm"], tr.components, ["1"] * len(tr.components))
+            self._extend(f"{base}/isolated", rows["isolated"], ["isolated"], [""], strings=True)
+            self._extend(f"{base}/estimate", rows["estimate"], tr.estimate_components, eu)
+        self._file.flush()
+
+    def close(self, aborted: bool = False) -> Path:
+        """Finish the file: complete, it is renamed to ``path`` (returned); ``aborted``, it stays under the partial
+        name with ``meta["aborted"]`` set (returned)."""
+        f = self._file
+        if aborted:
+            self.meta["aborted"] = True
+            f.attrs["meta"] = json.dumps(self.meta)
+        else:
+            del f.attrs["partial"]
+        f.close()
+        if aborted:
+            return self.partial
+        os.replace(self.partial, self.path)
+        return self.path
 
 
 def _attr_list(ds, key: str) -> list[str]:

@@ -162,21 +162,42 @@ class ThresholdDecision:
         self._isolated = []
         self._samples = 0
         self._window = None         # (samples left, peak ratio, alarmed) while a first alarm is being confirmed
+        self._quiet_for = None      # the isolated tuple _quiet was made for
+        self._shape = (len(self.components),)
+
+    def _quiet(self) -> Alarms:
+        """The decision at a sample without alarm and without an open confirmation window: nothing new, the
+        isolated faults unchanged (latched) or none — made once per isolation state, its alarm read-only."""
+        isolated = tuple(self._isolated) if self.latch else ()
+        if self._quiet_for != isolated:
+            alarm = np.zeros(self._shape, dtype=bool)
+            alarm.flags.writeable = False
+            self._quiet_alarms, self._quiet_for = Alarms(alarm=alarm, isolated=isolated), isolated
+        if not self.latch:
+            self._isolated = []
+        return self._quiet_alarms
 
     def update(self, residual: np.ndarray) -> Alarms:
-        """One residual sample (m,) in, alarms and isolation out."""
-        r = np.asarray(residual, dtype=float)
+        """One residual sample (m,) in, alarms and isolation out.
+
+        Array first: one vectorised test |r| / threshold per sample; a sample without alarm (and no confirmation
+        window open) returns at once (:meth:`_quiet`, exactly what the isolation logic gives there: nothing new),
+        the isolation logic runs only on samples that alarm."""
+        r = residual if type(residual) is np.ndarray and residual.dtype == np.float64 else np.asarray(residual, dtype=float)
         m = len(self.components)
-        if r.shape != (m,):
+        if r.shape != self._shape:
             raise RobofdiError(f"residual: expected shape ({m},), got {r.shape}")
-        bad = np.flatnonzero(~np.isfinite(r))
-        if bad.size:
-            j = bad[0]
+        ratio = np.abs(r)
+        ratio /= self.threshold
+        peak = ratio.max()
+        if not peak < np.inf:       # NaN or ±inf somewhere (the thresholds are finite and > 0)
+            j = int(np.flatnonzero(~np.isfinite(r))[0])
             raise RobofdiError(f"residual: expected finite values, got {r[j]} at component {j} ({self.components[j]!r})")
-        ratio = np.abs(r) / self.threshold
         self._samples += 1
         if self._samples <= self.blanking:
             return Alarms(alarm=np.zeros(m, dtype=bool), isolated=tuple(self._isolated))
+        if peak <= 1.0 and self._window is None:
+            return self._quiet()
         alarm = ratio > 1.0
         if self.confirm and not self._isolated:
             evident = ratio > self._evidence_ratio

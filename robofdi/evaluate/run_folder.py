@@ -26,6 +26,8 @@ def keep_partial(run_dir: Path):
     try:
         yield
     except (RunAborted, RunInterrupted) as exc:
+        if exc.record is None:               # a streamed run (ClosedLoop.run_to_file) kept its own partial file
+            raise
         try:
             exc.partial_path = exc.record.save(run_dir / PARTIAL)
         except (OSError, RobofdiError, KeyboardInterrupt):

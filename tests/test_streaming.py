@@ -1,0 +1,117 @@
+"""Bounded memory: columns in preallocated blocks, and the record streamed to HDF5 chunk by chunk as the run goes."""
+from __future__ import annotations
+
+import h5py
+import numpy as np
+import pytest
+
+from robofdi import RobofdiError
+from robofdi.columns import Column
+from robofdi.control import ComputedTorque
+from robofdi.decision import ThresholdDecision
+from robofdi.experiments.ch3_industrial_robot import scenario
+from robofdi.faults import Fault
+from robofdi.loop import ClosedLoop, Diagnosis, Rates, RunAborted
+from robofdi.observers import MomentumObserver
+from robofdi.record import load, partial_name
+
+
+def test_a_column_gives_back_exactly_what_was_appended_blocked_or_listed():
+    rows = [np.arange(3.0) + k for k in range(10)]
+    c = Column(chunk=4)
+    for r in rows:
+        c.append(r)
+    np.testing.assert_array_equal(c.array(), np.asarray(rows))
+    np.testing.assert_array_equal(c[-1], rows[-1])
+    assert c._count == 8 and len(c._items) == 2          # two chunks converted, two rows still listed
+    np.testing.assert_array_equal(c[5], rows[5])
+    assert len(c) == 10 and not c.is_list
+    first = c.take()
+    np.testing.assert_array_equal(first, np.asarray(rows))
+    assert len(c) == 0
+    c.append(rows[0])
+    np.testing.assert_array_equal(c.take(), rows[:1])
+    flags = Column(chunk=2)
+    for v in (True, False, True):
+        flags.append(v)
+    assert flags.array().dtype == bool and flags.array().tolist() == [True, False, True]
+    words = Column(chunk=1)                  # strings: kept as a list, as appended
+    words.append("a+b")
+    assert words.is_list and words.take() == ["a+b"]
+    mixed = Column(chunk=2)
+    mixed.append(np.zeros(2))
+    mixed.append(np.ones(3))                 # a row of another shape: the column becomes a list, nothing lost
+    assert mixed.is_list and [len(r) for r in mixed.rows] == [2, 3]
+
+
+def _loop(faults=()):
+    sc = scenario("ch3-actuator", seed=0, duration=0.4, schemes=("momentum",), faults=())
+    sim = sc.simulator()
+    model = sc.nominal_model(sim)
+    rates = Rates(1000.0, 500.0)
+    d = MomentumObserver(model, 1.0 / rates.diagnosis_hz)
+    decision = ThresholdDecision(d.components, np.full(len(d.components), 2.0), d.signatures())
+    return ClosedLoop(sim, ComputedTorque(model, torque_limit=model.torque_limit), sc.motion, faults,
+                      {"momentum": Diagnosis(d, decision)}, rates), sc
+
+
+def _same(a, b):
+    for attr in ("system", "scenario", "seed", "rates", "meta", "columns", "units"):
+        assert getattr(a, attr) == getattr(b, attr), attr
+    for x, y in ((a.time, b.time), (a.truth_state, b.truth_state), (a.u_applied, b.u_applied)):
+        np.testing.assert_array_equal(x, y)
+    assert a.signals.keys() == b.signals.keys() and a.faults.keys() == b.faults.keys()
+    for k in a.signals:
+        np.testing.assert_array_equal(a.signals[k], b.signals[k])
+    for k in a.faults:
+        np.testing.assert_array_equal(a.faults[k].active, b.faults[k].active)
+        np.testing.assert_array_equal(a.faults[k].value, b.faults[k].value)
+        assert a.faults[k].unit == b.faults[k].unit
+    for k, tr in a.diagnosers.items():
+        other = b.diagnosers[k]
+        for name in ("time", "residual", "threshold", "alarm", "estimate"):
+            np.testing.assert_array_equal(getattr(tr, name), getattr(other, name))
+        assert list(tr.isolated) == list(other.isolated)
+        assert (tr.components, tr.estimate_components, tr.units) == (other.components, other.estimate_components,
+                                                                      other.units)
+
+
+def test_a_streamed_record_equals_the_in_memory_one_and_files_repeat_byte_for_byte(tmp_path):
+    fault = Fault("tau3", "actuator_additive", "joint3", onset=0.2, magnitude=30.0)
+    loop, sc = _loop((fault,))
+    q0 = sc.start_pose
+    memory = loop.run(0.4, q0, seed=3, scenario="s", meta={"k": 1})
+    assert memory.diagnosers["momentum"].alarm.any()          # the fault is seen: isolation strings are streamed
+    path = loop.run_to_file(tmp_path / "a" / "record.h5", 0.4, q0, seed=3, scenario="s", meta={"k": 1}, chunk=64)
+    assert path == tmp_path / "a" / "record.h5" and not partial_name(path).exists()
+    _same(load(path), memory)
+    with h5py.File(path) as f:
+        assert "partial" not in f.attrs and f["truth/state"].chunks is not None
+    again = loop.run_to_file(tmp_path / "b" / "record.h5", 0.4, q0, seed=3, scenario="s", meta={"k": 1}, chunk=64)
+    assert again.read_bytes() == path.read_bytes()
+
+
+def test_a_streamed_run_that_fails_keeps_its_chunks_as_a_partial_file(tmp_path):
+    loop, sc = _loop()
+    d = loop.diagnoses["momentum"].diagnoser
+    update, calls = d.update, []
+
+    def failing(y, u):
+        calls.append(1)
+        if len(calls) > 120:                  # the 121st diagnosis sample, tick 240 (0.239 s the last recorded)
+            raise ValueError("boom")
+        return update(y, u)
+
+    d.update = failing
+    with pytest.raises(RunAborted, match="run failed at t = 0.239 s: boom") as info:
+        loop.run_to_file(tmp_path / "record.h5", 0.4, sc.start_pose, seed=1, chunk=50)
+    partial = info.value.partial_path
+    assert info.value.record is None and partial == tmp_path / "record.partial.h5"
+    assert not (tmp_path / "record.h5").exists()
+    with h5py.File(partial) as f:
+        assert f.attrs["partial"] == 1
+    back = load(partial)
+    assert back.meta["aborted"] and len(back.time) == len(back.truth_state) == 240
+    assert len(back.diagnosers["momentum"].time) == 120
+    with pytest.raises(RobofdiError, match="'chunk' must be an integer >= 1"):
+        loop.run_to_file(tmp_path / "x.h5", 0.1, chunk=0)
