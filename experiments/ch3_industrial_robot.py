@@ -101,6 +101,28 @@ def _peak_ratio(record, name: str, fault: dict) -> float:
     return float(np.max(np.abs(tr.residual[win, comp]) / tr.threshold[comp]))
 
 
+def torque_space_isolation(record, fault_free, fault: dict, scheme: str = "time_delayed", window: float = 0.3) -> dict:
+    """Digest check 6 (isolation in torque space, r_τ = (M̂/T) r₂): per joint, the peak |r_τ| [N·m] of ``scheme`` over
+    ``window`` s from the fault onset, in the faulty run and in the fault's own contribution (faulty − fault-free:
+    offline injection gives both runs the same motion and noise); the faulty joint's peak over the largest other."""
+    a, b = record.diagnosers[scheme], fault_free.diagnosers[scheme]
+    joints = [c for c in a.components if not c.endswith("_pos")]
+    cols = [a.components.index(c) for c in joints]
+    win = (a.time >= fault["onset"]) & (a.time < fault["onset"] + window)
+    raw = np.abs(a.residual[win][:, cols]).max(axis=0)
+    own = np.abs(a.residual[win][:, cols] - b.residual[win][:, cols]).max(axis=0)
+    i = joints.index(fault["target"])
+
+    def ratio(x):
+        return float(x[i] / max(np.delete(x, i).max(), 1e-300))
+
+    return {"joints": joints, "faulty_peak": raw.tolist(), "contribution_peak": own.tolist(),
+            "argmax_contribution": joints[int(np.argmax(own))], "argmax_faulty": joints[int(np.argmax(raw))],
+            "contribution_ratio": ratio(own), "faulty_ratio": ratio(raw),
+            "threshold": [float(a.threshold[c]) for c in cols],
+            "units": {"faulty_peak": "N·m", "contribution_peak": "N·m", "threshold": "N·m"}}
+
+
 def reproduction(name: str, summary: dict, record, fault_free) -> list[dict]:
     """The chapter's claims (it prints no numeric results), checked on our runs."""
     out = []
@@ -113,6 +135,21 @@ def reproduction(name: str, summary: dict, record, fault_free) -> list[dict]:
         out.append({"quantity": "tau5 (incipient) peak |r|/threshold: time_delayed < recursive (TD weak on incipient faults)",
                     "paper": "time-delayed low sensitivity to the incipient fault (Figs. 2, 4)",
                     "ours": {"time_delayed": td, "recursive": rec}, "tolerance": None, "pass": bool(td < rec)})
+        tau3 = summary["faults"][0]
+        iso = torque_space_isolation(record, fault_free, tau3)
+        summary["torque_space_isolation"] = iso
+        out.append({"quantity": "tau3: time-delayed torque-space residual r_τ = (M̂/T) r₂ over 0.3 s from onset — argmax "
+                                "and ratio to the largest other joint of the fault's contribution (digest check 6)",
+                    "paper": "argmax joint3, ratio > 5 (digest harness: 38.6 N·m vs ≤ 2.5 N·m elsewhere)",
+                    "ours": {"argmax": iso["argmax_contribution"], "ratio": iso["contribution_ratio"],
+                             "faulty_joint_peak": iso["contribution_peak"][iso["joints"].index(tau3["target"])],
+                             "raw_ratio_with_noise": iso["faulty_ratio"]},
+                    "tolerance": "> 5",
+                    "pass": bool(iso["argmax_contribution"] == tau3["target"] and iso["contribution_ratio"] > 5),
+                    "note": "faulty_joint_peak in N·m; the contribution is faulty − fault-free (offline injection: same "
+                            "motion, same noise). The "
+                            "raw peaks are noise-dominated on the heavy joints 1-2 (M̂(q)·Δv/T of the harness's "
+                            "velocity noise, tens of N·m), so the raw ratio is not the digest's > 5"})
     rms = {d: _fault_free_rms(fault_free, d) for d in BOOK_SCHEMES}
     out.append({"quantity": "fault-free normalised residual RMS after 2 s: adaptive < recursive (best trade-off)",
                 "paper": "adaptive: best trade-off between robustness and sensitivity (Figs. 6, 12)",

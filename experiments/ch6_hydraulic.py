@@ -32,7 +32,7 @@ from robofdi.evaluate.summary import write_summary
 from robofdi.evaluate.reproduction import reproduction_check as check
 from robofdi.control.speed import RPM
 from robofdi.models.hydraulic import CATALOGUE, PSI, flow_gains
-from robofdi.redundancy.baselines import plar_classes, plar_regions
+from robofdi.redundancy.baselines import plar_classes, plar_flow_error, plar_regions
 from robofdi.sims.hydraulic_exact import ExactRun, exact_model_run, leak_area_for_share
 from robofdi.progress import Progress, run_ticks
 from robofdi.systems.hydraulic import (
@@ -471,6 +471,16 @@ def exact_model_reproduction() -> tuple[list, dict]:
                      note=EXACT_NOTE + ". NOT the book's 10x: with the digest's 10 % leak and the 3x3 grid the "
                                        "fault-free peak is the flow linearisation error where the ramp crosses the "
                                        "region borders (u = 1/3, p_l = p_s/3); the ratio grows with the leak size"))
+    op = plar["operating_point"]
+    bias, model = plar["steady_bias"], plar["steady_linearisation_error"]
+    rep.append(check("PLAR fault-free steady R4 = (4β_e/v_t) × the blended flow-linearisation error at the operating "
+                     "point (the cause of 3.9 instead of 10) [Pa/s]", model, bias, 0.01 * abs(model),
+                     abs(bias / model - 1) <= 0.01,
+                     note=EXACT_NOTE + f"; steady u = {op['servovalve']:.3f}, p_l = {op['load_pressure_over_p_s']:.3f} "
+                     "p_s (inside the p_l = p_s/3 border band); error "
+                     f"{plar['error_share_of_motor_flow']['steady']:.1%} of the motor flow at steady state, "
+                     f"{plar['error_share_of_motor_flow']['peak']:.1%} at the fault-free peak, against the "
+                     f"{PLAR_LEAK_SHARE:.0%} leak; 1 %: plant = model and nothing else in R4 is approximated"))
     return rep, data
 
 
@@ -494,8 +504,20 @@ def exact_plar_study() -> dict:
     _, Rl = exact_tests(ff, lin)
     tk, Rk = exact_tests(leak, plar)
     since = 0.1
+    steady = ff["time"] >= 5.0                  # the ramp ends at 4 s; the speed has settled by 5 s
+    u_ss, p_ss = float(np.mean(ff["servovalve"][steady])), float(np.mean(ff["load_pressure"][steady]))
+    P = CATALOGUE
+    gain = 4 * P.beta_e / P.v_t
+    motor_flow = P.d_m * 60.0 * RPM
     return {"sawtooth": _peak(t, Rp["R4"], since), "linear_drift": _peak(t, Rl["R4"], since),
-            "leak_signature": _peak(tk, Rk["R4"], 4.5), "leak_area_m2": area, "units": "Pa/s (R4), m^2"}
+            "leak_signature": _peak(tk, Rk["R4"], 4.5), "leak_area_m2": area,
+            "steady_bias": float(np.mean(Rp["R4"][t >= 5.0])),
+            "steady_linearisation_error": gain * plar_flow_error(P, u_ss, p_ss),
+            "operating_point": {"servovalve": u_ss, "load_pressure": p_ss, "load_pressure_over_p_s": p_ss / P.p_s},
+            "error_share_of_motor_flow": {"steady": plar_flow_error(P, u_ss, p_ss) / motor_flow,
+                                          "peak": _peak(t, Rp["R4"], since) / gain / motor_flow},
+            "leak_share_of_motor_flow": PLAR_LEAK_SHARE,
+            "units": "Pa/s (R4), m^2, 1 (servovalve), Pa (load_pressure), 1 (shares)"}
 
 
 def main(argv=None) -> int:

@@ -1,6 +1,8 @@
 """Seed 004 (reconstructed, spec_linear_papers.md C.3): the adaptive fault-estimation observer's structural checks."""
 from __future__ import annotations
 
+import importlib.util
+
 import numpy as np
 import pytest
 
@@ -9,7 +11,8 @@ from robofdi.experiments.adaptive_fe import PRINTED_RATE, analyse
 from robofdi.models.linear_examples import f16_vertical
 from robofdi.models.linear import discretize
 from robofdi.observers.adaptive import (
-    AdaptiveFaultEstimator, adaptive_fe_gains, augmented_error_matrix, is_spd, lyapunov_certificate,
+    AdaptiveFaultEstimator, adaptive_fe_gains, adaptive_fe_lmi_gains, augmented_error_matrix, is_spd,
+    lyapunov_certificate,
 )
 from robofdi.observers.linear import observer_gain_poles
 from robofdi.systems.f16 import F16Scenario, build_loop, calibrate, run_f16
@@ -32,6 +35,24 @@ def test_gains_place_the_augmented_poles_and_the_certificate_holds():
     # the paper's (F, Γ) form: F = G/γ, Γ = γ I gives the same observer
     fe = AdaptiveFaultEstimator(md, L, F=G / 0.5, Gamma=0.5)
     assert fe.spectral_radius == pytest.approx(0.85, abs=1e-6)
+
+
+@pytest.mark.skipif(importlib.util.find_spec("cvxpy") is None, reason="cvxpy is not installed (the LMI needs it)")
+def test_lmi_gains_meet_the_decay_rate_with_their_certificate():
+    """Remark 3 (reconstructed): the LMI in (P, W = P K_a) gives gains whose augmented error matrix decays at the
+    asked rate, P > 0 certifying Mᵀ P M < decay² P in the augmented-state coordinates; an impossible rate is refused."""
+    md = discretize(f16_vertical(), 0.1)
+    L, G, P = adaptive_fe_lmi_gains(md, md.B, decay=0.9)
+    M = augmented_error_matrix(md.A, md.C, md.B, L, G)
+    assert np.max(np.abs(np.linalg.eigvals(M))) < 0.9
+    n, q = md.n, md.B.shape[1]
+    Aa = np.block([[md.A, md.B], [np.zeros((q, n)), np.eye(q)]])
+    Ka = np.vstack([L + md.B @ G, G])
+    Acl = Aa - Ka @ np.hstack([md.C, np.zeros((md.p, q))])
+    assert is_spd(P) and np.linalg.eigvalsh(Acl.T @ P @ Acl - 0.81 * P).max() < 0
+    assert AdaptiveFaultEstimator(md, L, G=G).spectral_radius < 0.9
+    with pytest.raises(RobofdiError, match="infeasible"):
+        adaptive_fe_lmi_gains(md, md.B, decay=1e-3)
 
 
 def test_unstable_designs_and_bad_input_are_rejected():

@@ -14,7 +14,7 @@ from robofdi.evaluate import summarize
 from robofdi.faults import Fault
 from robofdi.loop import ClosedLoop
 from robofdi.models.hydraulic import CATALOGUE
-from robofdi.redundancy.baselines import plar_classes, smoothstep_weights
+from robofdi.redundancy.baselines import plar_classes, plar_flow_error, smoothstep_weights
 from robofdi.systems.hydraulic import (
     HydraulicScenario, calibrate, controller, operating_profile, run_scenario, table1_fault,
 )
@@ -114,6 +114,21 @@ def test_plar_regions_and_blending():
         assert w.sum() == pytest.approx(1.0) and np.all(w >= 0)
     assert smoothstep_weights(1 / 3, c, 2 / 3)[1:] == pytest.approx([0.5, 0.5])
     assert smoothstep_weights(0.0, c, 2 / 3) == pytest.approx([0, 1, 0])
+
+
+def test_plar_flow_error_is_the_linearisation_error():
+    """PLAR's model error (Sec. 9): zero at every region centre (each linearisation is exact there), point-symmetric
+    like the valve law in the outer columns (the centre column, u₀ = 0, takes the one-sided form), and
+    at the ch6 Fig.-11 operating point (u 0.85, p_l 0.338 p_s: inside the border band) about 2 % of the
+    valve flow — the steady fault-free R4 of PLAR on the exact model (the reproduction list checks it)."""
+    ps = CATALOGUE.p_s
+    for u in (-2 / 3, 0.0, 2 / 3):
+        for p in (-2 / 3, 0.0, 2 / 3):
+            assert plar_flow_error(CATALOGUE, u, p * ps) == pytest.approx(0.0, abs=1e-15)
+    for u, p in ((0.85, 0.338 * ps), (0.5, -0.5 * ps), (0.9, 0.1 * ps)):     # outer columns (u₀ = ±2/3)
+        assert plar_flow_error(CATALOGUE, -u, -p) == pytest.approx(-plar_flow_error(CATALOGUE, u, p), rel=1e-12)
+    q = CATALOGUE.K_f * 0.85 * np.sqrt(2 * (ps - 0.338 * ps) / CATALOGUE.rho)
+    assert 0.015 < plar_flow_error(CATALOGUE, 0.85, 0.338 * ps) / q < 0.025
 
 
 def test_bad_input():

@@ -16,6 +16,7 @@ spectral radius is < 1 — the reconstructed condition (6) for fixed gains (Rema
 """
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 
 import numpy as np
@@ -26,7 +27,8 @@ from robofdi.errors import RobofdiError, all_finite
 from robofdi.models.linear import LinearModel, require_discrete
 from robofdi.observers.residual import Residual, check_measurement
 
-__all__ = ["augmented_error_matrix", "lyapunov_certificate", "adaptive_fe_gains", "AdaptiveFaultEstimator", "is_spd"]
+__all__ = ["augmented_error_matrix", "lyapunov_certificate", "adaptive_fe_gains", "adaptive_fe_lmi_gains",
+           "AdaptiveFaultEstimator", "is_spd"]
 
 
 def is_spd(M, tol: float = 0.0) -> bool:
@@ -72,6 +74,53 @@ def adaptive_fe_gains(model: LinearModel, E, poles: Sequence[complex]) -> tuple[
                            "must be observable from y (no transmission zero at z = 1)") from None
     G = Ka[n:]
     return Ka[:n] - E @ G, G
+
+
+def adaptive_fe_lmi_gains(model: LinearModel, E, decay: float = 0.95, solver: str | None = None):
+    """(L, G = ΓF, P) from an LMI — the seed-004 paper's Remark 3 in the reconstruction: condition (6),
+    (A_a − K_a C_a)ᵀ P (A_a − K_a C_a) < decay² P with P > 0, is bilinear in (P, K_a); the change of variables
+    W = P K_a makes it the LMI  [[decay² P, (P A_a − W C_a)ᵀ], [P A_a − W C_a, P]] > 0  (Schur complement; the
+    paper's remark instead fixes one of the two matrices, which for a fixed K_a leaves the Lyapunov LMI of
+    :func:`lyapunov_certificate`). K_a = P⁻¹W; L = K_a[:n] − E G, G = K_a[n:] (module docstring). Every error mode
+    then decays at least as fast as ``decay``ᵏ, and P certifies it. Needs cvxpy (``pip install 'robofdi[lmi]'``)."""
+    where = "adaptive_fe_lmi_gains"
+    model = require_discrete(model, where, "diagnosis")
+    E = _fault_matrix(E, model.n, where)
+    if not (isinstance(decay, (int, float)) and 0 < decay <= 1):
+        raise RobofdiError(f"{where}: field 'decay' must be a number in (0, 1], got {decay!r}")
+    try:
+        import cvxpy as cp
+    except ImportError:
+        raise RobofdiError(f"{where}: the LMI needs cvxpy (pip install 'robofdi[lmi]'); adaptive_fe_gains places "
+                           "the poles with scipy only") from None
+    n, q, p = model.n, E.shape[1], model.p
+    Aa = np.block([[model.A, E], [np.zeros((q, n)), np.eye(q)]])
+    Ca = np.hstack([model.C, np.zeros((p, q))])
+    P = cp.Variable((n + q, n + q), symmetric=True)
+    W = cp.Variable((n + q, p))
+    X = P @ Aa - W @ Ca
+    rate = 0.995 * decay                 # solved with a small margin, so that the checked rate holds after round-off
+    lmi = cp.bmat([[rate ** 2 * P, X.T], [X, P]])
+    # a feasibility problem: minimising ‖W‖ pushes the solution onto the rate bound, where it fails the check below
+    problem = cp.Problem(cp.Minimize(0),
+                         [P >> np.eye(n + q), 0.5 * (lmi + lmi.T) >> 1e-6 * np.eye(2 * (n + q))])
+    try:
+        with warnings.catch_warnings():          # "solution may be inaccurate": the answer is checked below
+            warnings.simplefilter("ignore", UserWarning)
+            problem.solve(solver=solver)
+    except cp.error.SolverError as exc:
+        raise RobofdiError(f"{where}: the LMI solver failed ({exc})") from None
+    infeasible = RobofdiError(f"{where}: the LMI is infeasible for decay {decay:g} (solver status {problem.status}): "
+                              "no gains give that rate, or the faults are not observable from y")
+    if problem.status not in ("optimal", "optimal_inaccurate") or P.value is None:
+        raise infeasible
+    Pv = 0.5 * (P.value + P.value.T)
+    Ka = np.linalg.solve(Pv, W.value)
+    Acl = Aa - Ka @ Ca                   # the solver's answer is checked, not trusted ("optimal_inaccurate")
+    if not (is_spd(Pv) and float(np.linalg.eigvalsh(Acl.T @ Pv @ Acl - decay ** 2 * Pv).max()) < 0):
+        raise infeasible
+    G = Ka[n:]
+    return Ka[:n] - E @ G, G, Pv
 
 
 def _fault_matrix(E, n: int, where: str) -> np.ndarray:

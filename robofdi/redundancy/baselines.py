@@ -18,7 +18,8 @@ from robofdi.redundancy.nnar import derive_nnar
 from robofdi.redundancy.residuals import RedundancyResidual, SignalMap, nlar_residual
 
 __all__ = ["linear_ar_design", "linear_ar_residual", "plar_regions", "plar_residual", "plar_classes", "nnar_design",
-           "nnar_residual", "train_mlp_ar", "MLPARResidual", "smoothstep_weights"]
+           "nnar_residual", "train_mlp_ar", "MLPARResidual", "smoothstep_weights",
+           "plar_flow_error"]
 
 _LINEAR_DOMAIN = {sp.Symbol("omega"): (0.1, 2.0), sp.Symbol("p_l"): (1e5, 5e6)}
 
@@ -85,6 +86,26 @@ def smoothstep_weights(x: float, centres: Sequence[float], width: float, band: f
                 own = z * z * (3 - 2 * z)
                 w[j], w[i] = 1.0 - own, own
     return w
+
+
+def plar_flow_error(params: HydraulicParameters, u: float, p: float, band: float = 0.1) -> float:
+    """PLAR's own model error at (u, p) [m³/s]: the blended linearised valve flow (Sec. 9; weights of
+    :func:`smoothstep_weights`, the linearisations of :func:`~robofdi.models.hydraulic.flow_gains`) less the valve
+    law Q = K_f u sqrt(2(p_s − sgn(u) p)/ρ) of eq. (10). At steady state on the exact model, PLAR's pressure test
+    R4 equals (4β_e/v_t) times this. (The centre column, u₀ = 0, is linearised in the one-sided form of
+    :func:`~robofdi.models.hydraulic.flow_gains`, so for u < 0 there the error includes the sgn(u) term.)"""
+    from robofdi.models.hydraulic import flow_gains
+
+    uc = (-2 / 3, 0.0, 2 / 3)
+    pc = tuple(x * params.p_s for x in uc)
+    wu, wp = smoothstep_weights(u, uc, 2 / 3, band), smoothstep_weights(p, pc, 2 * params.p_s / 3, band)
+    q = 0.0
+    for i in np.flatnonzero(wu):
+        for j in np.flatnonzero(wp):
+            q0, kq, kc = flow_gains(params, uc[i], pc[j])
+            q += wu[i] * wp[j] * (q0 + kq * (u - uc[i]) - kc * (p - pc[j]))
+    s = 1.0 if u >= 0 else -1.0
+    return float(q - params.K_f * u * np.sqrt(2 * max(params.p_s - s * p, 0.0) / params.rho))
 
 
 def plar_residual(params: HydraulicParameters, measurements, inputs, flt: SavitzkyGolay,
