@@ -166,6 +166,7 @@ class DiagnosisRunner:
         self._count = 0
         self._ratio, self._mean = self.rates.ratio, self.rates.input_hold == "mean"
         self._isolated, self._joined = (), ""
+        self._latest = None
         self._rows: dict[str, Column] = {k: Column(self.chunk)
                                          for k in ("time", "residual", "alarm", "isolated", "estimate")}
 
@@ -198,9 +199,18 @@ class DiagnosisRunner:
             self._isolated, self._joined = isolated, "+".join(isolated)
         rows["isolated"].append(self._joined)
         rows["estimate"].append(estimate)
+        self._latest = (alarm, self._joined)
         if isolated:                      # the health is made when it is read (the health source's, one late)
             self._last, self._health = (t, isolated, estimate), None
         return True
+
+    def latest(self) -> tuple[np.ndarray, str]:
+        """(alarm per residual component, isolated hypotheses joined by "+") of the last diagnosis sample; no
+        alarm and "" before the first."""
+        if self._latest is None:
+            return np.zeros(len(self.diagnosis.diagnoser.components), dtype=bool), ""
+        alarm, isolated = self._latest
+        return np.array(alarm, dtype=bool), isolated
 
     @property
     def health(self) -> Health:

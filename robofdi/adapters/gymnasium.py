@@ -143,10 +143,8 @@ def observation_channels(space) -> list[str]:
 
 def _latest(runner) -> dict:
     """The alarms and isolation of a :class:`~robofdi.loop.DiagnosisRunner`'s last diagnosis sample."""
-    rows = runner._rows
-    if not rows["alarm"]:
-        return {"alarm": np.zeros(len(runner.diagnosis.diagnoser.components), dtype=bool), "isolated": ""}
-    return {"alarm": np.array(rows["alarm"][-1], dtype=bool), "isolated": str(rows["isolated"][-1])}
+    alarm, isolated = runner.latest()
+    return {"alarm": alarm, "isolated": isolated}
 
 
 def _faults(faults) -> tuple[Fault, ...]:
