@@ -44,7 +44,7 @@ from robofdi.ftc import FaultCompensation
 from robofdi.loop import ORACLE, ClosedLoop, Diagnosis, Rates, diagnose_record, diagnoser_inputs
 from robofdi.models import ManipulatorModel, ModelMismatch
 from robofdi.observers import DiagnosticObserver
-from robofdi.observers.arm_schemes import BOOK_SCHEMES, SCHEMES, ArmSchemeSettings, arm_schemes, scheme_calibration
+from robofdi.observers.arm_schemes import ALL_SCHEMES, BOOK_SCHEMES, SCHEMES, ArmSchemeSettings, arm_schemes, scheme_calibration
 from robofdi.observers.spectral import ripple_initial_parameters
 from robofdi.protocols import Mission, Parts, TargetLimit
 from robofdi.record import Record
@@ -108,10 +108,10 @@ class ArmScenario:
             raise RobofdiError("ArmScenario: field 'motion' must be a trajectory (t -> (q, q̇, q̈), with .end)")
         if self.duration is not None and not (np.isfinite(self.duration) and self.duration > 0):
             raise RobofdiError(f"ArmScenario: field 'duration' must be None or > 0 s, got {self.duration}")
-        unknown = [s for s in self.schemes if s not in SCHEMES]
+        unknown = [s for s in self.schemes if s not in ALL_SCHEMES]
         if unknown:
             raise RobofdiError(f"ArmScenario: field 'schemes' has unknown scheme(s) {unknown}; "
-                               f"expected a subset of {list(SCHEMES)}")
+                               f"expected a subset of {list(ALL_SCHEMES)}")
         if self.accommodation not in ACCOMMODATIONS:
             raise RobofdiError(f"ArmScenario: field 'accommodation' must be one of {list(ACCOMMODATIONS)}, "
                                f"got {self.accommodation!r}")
@@ -461,8 +461,11 @@ class ArmSystem(RobotInstances):
             raise RobofdiError(f"system.robot: {exc}") from None
 
     def diagnosers(self, options):
-        from robofdi.observers.arm_schemes import SCHEMES
+        return ALL_SCHEMES
 
+    def default_diagnosers(self, options):
+        """The diagnosers a campaign runs when its spec names none: all but the opt-in ones (:data:`OPT_IN_SCHEMES
+        <robofdi.observers.arm_schemes.OPT_IN_SCHEMES>`)."""
         return SCHEMES
 
     def targets(self, options):
