@@ -327,3 +327,49 @@ def test_experiment_static_checks_pass():
 
     entries = flexible_joint_static() + pendulum_static()
     assert all(e["pass"] for e in entries), [e["quantity"] for e in entries if not e["pass"]]
+
+
+# ------------------------------------------------------------------------------- the arm's opt-in SMO scheme
+def test_arm_sliding_mode_scheme_is_opt_in_and_margin_calibrated():
+    """'sliding_mode' runs only when named: not in a default scenario or a spec without diagnosers; accepted in both."""
+    from robofdi.campaign import load_spec
+    from robofdi.observers.arm_schemes import ALL_SCHEMES, SCHEMES, scheme_calibration
+    from robofdi.systems import get_system
+    from robofdi.systems.arm import ArmScenario, arm_scenario
+
+    arm = get_system("arm")
+    options = arm.options_type()
+    assert "sliding_mode" in arm.diagnosers(options) and "sliding_mode" not in arm.default_diagnosers(options)
+    assert "sliding_mode" in ALL_SCHEMES and "sliding_mode" not in SCHEMES
+    spec = {"system": {"name": "arm"}, "fault_free_runs": 1, "faulty_runs": 0}
+    assert load_spec(spec).diagnosers == SCHEMES
+    assert load_spec({**spec, "diagnosers": ["momentum", "sliding_mode"]}).diagnosers == ("momentum", "sliding_mode")
+    sc = arm_scenario()
+    assert "sliding_mode" not in sc.schemes
+    assert ArmScenario("x", sc.motion, schemes=("sliding_mode",)).schemes == ("sliding_mode",)
+    rule = scheme_calibration("sliding_mode")
+    assert rule.design is None and rule.thresholds == "margin" and rule.random_motions == 0
+
+
+def test_arm_sliding_mode_equivalent_control_filter():
+    """The low-pass on τ̂ = M̂ r_eq is the exact first-order filter of the unfiltered residual; bad 'filter' refused."""
+    from robofdi.observers.sliding_mode_arm import ArmSlidingModeObserver
+    from robofdi.systems.arm import arm_scenario
+
+    sc = arm_scenario()
+    model = sc.nominal_model(sc.simulator())
+    n, T, tf = model.n, 0.002, 0.02
+    raw, filtered = ArmSlidingModeObserver(model, T), ArmSlidingModeObserver(model, T, filter=tf)
+    gen = np.random.default_rng(0)
+    q0 = sc.start_pose
+    alpha, acc = 1 - np.exp(-T / tf), np.zeros(n)
+    for k in range(20):
+        y = np.concatenate([q0 + 1e-3 * k, 0.05 * np.ones(n) + 1e-3 * gen.standard_normal(n)])
+        u = 5.0 * gen.standard_normal(n)
+        acc = acc + alpha * (raw.update(y, u).r - acc)
+        assert np.allclose(filtered.update(y, u).r, acc, rtol=1e-12, atol=1e-9)
+    filtered.reset()
+    assert np.allclose(filtered._tau_f, 0.0)
+    for bad in (-0.1, float("nan"), True, "0.02"):
+        with pytest.raises(RobofdiError, match="field 'filter' must be a time constant >= 0 s"):
+            ArmSlidingModeObserver(model, T, filter=bad)
