@@ -373,3 +373,36 @@ def test_arm_sliding_mode_equivalent_control_filter():
     for bad in (-0.1, float("nan"), True, "0.02"):
         with pytest.raises(RobofdiError, match="field 'filter' must be a time constant >= 0 s"):
             ArmSlidingModeObserver(model, T, filter=bad)
+
+
+def test_sliding_detector_stages_a_chain_one_manifold_at_a_time():
+    """Staging by a sliding detector (Sec. 4, anti-peaking) instead of a schedule: on a 3-chain each cascade stage
+    switches on only after the stage it reads has slid for the dwell time, and the estimate converges."""
+    from robofdi.observers.sliding_mode import SlidingDetector
+
+    A = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [-6.0, -11.0, -6.0]])
+    B, C, G = np.array([[0.0], [0.0], [1.0]]), np.array([[1.0, 0.0, 0.0]]), np.array([[0.0], [0.0], [1.0]])
+    T = 1e-3
+    ts = np.arange(0, 2.0 + T / 2, T)
+    X = _simulate(lambda t, x: A @ x + G[:, 0] * (0.5 * np.sin(3 * t)), [1.0, -1.0, 1.0], ts)
+    band, dwell = 0.01, 0.05
+    smo = chain_smo(A, B, C, G, [20, 15, 10], SMOSettings(T, 1e-6, 1e-4, detector=SlidingDetector(band, dwell)))
+    means = []
+    for k in range(len(ts)):
+        smo.update(X[k, :1], [0.0])
+        means.append((smo.state_estimate, smo.switched_on.copy()))
+    on = smo.switched_on
+    assert on[0] == 0 and dwell <= on[1] < on[2] < 1.9, on
+    E = X - np.array([m[0] for m in means])
+    k1, k2, w = int(round(on[1] / T)), int(round(on[2] / T)), int(round(dwell / T))
+    assert np.abs(E[k1 - w + 1:k1 + 1, 0]).max() < band            # e1 slid through the dwell before stage 2
+    assert abs(E[k1, 1]) > 0.1 and np.abs(E[k2 - w + 1:k2 + 1, 1]).max() < 2 * band   # e2 then, not before
+    assert np.abs(E[-300:]).max(axis=0)[1] < 0.01 and np.abs(E[-300:, 2]).max() < 0.1
+    with pytest.raises(RobofdiError, match="'activation' and 'detector' exclude each other"):
+        SMOSettings(T, 1e-6, 1e-4, activation=[0, 0.3, 0.6], detector=SlidingDetector(band, dwell))
+    with pytest.raises(RobofdiError, match="field 'band' must be error bands > 0"):
+        SlidingDetector(0.0, dwell)
+    with pytest.raises(RobofdiError, match="field 'dwell' must be a time >= 0 s"):
+        SlidingDetector(band, -1.0)
+    with pytest.raises(RobofdiError, match="'band' must be one value or one per stage"):
+        chain_smo(A, B, C, G, [20, 15, 10], SMOSettings(T, 1e-6, 1e-4, detector=SlidingDetector([0.1, 0.1], dwell)))

@@ -5,12 +5,13 @@ and Remark 10 applied to an arm (the digest's §4 suggestion; not in the chapter
     r_eq = (Λ sign(q̇ − z))_eq = M̂⁻¹(τ_fault + model error),   τ̂ = M̂(q) r_eq  [N·m]  (the analogue of f_a = F^L r_eq)
 
 The equivalent control is the mean of Λ sign over each diagnosis sample (:class:`CascadeSMO`), then a first-order
-low-pass of time constant ``filter`` (the chapter computes (v)_eq of eq. (9) "by low pass filtering"; here at the diagnosis rate:
-q̇ is measured once a sample, so inside a sample the observer slides onto a held value and the interval mean is
-the finite-difference acceleration mismatch, noise and all — on the shipped arm's calibration motions its largest
-fault-free |τ̂| is 3–4 × the momentum observer's on joints 1–2 unfiltered, and equal to it within 1 % with the
-filter at the momentum bandwidth, 1/K_O = 0.02 s). Λ must exceed the model mismatch in acceleration; a fault is
-seen through r_eq while sliding is kept, and saturates r_eq at Λ beyond. Residual and estimate: τ̂ per joint [N·m].
+low-pass of time constant ``filter`` (the chapter computes (v)_eq of eq. (9) "by low pass filtering"), here at the
+diagnosis rate: q̇ is sampled once a period (interpolated inside it), so in sliding the interval mean is the
+finite-difference acceleration mismatch (q̇_k − q̇_{k−1})/T − mean L, sensor noise and all. On the shipped arm's
+calibration motions the largest fault-free |τ̂| is 3–4 × the momentum observer's on joints 1–2 unfiltered, and
+within 1 % of it with the filter at the momentum bandwidth, 1/K_O = 0.02 s. Λ must exceed the model mismatch in
+acceleration; a fault is seen through r_eq while sliding is kept, and saturates r_eq at Λ beyond. Residual and
+estimate: τ̂ per joint [N·m].
 """
 from __future__ import annotations
 
