@@ -406,3 +406,30 @@ def test_sliding_detector_stages_a_chain_one_manifold_at_a_time():
         SlidingDetector(band, -1.0)
     with pytest.raises(RobofdiError, match="'band' must be one value or one per stage"):
         chain_smo(A, B, C, G, [20, 15, 10], SMOSettings(T, 1e-6, 1e-4, detector=SlidingDetector([0.1, 0.1], dwell)))
+
+
+def test_e4_case1_both_unknown_inputs_reconstructed():
+    """Example 4 Case 1 (d1 and d2 both on, y = (x1, x3); ΔA assumed 10 % of A): the staged SMO (sliding detector)
+    converges and its equivalent controls reconstruct d1 and d2 (0.1 s means)."""
+    from robofdi.observers.sliding_mode import SlidingDetector
+    from robofdi.systems.motor import CASE1_DA, MOTOR, MotorPlant, case1_d1, case1_d2, motor_smo_case1
+
+    T = 1e-3
+    plant = MotorPlant("x1x3", True, d1=CASE1_DA, control_dt=T)
+    y, u = plant.reset(), np.array([MOTOR["u1"], MOTOR["u2"]])
+    smo = motor_smo_case1(SMOSettings(T, 2e-7, 2e-5, detector=SlidingDetector(0.01, 0.02)))
+    X, R, D = [], [], []
+    for _ in range(601):
+        R.append(smo.update(y, u).r)
+        X.append(plant.state)
+        D.append([case1_d1(plant.state), case1_d2(plant.state)])
+        y = plant.step(u)
+    X, R, D = map(np.array, (X, R, D))
+    E = X - np.array(smo.history)
+    assert smo.switched_on[0] == smo.switched_on[2] == 0 and 0.02 <= smo.switched_on[1] < 0.1
+    late = np.abs(E[300:]).max(axis=0)
+    assert late[0] < 1e-3 and late[2] < 1e-3 and late[1] < 0.15, late
+    for a in (300, 400, 500):
+        w = slice(a + 1, a + 101)
+        assert abs(R[w, 2].mean() - D[w, 1].mean()) < 0.01
+        assert abs(R[w, 1].mean() - D[w, 0].mean()) < 0.15 * abs(D[w, 0].mean()) + 0.1
