@@ -52,7 +52,7 @@ def main():
     rows.append(("kernel/step (compiled)" if smo_kernel.COMPILED else "kernel/step (interpreted)", step, mn / nsub, ""))
     py_n = 2000
     args = list(_kernel_args(py_n))
-    out = (np.zeros(4), np.zeros(4))
+    out = (np.zeros(4), np.zeros(4), np.zeros(4))
     med_py, mn_py = _time(lambda: smo_kernel._integrate(*args, *out), 1, 3)
     rows.append(("kernel/python", med_py / py_n, mn_py / py_n, f"{med_py / py_n / step:.0f}× the compiled step"))
 

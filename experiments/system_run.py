@@ -38,7 +38,7 @@ def run_system(name: str, out: str | Path = "runs", seed: int = 0, progress: boo
         except RobofdiError as exc:
             raise RobofdiError(f"--fault {f.name!r}: {exc}") from None
     key = system.calibration_keys(options)[0]
-    diagnosers = tuple(system.diagnosers(options))
+    diagnosers = tuple(getattr(system, "default_diagnosers", system.diagnosers)(options))   # opt-in ones only by name
     label = name.rsplit(":", 1)[-1] if ":" in name else name
     run_dir = prepare_run_dir(out, label, seed)
     t0 = time.perf_counter()

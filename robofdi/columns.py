@@ -86,7 +86,7 @@ class Column:
         return self._blocks[i // self.chunk][i % self.chunk].copy()
 
     def array(self, dtype=None) -> np.ndarray:
-        """Every row not yet taken, stacked: (N, *row shape), as ``np.asarray(rows, dtype)`` of the rows."""
+        """Every row not yet taken, stacked (N rows of the row shape), as ``np.asarray(rows, dtype)`` of the rows."""
         if not self._blocks:
             return np.asarray(self._items, dtype=dtype)
         parts = list(self._blocks)

@@ -220,7 +220,9 @@ class System(Protocol):
     options_type: type
 
     def diagnosers(self, options) -> Sequence[str]:
-        """Every diagnoser this system can run, best (or the one driving the accommodation) first."""
+        """Every diagnoser this system can run, best (or the one driving the accommodation) first. A system may
+        also define ``default_diagnosers(options)``, the subset a campaign runs when its spec names none (the
+        others are opt-in: run only when named)."""
 
     def targets(self, options) -> dict[str, dict[str, TargetLimit]]:
         """Fault targets and their limits: {"actuator": {name: limit}, "sensor": {...}, "component_<kind>": {...}}."""

@@ -159,7 +159,7 @@ def _hydraulic_setup():
 
 def _diagnoser_cases():
     cases = [f"arm-{s}" for s in ("simple", "time_delayed", "recursive", "adaptive", "position_only", "momentum",
-                                  "consistency")]
+                                  "consistency", "sliding_mode")]
     cases += ["linear-observer_residual", "aircraft-lock_in_place_bank", "f16-adaptive_fault_estimator",
               "helicopter-kalman_fault_estimator", "refiner-gain_fault_observer"]
     cases += [f"auv-{n}" for n in AUV_DIAGNOSERS]

@@ -327,3 +327,109 @@ def test_experiment_static_checks_pass():
 
     entries = flexible_joint_static() + pendulum_static()
     assert all(e["pass"] for e in entries), [e["quantity"] for e in entries if not e["pass"]]
+
+
+# ------------------------------------------------------------------------------- the arm's opt-in SMO scheme
+def test_arm_sliding_mode_scheme_is_opt_in_and_margin_calibrated():
+    """'sliding_mode' runs only when named: not in a default scenario or a spec without diagnosers; accepted in both."""
+    from robofdi.campaign import load_spec
+    from robofdi.observers.arm_schemes import ALL_SCHEMES, SCHEMES, scheme_calibration
+    from robofdi.systems import get_system
+    from robofdi.systems.arm import ArmScenario, arm_scenario
+
+    arm = get_system("arm")
+    options = arm.options_type()
+    assert "sliding_mode" in arm.diagnosers(options) and "sliding_mode" not in arm.default_diagnosers(options)
+    assert "sliding_mode" in ALL_SCHEMES and "sliding_mode" not in SCHEMES
+    spec = {"system": {"name": "arm"}, "fault_free_runs": 1, "faulty_runs": 0}
+    assert load_spec(spec).diagnosers == SCHEMES
+    assert load_spec({**spec, "diagnosers": ["momentum", "sliding_mode"]}).diagnosers == ("momentum", "sliding_mode")
+    sc = arm_scenario()
+    assert "sliding_mode" not in sc.schemes
+    assert ArmScenario("x", sc.motion, schemes=("sliding_mode",)).schemes == ("sliding_mode",)
+    rule = scheme_calibration("sliding_mode")
+    assert rule.design is None and rule.thresholds == "margin" and rule.random_motions == 0
+
+
+def test_arm_sliding_mode_equivalent_control_filter():
+    """The low-pass on τ̂ = M̂ r_eq is the exact first-order filter of the unfiltered residual; bad 'filter' refused."""
+    from robofdi.observers.sliding_mode_arm import ArmSlidingModeObserver
+    from robofdi.systems.arm import arm_scenario
+
+    sc = arm_scenario()
+    model = sc.nominal_model(sc.simulator())
+    n, T, tf = model.n, 0.002, 0.02
+    raw, filtered = ArmSlidingModeObserver(model, T), ArmSlidingModeObserver(model, T, filter=tf)
+    gen = np.random.default_rng(0)
+    q0 = sc.start_pose
+    alpha, acc = 1 - np.exp(-T / tf), np.zeros(n)
+    for k in range(20):
+        y = np.concatenate([q0 + 1e-3 * k, 0.05 * np.ones(n) + 1e-3 * gen.standard_normal(n)])
+        u = 5.0 * gen.standard_normal(n)
+        acc = acc + alpha * (raw.update(y, u).r - acc)
+        assert np.allclose(filtered.update(y, u).r, acc, rtol=1e-12, atol=1e-9)
+    filtered.reset()
+    assert np.allclose(filtered._tau_f, 0.0)
+    for bad in (-0.1, float("nan"), True, "0.02"):
+        with pytest.raises(RobofdiError, match="field 'filter' must be a time constant >= 0 s"):
+            ArmSlidingModeObserver(model, T, filter=bad)
+
+
+def test_sliding_detector_stages_a_chain_one_manifold_at_a_time():
+    """Staging by a sliding detector (Sec. 4, anti-peaking) instead of a schedule: on a 3-chain each cascade stage
+    switches on only after the stage it reads has slid for the dwell time, and the estimate converges."""
+    from robofdi.observers.sliding_mode import SlidingDetector
+
+    A = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [-6.0, -11.0, -6.0]])
+    B, C, G = np.array([[0.0], [0.0], [1.0]]), np.array([[1.0, 0.0, 0.0]]), np.array([[0.0], [0.0], [1.0]])
+    T = 1e-3
+    ts = np.arange(0, 2.0 + T / 2, T)
+    X = _simulate(lambda t, x: A @ x + G[:, 0] * (0.5 * np.sin(3 * t)), [1.0, -1.0, 1.0], ts)
+    band, dwell = 0.01, 0.05
+    smo = chain_smo(A, B, C, G, [20, 15, 10], SMOSettings(T, 1e-6, 1e-4, detector=SlidingDetector(band, dwell)))
+    means = []
+    for k in range(len(ts)):
+        smo.update(X[k, :1], [0.0])
+        means.append((smo.state_estimate, smo.switched_on.copy()))
+    on = smo.switched_on
+    assert on[0] == 0 and dwell <= on[1] < on[2] < 1.9, on
+    E = X - np.array([m[0] for m in means])
+    k1, k2, w = int(round(on[1] / T)), int(round(on[2] / T)), int(round(dwell / T))
+    assert np.abs(E[k1 - w + 1:k1 + 1, 0]).max() < band            # e1 slid through the dwell before stage 2
+    assert abs(E[k1, 1]) > 0.1 and np.abs(E[k2 - w + 1:k2 + 1, 1]).max() < 2 * band   # e2 then, not before
+    assert np.abs(E[-300:]).max(axis=0)[1] < 0.01 and np.abs(E[-300:, 2]).max() < 0.1
+    with pytest.raises(RobofdiError, match="'activation' and 'detector' exclude each other"):
+        SMOSettings(T, 1e-6, 1e-4, activation=[0, 0.3, 0.6], detector=SlidingDetector(band, dwell))
+    with pytest.raises(RobofdiError, match="field 'band' must be error bands > 0"):
+        SlidingDetector(0.0, dwell)
+    with pytest.raises(RobofdiError, match="field 'dwell' must be a time >= 0 s"):
+        SlidingDetector(band, -1.0)
+    with pytest.raises(RobofdiError, match="'band' must be one value or one per stage"):
+        chain_smo(A, B, C, G, [20, 15, 10], SMOSettings(T, 1e-6, 1e-4, detector=SlidingDetector([0.1, 0.1], dwell)))
+
+
+def test_e4_case1_both_unknown_inputs_reconstructed():
+    """Example 4 Case 1 (d1 and d2 both on, y = (x1, x3); ΔA assumed 10 % of A): the staged SMO (sliding detector)
+    converges and its equivalent controls reconstruct d1 and d2 (0.1 s means)."""
+    from robofdi.observers.sliding_mode import SlidingDetector
+    from robofdi.systems.motor import CASE1_DA, MOTOR, MotorPlant, case1_d1, case1_d2, motor_smo_case1
+
+    T = 1e-3
+    plant = MotorPlant("x1x3", True, d1=CASE1_DA, control_dt=T)
+    y, u = plant.reset(), np.array([MOTOR["u1"], MOTOR["u2"]])
+    smo = motor_smo_case1(SMOSettings(T, 2e-7, 2e-5, detector=SlidingDetector(0.01, 0.02)))
+    X, R, D = [], [], []
+    for _ in range(601):
+        R.append(smo.update(y, u).r)
+        X.append(plant.state)
+        D.append([case1_d1(plant.state), case1_d2(plant.state)])
+        y = plant.step(u)
+    X, R, D = map(np.array, (X, R, D))
+    E = X - np.array(smo.history)
+    assert smo.switched_on[0] == smo.switched_on[2] == 0 and 0.02 <= smo.switched_on[1] < 0.1
+    late = np.abs(E[300:]).max(axis=0)
+    assert late[0] < 1e-3 and late[2] < 1e-3 and late[1] < 0.15, late
+    for a in (300, 400, 500):
+        w = slice(a + 1, a + 101)
+        assert abs(R[w, 2].mean() - D[w, 1].mean()) < 0.01
+        assert abs(R[w, 1].mean() - D[w, 0].mean()) < 0.15 * abs(D[w, 0].mean()) + 0.1

@@ -3,7 +3,7 @@
     seed = 0                       # campaign seed: run i's seed is robofdi.seeding.stream(seed, "campaign", "run", i)
     fault_free_runs = 100
     faulty_runs = 100              # one fault each, drawn from [[faults]] (weighted)
-    diagnosers = ["simple", "momentum"]      # default: every diagnoser of the system
+    diagnosers = ["simple", "momentum"]      # default: every diagnoser of the system (but its opt-in ones)
     records = false                # also save every run's record (records/run-<index>.h5)
     detection_level = 0.9          # detection probability that defines the minimum detectable fault
     # (a system without options can be given at the top instead: system = "linear")
@@ -272,7 +272,8 @@ def parse_spec(data: dict, source: str = "spec") -> CampaignSpec:
     except RobofdiError as exc:
         raise RobofdiError(f"{source}: {exc}") from None
     available = tuple(system.diagnosers(options))
-    diagnosers = data.get("diagnosers", list(available))
+    default = getattr(system, "default_diagnosers", system.diagnosers)(options)    # opt-in diagnosers only by name
+    diagnosers = data.get("diagnosers", list(default))
     if not isinstance(diagnosers, list) or not diagnosers:
         raise RobofdiError(f"{source}: field 'diagnosers' must be a non-empty list, got {diagnosers!r}")
     for d in diagnosers:

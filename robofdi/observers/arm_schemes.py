@@ -1,6 +1,7 @@
 """The diagnosis schemes of Caccavale & Villani's robot chapter, plus the momentum baseline, built on one nominal
 model with the chapter's experimental settings (Sec. 7) as defaults; and the consistency scheme
-(:mod:`robofdi.observers.consistency`), which needs a design learnt from fault-free runs."""
+(:mod:`robofdi.observers.consistency`), which needs a design learnt from fault-free runs; and, only when asked
+for (:data:`OPT_IN_SCHEMES`), the sliding-mode output observer on q̇ (:mod:`robofdi.observers.sliding_mode_arm`)."""
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
@@ -14,13 +15,20 @@ from robofdi.observers.consistency import ConsistencyDesign, ConsistencyResidual
 from robofdi.observers.kinematic import WINDOWS
 from robofdi.observers.diagnostic import Adaptive, DiagnosticObserver, Recursive, RippleModel, TimeDelayed
 from robofdi.observers.momentum import MomentumObserver
+from robofdi.observers.sliding_mode_arm import ArmSlidingModeObserver
 
-__all__ = ["ArmSchemeSettings", "SCHEMES", "BOOK_SCHEMES", "arm_schemes", "SchemeCalibration", "scheme_calibration"]
+__all__ = ["ArmSchemeSettings", "SCHEMES", "BOOK_SCHEMES", "OPT_IN_SCHEMES", "ALL_SCHEMES", "arm_schemes",
+           "SchemeCalibration", "scheme_calibration"]
 
 #: The book's schemes (ch. 3) and the momentum baseline.
 BOOK_SCHEMES = ("simple", "time_delayed", "recursive", "adaptive", "position_only", "momentum")
-#: Every scheme :func:`arm_schemes` builds.
+#: The schemes an arm run holds by default.
 SCHEMES = BOOK_SCHEMES + ("consistency",)
+#: Schemes built only when named (a scenario's ``schemes``, a campaign's ``diagnosers``): the default runs, the
+#: demo and the suite's time do not change. "sliding_mode": the SMOO of Saif & Xiong eq. (54) on q̇.
+OPT_IN_SCHEMES = ("sliding_mode",)
+#: Every scheme :func:`arm_schemes` builds.
+ALL_SCHEMES = SCHEMES + OPT_IN_SCHEMES
 
 
 @dataclass(frozen=True)
@@ -29,7 +37,10 @@ class ArmSchemeSettings:
     momentum-observer bandwidth K_O [1/s]; residual space of the observers ("torque" or "state"); bandwidth K_O
     [1/s] of the consistency scheme's momentum rows, its target false-alarm rate [1/h] (thresholds by
     extreme-value theory, :func:`robofdi.decision.extreme_value_thresholds`) and its isolation confirmation
-    window [samples] (:class:`robofdi.decision.ThresholdDecision` ``confirm``), and its kinematic windows [s]."""
+    window [samples] (:class:`robofdi.decision.ThresholdDecision` ``confirm``), and its kinematic windows [s];
+    the sliding-mode scheme's switching gain Λ [rad/s²], integration sub-step [s], in-sample filter constant [s]
+    and equivalent-control low-pass [s] at the diagnosis rate, by default the momentum baseline's bandwidth 1/K_O
+    (:class:`robofdi.observers.sliding_mode_arm.ArmSlidingModeObserver`)."""
 
     T: float = 0.002
     K1: float = 0.1
@@ -41,6 +52,10 @@ class ArmSchemeSettings:
     consistency_false_alarm_rate: float = 0.1
     consistency_confirm: int = 3
     consistency_windows: tuple = WINDOWS
+    smo_gain: float = 200.0
+    smo_substep: float = 2e-6
+    smo_tau: float = 2e-5
+    smo_filter: float = 0.02
 
     def gamma_eta(self, n: int) -> np.ndarray:
         return 0.1 * np.concatenate([np.full(n, 0.1), np.full(n - 1, 2.0), [3.0]])
@@ -49,13 +64,13 @@ class ArmSchemeSettings:
 def arm_schemes(model: ManipulatorModel, settings: ArmSchemeSettings = ArmSchemeSettings(),
                 theta0: np.ndarray | None = None, schemes=BOOK_SCHEMES,
                 consistency: ConsistencyDesign | None = None, designs: Mapping[str, object] | None = None) -> dict:
-    """Fresh diagnosers by name (``schemes`` a subset of :data:`SCHEMES`); ``theta0`` initialises the adaptive
+    """Fresh diagnosers by name (``schemes`` a subset of :data:`ALL_SCHEMES`); ``theta0`` initialises the adaptive
     ripple model (see :func:`robofdi.observers.spectral.ripple_initial_parameters`); ``designs``: the learnt
     designs by scheme name (:class:`SchemeCalibration` ``design``), e.g. the consistency scheme's
     (:func:`robofdi.observers.consistency.design_consistency`), which ``consistency`` may also give."""
-    unknown = [s for s in schemes if s not in SCHEMES]
+    unknown = [s for s in schemes if s not in ALL_SCHEMES]
     if unknown:
-        raise RobofdiError(f"arm_schemes: unknown scheme(s) {unknown}; expected a subset of {list(SCHEMES)}")
+        raise RobofdiError(f"arm_schemes: unknown scheme(s) {unknown}; expected a subset of {list(ALL_SCHEMES)}")
     consistency = consistency if consistency is not None else (designs or {}).get("consistency")
     if "consistency" in schemes and consistency is None:
         raise RobofdiError("arm_schemes: scheme 'consistency' needs its design (field 'consistency'), learnt from "
@@ -73,6 +88,8 @@ def arm_schemes(model: ManipulatorModel, settings: ArmSchemeSettings = ArmScheme
         "position_only": lambda: DiagnosticObserver(model, s.T, Recursive(gamma), velocity="backward_difference", **common),
         "momentum": lambda: MomentumObserver(model, s.T, s.momentum_gain),
         "consistency": lambda: ConsistencyResidual(model, consistency),
+        "sliding_mode": lambda: ArmSlidingModeObserver(model, s.T, s.smo_gain, s.smo_substep, s.smo_tau,
+                                                        s.smo_filter),
     }
     return {name: build[name]() for name in schemes}
 
@@ -104,9 +121,10 @@ def _design_consistency(model, inputs, settings: ArmSchemeSettings, skip: int) -
 def scheme_calibration(name: str, settings: ArmSchemeSettings = ArmSchemeSettings()) -> SchemeCalibration:
     """The calibration rule of scheme ``name``: the book's margin rule for the book's schemes and the momentum
     baseline; a learnt design, held-out thresholds for a false-alarm rate, and a confirmation window for the
-    consistency scheme (:mod:`robofdi.observers.consistency`)."""
-    if name not in SCHEMES:
-        raise RobofdiError(f"scheme_calibration: unknown scheme {name!r}; expected one of {list(SCHEMES)}")
+    consistency scheme (:mod:`robofdi.observers.consistency`); the margin rule for the sliding-mode scheme too (its
+    residual, τ̂ = M̂ r_eq, is a torque like the momentum observer's)."""
+    if name not in ALL_SCHEMES:
+        raise RobofdiError(f"scheme_calibration: unknown scheme {name!r}; expected one of {list(ALL_SCHEMES)}")
     if name == "consistency":
         return SchemeCalibration(_design_consistency, "false_alarm_rate", settings.consistency_confirm,
                                  random_motions=6, top_speed=True)

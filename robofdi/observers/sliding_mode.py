@@ -24,11 +24,12 @@ observer of the chapter is an instance of (:mod:`robofdi.observers.smo_kernel` i
 Numerics (documented choices, the chapter gives none): the equivalent control (v)_eq is a first-order low-pass
 filter τ z' + z = v of the switching term (the chapter: "low pass filtering the signal v"); ψ is the sign (the
 default), or the boundary layer sat(ē/ε) ("saturation with upper limit 0.02" read as ε = 0.02); the anti-peaking
-activation is a schedule of switch-on times (Example 2: 0.2, 0.8, 1.8 s). Between two diagnosis samples the
-measurement is a cubic Hermite interpolant (slopes by central and backward differences: no look-ahead), the input
-is held; the observer is integrated with explicit Euler at ``substep`` (must be below every τ: the switching
-must be faster than its filter). Saif & Xiong eq. (13)'s "+L2 G2" is derived as "−L2 G2" here (the decoupling
-condition G1 − L2 G2 = 0), eq. (16)'s K(y − x) is K(y − C x̂).
+activation is a schedule of switch-on times (Example 2: 0.2, 0.8, 1.8 s) or a sliding detector
+(:class:`SlidingDetector`: a cascade stage switches on once the stage it reads has slid for a dwell time). Between
+two diagnosis samples the measurement is a cubic Hermite interpolant (slopes by central and backward differences:
+no look-ahead), the input is held; the observer is integrated with explicit Euler at ``substep`` (must be below
+every τ: the switching must be faster than its filter). Saif & Xiong eq. (13)'s "+L2 G2" is derived as "−L2 G2"
+here (the decoupling condition G1 − L2 G2 = 0), eq. (16)'s K(y − x) is K(y − C x̂).
 """
 from __future__ import annotations
 
@@ -45,8 +46,9 @@ from robofdi.models.linear import format_mode, unobservable_modes
 from robofdi.observers.residual import Residual, check_measurement
 from robofdi.observers.smo_kernel import SAT, SIGN, UNIT, integrate_interval
 
-__all__ = ["Verdict", "UtkinDesign", "WalcottZakDesign", "ChainStructure", "RouthVerdict", "SMOSettings", "Stage",
-           "CascadeSMO", "utkin_design", "walcott_zak_existence", "walcott_zak_design", "relative_degree_chain",
+__all__ = ["Verdict", "UtkinDesign", "WalcottZakDesign", "ChainStructure", "RouthVerdict", "SMOSettings",
+           "SlidingDetector", "Stage", "CascadeSMO", "utkin_design", "walcott_zak_existence", "walcott_zak_design",
+           "relative_degree_chain",
            "boundary_layer_routh", "utkin_smo", "walcott_zak_smo", "chain_smo", "output_observer", "SWITCHING"]
 
 SWITCHING = {"sign": SIGN, "sat": SAT, "unit": UNIT}
@@ -360,12 +362,35 @@ def boundary_layer_routh(gains: Sequence[float], eps: float = 1.0) -> RouthVerdi
 
 # ----------------------------------------------------------------------------------------------------- stepping
 @dataclass(frozen=True)
+class SlidingDetector:
+    """The staging by detection instead of a schedule (Saif & Xiong Sec. 4, anti-peaking: "we do not inject the
+    observation error information before reaching the sliding manifold linked with this information … we reach
+    the manifold one by one"): a cascade stage j (``after`` = i) switches on, and stays on, once stage i is on and
+    the interval mean of its error |ē_i| (chattering averages out over a diagnosis period) has stayed within
+    ``band`` (one value, or one per stage, in the stage's error unit) for ``dwell`` [s]. Output stages are on from
+    the start. Checked once per diagnosis sample, so a stage switches on at a sample instant."""
+
+    band: float | Sequence[float]
+    dwell: float
+
+    def __post_init__(self):
+        band = np.atleast_1d(np.array(self.band, dtype=float))
+        if band.ndim != 1 or not np.all(np.isfinite(band)) or np.any(band <= 0):
+            raise RobofdiError(f"SlidingDetector: field 'band' must be error bands > 0 (one, or one per stage), "
+                               f"got {self.band!r}")
+        if not (is_number(self.dwell) and self.dwell >= 0):
+            raise RobofdiError(f"SlidingDetector: field 'dwell' must be a time >= 0 s, got {self.dwell!r}")
+        object.__setattr__(self, "band", tuple(float(b) for b in band) if band.size > 1 else float(band[0]))
+
+
+@dataclass(frozen=True)
 class SMOSettings:
     """How a sliding-mode observer is integrated (the chapter gives none of it; digest-calibrated defaults).
 
     sample_time: the diagnosis period T [s]; substep: the Euler step h [s] (< every filter constant τ);
     tau: the equivalent-control low-pass time constant τ [s] (one value, or one per stage); switching: "sign",
-    "sat" (boundary layer ε = ``boundary``) or "unit" (eq. 17); activation: switch-on time [s] per stage (None: 0)."""
+    "sat" (boundary layer ε = ``boundary``) or "unit" (eq. 17); activation: switch-on time [s] per stage (None: 0);
+    detector: a :class:`SlidingDetector` that switches the cascade stages on instead (exclusive with activation)."""
 
     sample_time: float = 1e-3
     substep: float = 1e-7
@@ -373,9 +398,15 @@ class SMOSettings:
     switching: str = "sign"
     boundary: float = 0.02
     activation: Sequence[float] | None = None
+    detector: SlidingDetector | None = None
 
     def __post_init__(self):
         w = "SMOSettings"
+        if self.detector is not None and not isinstance(self.detector, SlidingDetector):
+            raise RobofdiError(f"{w}: field 'detector' must be None or a SlidingDetector, got {self.detector!r}")
+        if self.detector is not None and self.activation is not None:
+            raise RobofdiError(f"{w}: fields 'activation' and 'detector' exclude each other (a schedule or a sliding "
+                               "detector switches the stages on, not both)")
         check_fields(w, self, [("sample_time", is_number(self.sample_time) and self.sample_time > 0, "a period > 0 s"),
                                ("substep", is_number(self.substep) and 0 < self.substep <= self.sample_time,
                                 "a step in (0, sample_time] s"),
@@ -472,6 +503,13 @@ class CascadeSMO:
             raise RobofdiError(f"{where}: settings field 'activation' must hold one switch-on time per stage ({S}), "
                                f"got {len(act)}")
         self.activation = np.zeros(S) if act is None else np.array(act)
+        det = settings.detector
+        if det is not None:
+            band = np.atleast_1d(np.array(det.band, dtype=float))
+            if band.size not in (1, S):
+                raise RobofdiError(f"{where}: settings field 'detector': 'band' must be one value or one per stage ({S}), "
+                                   f"got {len(band)}")
+            self.band = np.broadcast_to(band, (S,)).copy()
         T, h = settings.sample_time, settings.substep
         self.nsub = max(1, int(np.ceil(T / h - 1e-9)))
         self.h = T / self.nsub
@@ -523,9 +561,23 @@ class CascadeSMO:
         self.mean_injection = np.zeros(len(self.stages))
         self.peak = np.zeros(len(self.stages))
         self.history: list[np.ndarray] = []
+        #: switch-on time [s] per stage (inf: still off); the schedule's, or what the sliding detector decided
+        self.switched_on = np.where(self.kind == 0, 0.0, np.inf) if self.settings.detector is not None else \
+            self.activation.copy()
+        self._slid_for = np.zeros(len(self.stages))
 
     def signatures(self) -> list:
         return list(self._signatures)
+
+    def _detect(self, active: np.ndarray, emean: np.ndarray, T: float) -> None:
+        """:class:`SlidingDetector`: time each on-stage has slid (|mean ē| within its band); switch on the stages
+        reading one that has slid for the dwell time, at this sample instant."""
+        inside = (active == 1) & (np.abs(emean) <= self.band)
+        self._slid_for = np.where(inside, self._slid_for + T, 0.0)
+        ready = self._slid_for >= self.settings.detector.dwell - 1e-12
+        for j in range(len(self.stages)):
+            if self.kind[j] == 1 and not np.isfinite(self.switched_on[j]) and ready[self.src[j]]:
+                self.switched_on[j] = self.k * T
 
     @property
     def time(self) -> float:
@@ -568,8 +620,8 @@ class CascadeSMO:
             M1, c1 = self.affine(y, u)
             g0, g1 = self._gains(y0), self._gains(y)
             t0 = (self.k - 1) * T
-            active = (self.activation <= t0 + 1e-12).astype(np.int64)
-            self.mean_injection, self.peak = integrate_interval(
+            active = (self.switched_on <= t0 + 1e-12).astype(np.int64)
+            self.mean_injection, self.peak, emean = integrate_interval(
                 self.x, self.z, self.nsub, self.h, self._ycoef(T), np.ascontiguousarray(M0, dtype=float),
                 np.ascontiguousarray(M1, dtype=float), np.asarray(c0, dtype=float), np.asarray(c1, dtype=float),
                 self.V, self.Wy, self.Cx, self.kind, self.src, g0, g1, self.lam, active, self.sw,
@@ -577,6 +629,8 @@ class CascadeSMO:
             if not (np.all(np.isfinite(self.x)) and np.all(np.isfinite(self.z))):
                 raise RobofdiError(f"{self.where}: the observer diverged at t = {self.time:.4g} s (non-finite state); "
                                    "check the gains, the substep and the filter constant")
+            if self.settings.detector is not None:
+                self._detect(active, emean, T)
         if self.keep_history:
             self.history.append(self.state_estimate)
         r = self.mean_injection.copy()

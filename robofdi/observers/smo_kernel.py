@@ -15,8 +15,9 @@ sign, the saturation clip(ē/ε, −1, 1), or the unit vector ē/‖ē‖ over t
 not ``active`` (anti-peaking: "we reach the manifold one by one") has ē_j = 0 and injects nothing, while its
 filter keeps running on its source.
 
-It returns the interval mean of λ_j ψ(ē_j) (a moving average over T: a second equivalent-control estimate) and the
-largest |z_j| inside the interval (for max-hold peak detection). Compiled with numba when it is installed (≈100×
+It returns the interval mean of λ_j ψ(ē_j) (a moving average over T: a second equivalent-control estimate), the
+largest |z_j| inside the interval (for max-hold peak detection) and the interval mean of ē_j (for a sliding
+detector: chattering averages out; 0 for a stage that is not active). Compiled with numba when it is installed (≈100×
 faster than the interpreted loop; benchmarks/smo_update.py), interpreted otherwise.
 """
 from __future__ import annotations
@@ -31,7 +32,7 @@ SIGN, SAT, UNIT = 0, 1, 2
 
 
 def _integrate(xh, z, nsub, h, ycoef, M0, M1, c0, c1, V, Wy, Cx, kind, src, g0, g1, lam, active, sw, eps, alpha,
-               mean_out, peak_out):
+               mean_out, peak_out, emean_out):
     n = xh.shape[0]
     S = V.shape[1]
     p = ycoef.shape[0]
@@ -42,6 +43,7 @@ def _integrate(xh, z, nsub, h, ycoef, M0, M1, c0, c1, V, Wy, Cx, kind, src, g0, 
     yv = np.zeros(p)
     for j in range(S):
         mean_out[j] = 0.0
+        emean_out[j] = 0.0
         peak_out[j] = abs(z[j])
     for k in range(nsub):
         s = k * h
@@ -66,6 +68,7 @@ def _integrate(xh, z, nsub, h, ycoef, M0, M1, c0, c1, V, Wy, Cx, kind, src, g0, 
                 e[j] = (g0[j] + (g1[j] - g0[j]) * w) * z[src[j]]
         for j in range(S):
             v = e[j]
+            emean_out[j] += v
             if sw == 0 or (sw == 2 and kind[j] == 1):
                 psi[j] = 1.0 if v > 0.0 else (-1.0 if v < 0.0 else 0.0)
             elif sw == 1:
@@ -91,6 +94,7 @@ def _integrate(xh, z, nsub, h, ycoef, M0, M1, c0, c1, V, Wy, Cx, kind, src, g0, 
                 peak_out[j] = a
     for j in range(S):
         mean_out[j] /= nsub
+        emean_out[j] /= nsub
 
 
 try:                                           # pragma: no cover - which branch runs depends on the install
@@ -105,9 +109,10 @@ except ImportError:                            # pragma: no cover
 
 def integrate_interval(xh, z, nsub, h, ycoef, M0, M1, c0, c1, V, Wy, Cx, kind, src, g0, g1, lam, active, sw, eps,
                        alpha):
-    """Advance (x̂, z) in place over one interval; returns (mean of λψ over the interval, max |z| inside it)."""
+    """Advance (x̂, z) in place over one interval; returns (mean of λψ over the interval, max |z| inside it, mean of
+    ē over it)."""
     S = V.shape[1]
-    mean_out, peak_out = np.zeros(S), np.zeros(S)
+    mean_out, peak_out, emean_out = np.zeros(S), np.zeros(S), np.zeros(S)
     _kernel(xh, z, int(nsub), float(h), ycoef, M0, M1, c0, c1, V, Wy, Cx, kind, src, g0, g1, lam, active, int(sw),
-            float(eps), alpha, mean_out, peak_out)
-    return mean_out, peak_out
+            float(eps), alpha, mean_out, peak_out, emean_out)
+    return mean_out, peak_out, emean_out

@@ -45,7 +45,7 @@ from robofdi.ftc import FaultCompensation
 from robofdi.loop import ORACLE, ClosedLoop, Diagnosis, Rates, diagnose_record, diagnoser_inputs
 from robofdi.models import ManipulatorModel, ModelMismatch
 from robofdi.observers import DiagnosticObserver
-from robofdi.observers.arm_schemes import BOOK_SCHEMES, SCHEMES, ArmSchemeSettings, arm_schemes, scheme_calibration
+from robofdi.observers.arm_schemes import ALL_SCHEMES, BOOK_SCHEMES, SCHEMES, ArmSchemeSettings, arm_schemes, scheme_calibration
 from robofdi.observers.spectral import ripple_initial_parameters
 from robofdi.protocols import Mission, Parts, TargetLimit
 from robofdi.record import Record
@@ -116,16 +116,16 @@ class ArmScenario:
         object.__setattr__(self, "schemes", tuple(self.schemes))
         check_fields("ArmScenario", self, [
             ("injection", self.injection in ("online", "offline"), "'online' or 'offline'"),
-            ("schemes", len(self.schemes) > 0, f"a non-empty subset of {list(SCHEMES)}"),
+            ("schemes", len(self.schemes) > 0, f"a non-empty subset of {list(ALL_SCHEMES)}"),
             ("threshold_margin", is_number(self.threshold_margin) and self.threshold_margin >= 1, "a number >= 1"),
             ("startup_blanking", is_number(self.startup_blanking) and 0 <= self.startup_blanking < self.run_duration,
              "a time in [0, run duration) s"),
             ("rates", self.rates is None or isinstance(self.rates, Rates), "None or a Rates"),
         ])
-        unknown = [s for s in self.schemes if s not in SCHEMES]
+        unknown = [s for s in self.schemes if s not in ALL_SCHEMES]
         if unknown:
             raise RobofdiError(f"ArmScenario: field 'schemes' has unknown scheme(s) {unknown}; "
-                               f"expected a subset of {list(SCHEMES)}")
+                               f"expected a subset of {list(ALL_SCHEMES)}")
         if self.accommodation not in ACCOMMODATIONS:
             raise RobofdiError(f"ArmScenario: field 'accommodation' must be one of {list(ACCOMMODATIONS)}, "
                                f"got {self.accommodation!r}")
@@ -487,6 +487,11 @@ class ArmSystem(RobotInstances):
             raise RobofdiError(f"system.robot: {exc}") from None
 
     def diagnosers(self, options):
+        return ALL_SCHEMES
+
+    def default_diagnosers(self, options):
+        """The diagnosers a campaign runs when its spec names none: all but the opt-in ones (:data:`OPT_IN_SCHEMES
+        <robofdi.observers.arm_schemes.OPT_IN_SCHEMES>`)."""
         return SCHEMES
 
     def targets(self, options):

@@ -25,7 +25,7 @@ import numpy as np
 
 from robofdi.checks import check_fields, is_number
 from robofdi.loop import ClosedLoop, Diagnosis, Rates
-from robofdi.observers.sliding_mode import CascadeSMO, SMOSettings, Stage
+from robofdi.observers.sliding_mode import CascadeSMO, SlidingDetector, SMOSettings, Stage
 from robofdi.protocols import Mission, Parts, TargetLimit
 from robofdi.record import Record
 from robofdi.sims.flexible_joint import FlexibleJointArm
@@ -71,9 +71,10 @@ class FlexibleJointOptions:
 
 
 def flexible_joint_smo(options: FlexibleJointOptions = FlexibleJointOptions(), sample_time: float = 1e-3,
-                       keep_history: bool = True) -> CascadeSMO:
+                       keep_history: bool = True, detector: SlidingDetector | None = None) -> CascadeSMO:
     """The chapter's 4-stage observer (module docstring) as a :class:`CascadeSMO`; residuals r1..r4 are the
-    stages' equivalent controls (≈ e2 [rad/s], 48.6·e3 [rad/s²], e4 [rad/s], the link's unknown input [rad/s²])."""
+    stages' equivalent controls (≈ e2 [rad/s], 48.6·e3 [rad/s²], e4 [rad/s], the link's unknown input [rad/s²]).
+    ``detector``: stage the cascade with a :class:`SlidingDetector` instead of ``options.activation``."""
     l1, l2, l3, l4 = options.gains
     M = np.array([[0.0, 1.0, 0.0, 0.0], [0.0, -1.25, 48.6, 0.0], [0.0, 0.0, 0.0, 1.0], [0.0, 0.0, -19.5, 0.0]])
 
@@ -83,7 +84,7 @@ def flexible_joint_smo(options: FlexibleJointOptions = FlexibleJointOptions(), s
     stages = [Stage(l1, 0, Wy=[1.0], Cx=[1.0, 0.0, 0.0, 0.0], name="r1"), Stage(l2, 1, after=0, name="r2"),
               Stage(l3, 2, after=1, gain=lambda y: 1.0 / 48.6, name="r3"), Stage(l4, 3, after=2, name="r4")]
     settings = SMOSettings(sample_time, options.substep, options.tau, options.switching, options.boundary,
-                           options.activation)
+                           None if detector is not None else options.activation, detector)
     return CascadeSMO(4, affine, stages, settings, ["motor"], ["motor_angle"],
                       state_names=["theta_m", "omega_m", "theta_l", "omega_l"],
                       residual_units=["rad/s", "rad/s^2", "rad/s", "rad/s^2"], keep_history=keep_history,

@@ -15,6 +15,9 @@ Observers (Saif & Xiong's, with the digest's reconstructions: +u1, +u2 in every 
 * :func:`motor_smo` — Example 4 Case 3: x̂1' = x̂2 + λ1ψ(y1 − x̂1), x̂2' = −A1x̂2 − A2x̂3 sin y1 − A3 sin 2y1 + u1 +
   λ2ψ(ē2), x̂3' = −D1x̂3 + D2 cos y1 + u2 + λ3ψ(ē3), ē2 = (λ1ψ(ē1))_eq, ē3 = (λ2ψ(ē2))_eq / (−A2 sin y1); stage 3
   is held off (ē3 = 0) where |sin y1| < ``sin_guard`` (the division by sin y1, digest E4.3).
+* :func:`motor_smo_case1` — Example 4 Case 1 (d1 and d2 both on, y = (x1, x3)): x̂1' = x̂2 + λ1ψ(y1 − x̂1),
+  x̂2' = −A1x̂2 − A2y2 sin y1 − A3 sin 2y1 + u1 + λ2ψ((λ1ψ(ē1))_eq), x̂3' = −D1x̂3 + D2 cos y1 + u2 + λ3ψ(y2 − x̂3)
+  (the chapter's last gain λ1 read as λ3); in sliding the equivalent controls of stages 2 and 3 are d1 and d2.
 * :class:`MotorFDI` — Example 5: the same SMO with y2 measured (observer 2: r2 = (λ3ψ(ē3))_eq, r3 = ē3) plus the
   SMOO (99) z' = −D1y2 + D2 cos y1 + u2 + λψ(y2 − z), r1 = (λψ(y2 − z))_eq = f_a2. Residuals [r1, r2, r3].
 """
@@ -34,7 +37,8 @@ from robofdi.protocols import Mission, Parts, TargetLimit
 from robofdi.seeding import stream
 from robofdi.systems import register_system
 
-__all__ = ["MOTOR", "MotorPlant", "motor_coordinates", "motor_coordinates_inverse", "motor_smo", "MotorFDI",
+__all__ = ["MOTOR", "MotorPlant", "motor_coordinates", "motor_coordinates_inverse", "motor_smo", "motor_smo_case1",
+           "CASE1_DA", "MotorFDI",
            "MotorOptions", "run_motor", "MotorSystem", "EXAMPLE5_FAULTS", "fdi_rules"]
 
 MOTOR = {"A1": 0.2703, "A2": 12.01, "A3": -48.04, "D1": 0.3222, "D2": 1.9, "dD1": 0.1, "dD2": 0.6,
@@ -49,12 +53,29 @@ EXAMPLE5_FAULTS = (
 )
 
 
-def _f(x, u, p, d2: bool):
+#: Example 4 Case 1's d1 = ΔA1 x2 + ΔA2 x3 sin x1 + ΔA3 sin 2x1 [assumed: the chapter gives no ΔA; 10 % of A1..A3].
+CASE1_DA = (0.1 * MOTOR["A1"], 0.1 * MOTOR["A2"], 0.1 * MOTOR["A3"])
+
+
+def case1_d1(x, da=CASE1_DA) -> float:
+    """d1 of Example 4 Case 1 (:data:`CASE1_DA`)."""
+    return da[0] * x[1] + da[1] * x[2] * np.sin(x[0]) + da[2] * np.sin(2 * x[0])
+
+
+def case1_d2(x, p=MOTOR) -> float:
+    """d2 of Example 4 (Cases 1 and 3): ΔD1 x3 + ΔD2 cos x1."""
+    return p["dD1"] * x[2] + p["dD2"] * np.cos(x[0])
+
+
+def _f(x, u, p, d2: bool, d1: tuple | None = None):
     x1, x2, x3 = x
     dx3 = -p["D1"] * x3 + p["D2"] * np.cos(x1) + u[1]
     if d2:
-        dx3 += p["dD1"] * x3 + p["dD2"] * np.cos(x1)
-    return np.array([x2, -p["A1"] * x2 - p["A2"] * x3 * np.sin(x1) - p["A3"] * np.sin(2 * x1) + u[0], dx3])
+        dx3 += case1_d2(x, p)
+    dx2 = -p["A1"] * x2 - p["A2"] * x3 * np.sin(x1) - p["A3"] * np.sin(2 * x1) + u[0]
+    if d1 is not None:
+        dx2 += case1_d1(x, d1)
+    return np.array([x2, dx2, dx3])
 
 
 def motor_coordinates(x, p=MOTOR) -> np.ndarray:
@@ -74,10 +95,12 @@ def motor_coordinates_inverse(xi, p=MOTOR) -> np.ndarray:
 @dataclass(eq=False)
 class MotorPlant:
     """Simulator protocol: the motor ODE (module docstring), RK4 at ``physics_dt`` inside each ``control_dt``.
-    outputs: "x1" (Example 4) or "x1x3" (Example 5); d2: Example 4's unknown input on x3; noise: std per output."""
+    outputs: "x1" (Example 4) or "x1x3" (Example 5, Example 4 Case 1); d2: Example 4's unknown input on x3; d1:
+    None, or (ΔA1, ΔA2, ΔA3) of Example 4 Case 1's unknown input on x2 (:data:`CASE1_DA`); noise: std per output."""
 
     outputs: str = "x1"
     d2: bool = True
+    d1: tuple | None = None
     x0: tuple = MOTOR["x0"]
     noise: float = 0.0
     control_dt: float = 0.001
@@ -112,7 +135,7 @@ class MotorPlant:
         if u.shape != (2,) or not np.all(np.isfinite(u)):
             raise RobofdiError(f"MotorPlant: input 'u' must be 2 finite values (u1, u2), got {u!r}")
         self.u_applied = u.copy()
-        self.x, _ = rk4(lambda t, x: _f(x, u, MOTOR, self.d2), self.x, self.physics_dt, self._sub)
+        self.x, _ = rk4(lambda t, x: _f(x, u, MOTOR, self.d2, self.d1), self.x, self.physics_dt, self._sub)
         return self._measure()
 
     def apply_component_fault(self, kind, target, value):
@@ -162,6 +185,24 @@ def motor_smo(settings: SMOSettings, lam=(200.0, 200.0, 200.0), xhat0=MOTOR["xha
     return CascadeSMO(4, affine, stages, settings, ["u1", "u2"], ["rotor_angle"], x0=list(xhat0) + [0.0],
                       state_names=["x1", "x2", "x3", "unused"], residual_units=["rad/s", "rad/s^2", "1/s"],
                       keep_history=keep_history, where="motor_smo")
+
+
+def motor_smo_case1(settings: SMOSettings, lam=(200.0, 200.0, 200.0), xhat0=MOTOR["xhat0"], p=MOTOR,
+                    keep_history: bool = True) -> CascadeSMO:
+    """Example 4 Case 1's SMO (module docstring; measurements y = (x1, x3)). Residuals: the equivalent controls
+    r_s1 = (λ1ψ(ē1))_eq (= e2 in sliding), r_d1 = (λ2ψ(ē2))_eq (= d1), r_d2 = (λ3ψ(y2 − x̂3))_eq (= d2). Stage 2
+    reads stage 1, so stage it (``settings.activation`` or a :class:`~robofdi.observers.sliding_mode.SlidingDetector`)."""
+    A1, A2, A3, D1, D2 = (p[k] for k in ("A1", "A2", "A3", "D1", "D2"))
+    M = np.array([[0.0, 1.0, 0.0], [0.0, -A1, 0.0], [0.0, 0.0, -D1]])
+
+    def affine(y, u):
+        return M, np.array([0.0, -A2 * y[1] * np.sin(y[0]) - A3 * np.sin(2 * y[0]) + u[0], D2 * np.cos(y[0]) + u[1]])
+
+    stages = [Stage(lam[0], 0, Wy=[1.0, 0.0], Cx=[1, 0, 0], name="r_s1"), Stage(lam[1], 1, after=0, name="r_d1"),
+              Stage(lam[2], 2, Wy=[0.0, 1.0], Cx=[0, 0, 1], name="r_d2")]
+    return CascadeSMO(3, affine, stages, settings, ["u1", "u2"], ["rotor_angle", "flux"], x0=list(xhat0),
+                      state_names=["x1", "x2", "x3"], residual_units=["rad/s", "rad/s^2", "1/s"],
+                      keep_history=keep_history, where="motor_smo_case1")
 
 
 class MotorFDI:
