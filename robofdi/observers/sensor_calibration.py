@@ -70,8 +70,8 @@ class GeneralisedSensorEstimator:
     θ̂̇ = Proj_{[θ_min, θ_max]}{−Γ Ω̃ᵀ P e_y}, Ω̃ = [−Ĉ_o  Ω] — eqs. (24)–(26) (§4, y = Cx + d); with
     ``estimate=("calibration",)`` d̂ ≡ 0: §3.2's y = Cx, eqs. (16)–(19) with C_o = ĈAĈ⁻¹.
 
-    Sampling: e_y = ŷ − y is propagated exactly for y linear between samples and ĈAĈ⁻¹(y − d̂) + ĈBu held at
-    the sample's start (ė_y = Λe_y + g − ẏ); θ̂ is stepped by Euler on the new e_y and clipped to its box (B8).
+    Sampling: e_y = ŷ − y is propagated for y linear between samples (ė_y = Λe_y + g − ẏ, the drive
+    g = ĈAĈ⁻¹(y − d̂) + ĈBu at the interval's mean y, u held); θ̂ is stepped by Euler on the new e_y and clipped to its box (B8).
     Λ = diag(``lam``) Hurwitz; Γ = diag(``gamma_d``, ``gamma_c``) ≥ 0 (0: that parameter is not estimated;
     :func:`robofdi.observers.sensor_adaptive.bias_gains` and :func:`calibration_gains` design them); ``weights``:
     the diagonal P > 0; ``d_bar``: the bias bound; ``c_bounds``: the box of ĉ (the chapter's [c̄, 1]; a
@@ -157,7 +157,8 @@ class GeneralisedSensorEstimator:
         u = check_measurement(u, self.B.shape[1], "u")
         if self._prev is not None:
             yp, c, d = self._prev, self._c, self._d
-            g = (c[:, None] * self.A / c[None, :]) @ (yp - d) + c * (self.B @ u)
+            Co = c[:, None] * self.A / c[None, :]
+            g = Co @ (0.5 * (yp + y) - d) + c * (self.B @ u)      # trapezoid in y (y linear, u held)
             self._e = self._decay * self._e + self._gain * (g - (y - yp) / self.dt)
             Om = generalised_regressor(self.A, self.B, c, d, yp, u)
             rate = -(Om.T @ (self.P * self._e))
