@@ -46,14 +46,14 @@ def _run(est, y, u):
 
 
 def _estimator(estimate, y, u, **kw):
-    gc = calibration_gains(A3, B3, y, u, -5.0, 1.0)
+    gc = calibration_gains(A3, B3, y[::10], u[::10], -5.0, 1.0)
     gd = bias_gains(A3, -5.0, 0.5) if "bias" in estimate else 0.0
     return GeneralisedSensorEstimator(A3, B3, ["a", "b", "c"], ["u1", "u2"], ["rad"] * 3, DT, lam=-5.0, gamma_d=gd,
                                       gamma_c=gc, estimate=estimate, **kw)
 
 
 def test_calibration_law_identifies_a_scale_error():
-    x, u = _simulate(A3, B3, _excite, 40.0)
+    x, u = _simulate(A3, B3, _excite, 20.0)
     c = np.array([1.0, 1.3, 0.8])
     est = _estimator(("calibration",), x, u)
     res = _run(est, x * c, u)
@@ -65,7 +65,7 @@ def test_calibration_law_identifies_a_scale_error():
 
 
 def test_generalised_law_identifies_bias_and_scale_together():
-    x, u = _simulate(A3, B3, _excite, 60.0)
+    x, u = _simulate(A3, B3, _excite, 30.0)
     c, d = np.array([1.25, 1.0, 1.0]), np.array([0.0, 0.05, -0.03])
     est = _estimator(("bias", "calibration"), x, u)
     res = _run(est, x * c + d, u)
@@ -138,3 +138,15 @@ def test_mmst_bank_isolates_one_lock_and_misses_the_second_which_the_hybrid_bank
     assert mmst._z[0, -1] == pytest.approx(held[0], abs=0.02)          # the adaptive û₀ (never frozen)
     _locked_run(mmst, {0: 1.0, 3: 3.0})
     assert not mmst.frozen                                            # nothing is ever committed
+
+
+def test_the_flight_surrogate_builds_the_diagnosers_it_is_asked_for():
+    from robofdi.systems import flight_surrogate as fs
+
+    loop = fs.build_loop(fs.FlightScenario(scheme="baseline", diagnosers=("sensor_calibration", "sensor_generalised")))
+    assert set(loop.diagnoses) == {"sensor_calibration", "sensor_generalised"}
+    loop = fs.build_loop(fs.FlightScenario(scheme="mmst", diagnosers=("sensor_bias",)))
+    assert set(loop.diagnoses) == {"sensor_bias", "mmst"}           # the scheme's health source is always built
+    assert isinstance(loop.diagnoses["mmst"].diagnoser, MultipleModelEffectorFDI)
+    with pytest.raises(RobofdiError, match="diagnosers"):
+        fs.FlightScenario(diagnosers=("kalman",))
