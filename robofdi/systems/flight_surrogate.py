@@ -14,7 +14,9 @@ Schemes (what closes the loop): ``baseline`` (IDCL on y); ``hybrid`` (IDCL + the
 (IDCL with Â, B̂ of :class:`~robofdi.observers.damage.DamageEstimator`); ``integrated`` (all three, §7).
 
 The system (:class:`FlightSurrogateSystem`, registered as ``flight-surrogate``) draws random effector
-(lock-in-place, hard-over) and sensor (bias) faults; its diagnosers are ``hybrid_mm`` and ``sensor_bias``.
+(lock-in-place, hard-over) and sensor (bias, calibration) faults; its diagnosers (:data:`DIAGNOSERS`) are ``hybrid_mm``,
+``mmst`` (the non-hybrid bank of §5.3), ``sensor_bias`` (§3.1), ``sensor_calibration`` (§3.2) and
+``sensor_generalised`` (§4, y = Cx + d); scheme ``mmst`` lets the non-hybrid bank drive the reallocation.
 """
 from __future__ import annotations
 
