@@ -26,7 +26,7 @@ from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, write_run
 from robofdi.faults import ExponentialGrowth, Fault
 from robofdi.models.flight import flight_surrogate
 from robofdi.progress import Progress
-from robofdi.systems.flight_surrogate import FlightScenario, build_loop, calibrate_delta
+from robofdi.systems.flight_surrogate import FlightScenario, build_loop, calibrate_delta, mmst_bank
 
 EXPERIMENTS = {
     "ch5-sensor": "Bošković & Mehra Sims 2–3: growing sensor biases, baseline vs adaptive sensor compensation",
@@ -195,8 +195,10 @@ def _run_effector(name, out, seed, progress, replay):
     with keep_partial(run_dir):
         with progress.stage("calibration: switching threshold δ"):
             delta, _ = cached("flight-surrogate", {"scenario": repr(replace(sc, faults=()))}, lambda: calibrate_delta(sc))
-        sc = replace(sc, delta=delta)
-        with progress.stage("runs: baseline, hybrid, failure-free", 3, unit="run") as tick:
+            mmst_delta, _ = cached("flight-surrogate-mmst", {"scenario": repr(replace(sc, faults=()))},
+                                   lambda: calibrate_delta(sc, bank=mmst_bank))
+        sc = replace(sc, delta=delta, mmst_delta=mmst_delta)
+        with progress.stage("runs: baseline, hybrid, failure-free, non-hybrid MMST", 4, unit="run") as tick:
             loop = build_loop(replace(sc, scheme="baseline"))
             base = loop.run(12.0, seed=seed, scenario="sim4")
             tick()
@@ -208,6 +210,10 @@ def _run_effector(name, out, seed, progress, replay):
             loop = build_loop(replace(sc, faults=()))
             free = loop.run(12.0, seed=seed, run_key="failure_free", scenario="sim1")
             free_seq = list(loop.diagnoses["hybrid_mm"].diagnoser.sequence)
+            tick()
+            loop = build_loop(replace(sc, scheme="mmst", diagnosers=("mmst",)))
+            mm = loop.run(12.0, seed=seed, run_key="mmst", scenario="sim5-mmst")
+            mm_seq = list(loop.diagnoses["mmst"].diagnoser.sequence)
             tick()
     models = [m for _, m in sequence]
     limit = faults[0].params["limit"]
@@ -237,13 +243,18 @@ def _run_effector(name, out, seed, progress, replay):
     summary = summarize(hyb, name, [f.to_dict() for f in faults], reproduction=reproduction,
                         switching_sequence=[{"time": t, "model": m} for t, m in sequence],
                         frozen_estimates_rad=frozen, delta=delta,
+                        non_hybrid_mmst={"note": "§5.3's bank with periodic resets driving the same reallocation "
+                                                 "(scheme 'mmst'); not a chapter figure",
+                                         "delta": mmst_delta,
+                                         "switching_sequence": [{"time": t, "model": m} for t, m in mm_seq],
+                                         "tracking": dict(zip(s.state_names, tracking(mm).tolist()))},
                         tracking={"baseline": dict(zip(s.state_names, eb.tolist())),
                                   "hybrid": dict(zip(s.state_names, eh.tolist()))},
                         parameters={"gamma": 5000.0, "lambda": 40.0, "c": [1.0, 10.0, 100.0], "t_s": 0.05},
                         surrogate="robofdi.models.flight (not the chapter's F/A-18 model)")
     with progress.stage("run folder: records, figures"):
         (run_dir / "figures").mkdir(parents=True, exist_ok=True)
-        write_run_folder(run_dir, hyb, summary, {"baseline": base, "failure_free": free}, replay=replay)
+        write_run_folder(run_dir, hyb, summary, {"baseline": base, "failure_free": free, "mmst": mm}, replay=replay)
         fig = run_dir / "figures"
         _states_figure(fig / "fig11_13_states.png", "Figs. 11/13 (like): rudder HOF 1.5 s + LEF lock 3.5 s",
                        {"baseline": base, "hybrid FDI-ARC": hyb})

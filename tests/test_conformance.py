@@ -164,7 +164,8 @@ def _diagnoser_cases():
               "helicopter-kalman_fault_estimator", "refiner-gain_fault_observer"]
     cases += [f"auv-{n}" for n in AUV_DIAGNOSERS]
     cases += [f"hydraulic-{n}" for n in ("nlar", "nlar_better", "linear_ar", "plar", "nnar")]
-    cases += [f"flight-{n}" for n in ("hybrid_mm", "sensor_bias", "damage")]
+    cases += [f"flight-{n}" for n in ("hybrid_mm", "sensor_bias", "damage", "mmst", "sensor_calibration",
+                                      "sensor_generalised")]
     cases += ["robosuite-momentum", "dm_control-momentum", "gymnasium-momentum"]
     return cases
 
@@ -180,7 +181,10 @@ def _flight_setup():
     samples = _samples(rec)
     return {"flight-hybrid_mm": (lambda: fs.effector_bank(sc), samples),
             "flight-sensor_bias": (lambda: fs.sensor_estimator(sc), samples),
-            "flight-damage": (lambda: fs.damage_estimator(sc), samples)}
+            "flight-damage": (lambda: fs.damage_estimator(sc), samples),
+            "flight-mmst": (lambda: fs.mmst_bank(sc), samples),
+            "flight-sensor_calibration": (lambda: fs.calibration_estimator(sc), samples),
+            "flight-sensor_generalised": (lambda: fs.calibration_estimator(sc, bias=True), samples)}
 
 
 def _diagnoser_case(case):

@@ -36,9 +36,10 @@ def bias_rate(A, Gamma, e_y, d_hat, d_bar) -> np.ndarray:
                           np.asarray(d_bar))
 
 
-def bias_gains(A, lam, tau: float, channels=None) -> np.ndarray:
+def bias_gains(A, lam, tau: float, channels=None, weights=None) -> np.ndarray:
     """Diagonal Γ of (10) giving each bias estimate the time constant ``tau`` [s] in the quasi-static
-    approximation (e_y ≈ Aφ_d/|λ|, so φ̇_{d,i} ≈ −γᵢ Σⱼ A_ji² φ_{d,i}/|λᵢ|): γᵢ = |λᵢ| / (τ Σⱼ A_ji²). Channels
+    approximation (e_y ≈ Aφ_d/|λ|, so φ̇_{d,i} ≈ −γᵢ Σⱼ Pⱼ A_ji² φ_{d,i}/|λᵢ|): γᵢ = |λᵢ| / (τ Σⱼ Pⱼ A_ji²), P =
+    diag(``weights``) the error weight of a law ḋ̂ = ΓAᵀPe_y (None: P = I, eq. (10) itself). Channels
     outside ``channels`` (indices; None: all) get γᵢ = 0 (not estimated). Equal convergence times keep the
     noise a well-observed channel feeds into a weakly observed one's estimate small (plain Γ = γI does not)."""
     A = np.asarray(A, dtype=float)
@@ -46,7 +47,7 @@ def bias_gains(A, lam, tau: float, channels=None) -> np.ndarray:
     lam = np.broadcast_to(np.abs(np.asarray(lam, dtype=float)), (n,))
     if not (np.isfinite(tau) and tau > 0):
         raise RobofdiError(f"bias_gains: field 'tau' must be a time > 0 s, got {tau!r}")
-    col = np.sum(A**2, axis=0)
+    col = np.sum(A**2, axis=0) if weights is None else np.broadcast_to(np.asarray(weights, dtype=float), (n,)) @ A**2
     g = np.where(col > 0, lam / (tau * np.maximum(col, 1e-300)), 0.0)
     if channels is not None:
         keep = np.zeros(n, dtype=bool)

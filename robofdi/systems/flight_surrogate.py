@@ -14,7 +14,9 @@ Schemes (what closes the loop): ``baseline`` (IDCL on y); ``hybrid`` (IDCL + the
 (IDCL with Â, B̂ of :class:`~robofdi.observers.damage.DamageEstimator`); ``integrated`` (all three, §7).
 
 The system (:class:`FlightSurrogateSystem`, registered as ``flight-surrogate``) draws random effector
-(lock-in-place, hard-over) and sensor (bias) faults; its diagnosers are ``hybrid_mm`` and ``sensor_bias``.
+(lock-in-place, hard-over) and sensor (bias, calibration) faults; its diagnosers (:data:`DIAGNOSERS`) are ``hybrid_mm``,
+``mmst`` (the non-hybrid bank of §5.3), ``sensor_bias`` (§3.1), ``sensor_calibration`` (§3.2) and
+``sensor_generalised`` (§4, y = Cx + d); scheme ``mmst`` lets the non-hybrid bank drive the reallocation.
 """
 from __future__ import annotations
 
@@ -40,7 +42,10 @@ from robofdi.systems import RobotInstances, register_system
 __all__ = ["FlightScenario", "SCHEMES", "ERROR_WEIGHTS", "REFERENCE_WEIGHTS", "design", "reference_signal",
            "build_loop", "calibrate", "calibrate_delta", "effector_bank", "TRACKED"]
 
-SCHEMES = ("baseline", "hybrid", "sensor", "damage", "integrated")
+SCHEMES = ("baseline", "hybrid", "sensor", "damage", "integrated", "mmst")
+#: every diagnoser the system can run (``FlightScenario.diagnosers`` picks a subset; the campaign's list).
+DIAGNOSERS = ("hybrid_mm", "sensor_bias", "mmst", "sensor_calibration", "sensor_generalised")
+DEFAULT_DIAGNOSERS = ("hybrid_mm", "sensor_bias")
 #: LQR state weights (V, α, θ, β, φ, q, p, r) and input weight of Λ (error dynamics) and of A_m (reference).
 ERROR_WEIGHTS = ((1e-4, 1.0, 10.0, 10.0, 10.0, 1.0, 1.0, 1.0), 0.05)
 REFERENCE_WEIGHTS = ((1e-4, 1.0, 4.0, 4.0, 4.0, 0.5, 0.5, 0.5), 1.0)
@@ -54,6 +59,12 @@ BIAS_CHANNELS = ("alpha", "theta", "beta", "q", "p", "r")
 SENSOR_LAMBDA = -5.0
 SENSOR_TAU = 0.1
 #: damage estimator: the simplified (x₂, λ = 20) observer, γ = 3000, dead zone 1.5e-3 rad/s on ‖ê₂‖.
+#: calibration-error laws (B2, B3): channels whose calibration is estimated (all but V and β: V's excursions are
+#: small, β is held at 0 by the mission), Γ_c from calibration_gains (3 s time constant, P = (σ_min/σᵢ)² of the
+#: datasheet noise) on the default mission (seed 0, 12 s, baseline loop), rounded; box ĉ ∈ [0.5, 2].
+CALIBRATION_CHANNELS = ("alpha", "theta", "phi", "q", "p", "r")
+CALIBRATION_TAU = 3.0
+CALIBRATION_GAMMA = (0.0, 1890.0, 10750.0, 0.0, 100.0, 2940.0, 30.0, 910.0)
 DAMAGE_GAMMA = 3000.0
 DAMAGE_DEAD_ZONE = 1.5e-3
 
@@ -84,6 +95,10 @@ class FlightScenario:
     gamma: float = 5000.0
     c: tuple = (1.0, 10.0, 100.0)
     t_s: float = 0.05
+    diagnosers: tuple | None = None
+    mmst_delta: float | None = None
+    calibration_threshold: tuple | None = None
+    generalised_threshold: tuple | None = None
 
     def __post_init__(self):
         if self.scheme not in SCHEMES:
@@ -93,6 +108,10 @@ class FlightScenario:
             ("pitch", isinstance(self.pitch, (int, float)) and abs(self.pitch) <= 0.2, "a pitch command in [-0.2, 0.2] rad"),
             ("bank", isinstance(self.bank, (int, float)) and abs(self.bank) <= 0.8, "a bank command in [-0.8, 0.8] rad"),
             ("delta", self.delta is None or is_positive(self.delta), "None or a threshold > 0"),
+            ("mmst_delta", self.mmst_delta is None or is_positive(self.mmst_delta), "None or a threshold > 0"),
+            ("diagnosers", self.diagnosers is None or (isinstance(self.diagnosers, tuple)
+                                                       and set(self.diagnosers) <= set(DIAGNOSERS)),
+             f"None or a tuple of names from {DIAGNOSERS}"),
         ])
         object.__setattr__(self, "faults", tuple(self.faults))
 
@@ -139,6 +158,34 @@ def effector_bank(sc: FlightScenario, belief: FlightSurrogate | None = None):
         lam=sc.lam, gamma=sc.gamma, c=sc.c, t_s=sc.t_s, delta=1e-5 if sc.delta is None else sc.delta)
 
 
+def mmst_bank(sc: FlightScenario, belief: FlightSurrogate | None = None):
+    """The non-hybrid MMST bank of §5.3 (:class:`~robofdi.observers.mmst_bank.MultipleModelEffectorFDI`) with the
+    hybrid bank's gains, t_s and observers; its own threshold ``mmst_delta`` (None: 1e-5)."""
+    from robofdi.observers.mmst_bank import MultipleModelEffectorFDI
+
+    b = belief or _belief(sc)
+    return MultipleModelEffectorFDI(
+        b.A2(), b.B2(), b.effectors, b.state_names, list(range(b.n1, b.n)), DT, b.u_min, b.u_max, b.rate_limit,
+        lam=sc.lam, gamma=sc.gamma, c=sc.c, t_s=sc.t_s, delta=1e-5 if sc.mmst_delta is None else sc.mmst_delta)
+
+
+def calibration_estimator(sc: FlightScenario, belief: FlightSurrogate | None = None, bias: bool = False):
+    """The calibration-error law of §3.2 (``bias=False``) or the generalised y = Cx + d law of §4 (``bias=True``,
+    the bias part with the sensor_bias estimator's channels and Γ_d):
+    :class:`~robofdi.observers.sensor_calibration.GeneralisedSensorEstimator`."""
+    from robofdi.observers.sensor_adaptive import bias_gains
+    from robofdi.observers.sensor_calibration import GeneralisedSensorEstimator
+    from robofdi.sims.flight import DEFAULT_NOISE
+
+    b = belief or _belief(sc)
+    P = (min(DEFAULT_NOISE) / np.asarray(DEFAULT_NOISE)) ** 2
+    gd = (bias_gains(b.A(), SENSOR_LAMBDA, SENSOR_TAU, [b.state_names.index(c) for c in BIAS_CHANNELS], weights=P)
+          if bias else 0.0)
+    return GeneralisedSensorEstimator(b.A(), b.B(), b.state_names, b.effectors, list(b.units), DT,
+                                      lam=SENSOR_LAMBDA, gamma_d=gd, gamma_c=np.asarray(CALIBRATION_GAMMA), weights=P,
+                                      estimate=("bias", "calibration") if bias else ("calibration",))
+
+
 def sensor_estimator(sc: FlightScenario, belief: FlightSurrogate | None = None):
     from robofdi.observers.sensor_adaptive import SensorBiasEstimator, bias_gains
 
@@ -165,17 +212,33 @@ def build_loop(sc: FlightScenario) -> ClosedLoop:
     r = reference_signal(sc)
     xm = ref_model.trajectory(r, sc.duration, DT)
     uses = {"baseline": (), "hybrid": ("effector",), "sensor": ("sensor",), "damage": ("damage",),
-            "integrated": ("effector", "sensor", "damage")}[sc.scheme]
+            "integrated": ("effector", "sensor", "damage"), "mmst": ("effector",)}[sc.scheme]
+    wanted = set(DEFAULT_DIAGNOSERS if sc.diagnosers is None else sc.diagnosers)
+    health = "mmst" if sc.scheme == "mmst" else "hybrid_mm"
+    if "effector" in uses:
+        wanted.add(health)
     controller = IDCLController(b.A2, b.B2, b.weights(), Lam, ref_model,
                                 sensor=sensor_estimator(sc, b) if "sensor" in uses else None,
                                 damage=damage_estimator(sc, b) if "damage" in uses else None)
     diagnoses = {}
-    bank = effector_bank(sc, b)
-    diagnoses["hybrid_mm"] = Diagnosis(bank, SupervisorStatusDecision(bank.components, bank.effectors))
-    sens = sensor_estimator(sc, b)
-    thr = sens.threshold() if sc.sensor_threshold is None else np.asarray(sc.sensor_threshold, dtype=float)
-    diagnoses["sensor_bias"] = Diagnosis(sens, ThresholdDecision(sens.components, thr, sens.signatures(), latch=True,
-                                                                 blanking=int(1.0 / DT)))
+    if "hybrid_mm" in wanted:
+        bank = effector_bank(sc, b)
+        diagnoses["hybrid_mm"] = Diagnosis(bank, SupervisorStatusDecision(bank.components, bank.effectors))
+    if "mmst" in wanted:
+        mm = mmst_bank(sc, b)
+        diagnoses["mmst"] = Diagnosis(mm, SupervisorStatusDecision(mm.components, mm.effectors))
+    if "sensor_bias" in wanted:
+        sens = sensor_estimator(sc, b)
+        thr = sens.threshold() if sc.sensor_threshold is None else np.asarray(sc.sensor_threshold, dtype=float)
+        diagnoses["sensor_bias"] = Diagnosis(sens, ThresholdDecision(sens.components, thr, sens.signatures(),
+                                                                     latch=True, blanking=int(1.0 / DT)))
+    for name, bias, given in (("sensor_calibration", False, sc.calibration_threshold),
+                              ("sensor_generalised", True, sc.generalised_threshold)):
+        if name in wanted:
+            est = calibration_estimator(sc, b, bias=bias)
+            thr = np.full(b.n, 0.05) if given is None else np.asarray(given, dtype=float)
+            diagnoses[name] = Diagnosis(est, ThresholdDecision(est.components, thr, est.signatures(), latch=True,
+                                                               blanking=int(1.0 / DT)))
     if sc.scheme in ("damage", "integrated") or any(f.kind == "component_wing_damage" for f in sc.faults):
         dam = damage_estimator(sc, b)
         diagnoses["damage"] = Diagnosis(dam, ThresholdDecision(dam.components, np.array([0.05]), dam.signatures()))
@@ -184,25 +247,34 @@ def build_loop(sc: FlightScenario) -> ClosedLoop:
         acc = MultipleModelReallocation(b.B2(), b.weights(), b.effectors, b.u_min, b.u_max, b.rate_limit, DT)
     cols = ["theta_cmd", "phi_cmd", "beta_cmd"] + [f"xm_{s}" for s in b.state_names]
     return ClosedLoop(plant, controller, _Reference(r, xm, DT), sc.faults, diagnoses, accommodation=acc,
-                      health_source="hybrid_mm" if acc is not None else None, reference_columns=cols,
+                      health_source=health if acc is not None else None, reference_columns=cols,
                       reference_units=["rad"] * 3 + list(b.units))
 
 
 def calibrate(sc: FlightScenario, runs: int = 2) -> dict:
     """{"delta": the bank's switching threshold (:func:`calibrate_delta`), "sensor_threshold": per channel 1.5 ×
     the largest |d̂| after the first second of the same fault-free runs (floor 0.005; 1e9 for the channels not
-    estimated)} — run keys ``calibration/<i>``."""
-    free = replace(sc, faults=(), scheme="baseline")
+    estimated), "mmst_delta": the non-hybrid bank's δ (the same rule), "calibration_threshold" /
+    "generalised_threshold": the calibration-error laws' thresholds by the sensor_bias rule (floors 0.02 and
+    0.005)} — run keys ``calibration/<i>``."""
+    free = replace(sc, faults=(), scheme="baseline", diagnosers=DIAGNOSERS)
     loop = build_loop(free)
     recs = [loop.run(sc.duration, seed=sc.seed, run_key=f"calibration/{i}") for i in range(runs if sc.noise else 1)]
-    worst = np.max([np.abs(r.diagnosers["sensor_bias"].residual[int(1.0 / DT):]).max(axis=0) for r in recs], axis=0)
-    thr = np.where(worst > 0, np.maximum(1.5 * worst, 0.005), 1e9)
-    return {"delta": calibrate_delta(sc, runs, records=recs), "sensor_threshold": thr.tolist()}
+
+    def rule(name, floor):
+        worst = np.max([np.abs(r.diagnosers[name].residual[int(1.0 / DT):]).max(axis=0) for r in recs], axis=0)
+        return np.where(worst > 0, np.maximum(1.5 * worst, floor), 1e9).tolist()
+
+    return {"delta": calibrate_delta(sc, runs, records=recs), "sensor_threshold": rule("sensor_bias", 0.005),
+            "mmst_delta": calibrate_delta(sc, runs, records=recs, bank=mmst_bank),
+            "calibration_threshold": rule("sensor_calibration", 0.02),
+            "generalised_threshold": rule("sensor_generalised", 0.005)}
 
 
-def calibrate_delta(sc: FlightScenario, runs: int = 2, margin: float = 3.0, records=None) -> float:
+def calibrate_delta(sc: FlightScenario, runs: int = 2, margin: float = 3.0, records=None, bank=None) -> float:
     """The switching threshold δ: ``margin`` × the largest I₀ − minᵢ Iᵢ of ``runs`` fault-free runs (run keys
-    ``calibration/<i>``; the bank replayed with δ = +inf-like so it never switches), floored at 1e-7."""
+    ``calibration/<i>``; the bank — ``bank(scenario)``, default :func:`effector_bank` — replayed with δ = +inf-like
+    so it never switches), floored at 1e-7."""
     from robofdi.loop import replay
 
     free = replace(sc, faults=(), scheme="baseline")
@@ -210,8 +282,8 @@ def calibrate_delta(sc: FlightScenario, runs: int = 2, margin: float = 3.0, reco
     worst = 0.0
     for i in range(runs if sc.noise else 1):
         rec = records[i] if records is not None else loop.run(sc.duration, seed=sc.seed, run_key=f"calibration/{i}")
-        bank = effector_bank(replace(sc, delta=1e9))
-        gaps = replay(rec, bank, tap=lambda d, _: d.index[0] - d.index[1:].min())
+        made = (bank or effector_bank)(replace(sc, delta=1e9, mmst_delta=1e9))
+        gaps = replay(rec, made, tap=lambda d, _: d.index[0] - d.index[1:].min())
         worst = max(worst, float(np.max(gaps[int(1.0 / DT):])))
     return max(margin * worst, 1e-7)
 
@@ -252,7 +324,7 @@ class FlightSurrogateSystem(RobotInstances):
     options_type = FlightSurrogateOptions
 
     def diagnosers(self, options):
-        return ("hybrid_mm", "sensor_bias")
+        return DIAGNOSERS
 
     def targets(self, options):
         s = flight_surrogate()
@@ -274,6 +346,9 @@ class FlightSurrogateSystem(RobotInstances):
         plan = mission.plan or {}
         sc = replace(options.scenario(key, faults, bank=plan.get("bank", 0.3), pitch=plan.get("pitch", 0.05),
                                       delta=float(calibration["delta"])),
-                     sensor_threshold=tuple(calibration["sensor_threshold"]))
+                     sensor_threshold=tuple(calibration["sensor_threshold"]),
+                     mmst_delta=float(calibration["mmst_delta"]), diagnosers=tuple(diagnosers),
+                     calibration_threshold=tuple(calibration["calibration_threshold"]),
+                     generalised_threshold=tuple(calibration["generalised_threshold"]))
         return Parts(build_loop(sc), sc.duration, None, seed, "campaign", "campaign-flight-surrogate",
                      {"robot_seed": int(key), "scheme": sc.scheme})
