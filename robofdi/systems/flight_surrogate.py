@@ -27,6 +27,7 @@ import numpy as np
 
 from robofdi.calibration import cached
 from robofdi.checks import check_fields, check_robot_seeds, is_positive
+from robofdi.config import part
 from robofdi.decision import SupervisorStatusDecision, ThresholdDecision
 from robofdi.errors import RobofdiError
 from robofdi.faults import Fault
@@ -289,29 +290,36 @@ def calibrate_delta(sc: FlightScenario, runs: int = 2, margin: float = 3.0, reco
 
 
 # ---------------------------------------------------------------------------------------------------- the system
+#: The scenario of a flight-surrogate campaign's runs: 10 s missions (the campaign draws each run's pitch step and
+#: bank doublet, faults and seed; calibration sets the thresholds).
+CAMPAIGN_SCENARIO = FlightScenario(duration=10.0)
+_DRAWN = ("faults", "seed", "pitch", "bank", "delta", "sensor_threshold", "mmst_delta", "diagnosers",
+          "calibration_threshold", "generalised_threshold")
+
+
 @dataclass(frozen=True)
 class FlightSurrogateOptions:
-    """The ``[system]`` table of a flight-surrogate campaign: robot_seeds (one calibration of δ each), duration
-    [s], noise, mismatch (relative error of the belief), scheme (see :data:`SCHEMES`)."""
+    """The flight surrogate's configuration (a campaign's ``[system]`` table): the runs' ``scenario``
+    (:class:`FlightScenario`, default :data:`CAMPAIGN_SCENARIO`), any field named flat (:mod:`robofdi.config`) —
+    duration [s], noise, mismatch (relative error of the belief, in [0, 0.3)), scheme (:data:`SCHEMES`), the bank's
+    gains — except what the campaign draws or calibrates; robot_seeds: one calibration of the thresholds each."""
 
+    scenario: FlightScenario = part(FlightScenario, lambda: CAMPAIGN_SCENARIO)
     robot_seeds: tuple = (0,)
-    duration: float = 10.0
-    noise: bool = True
-    mismatch: float = 0.0
-    scheme: str = "hybrid"
 
     def __post_init__(self):
         check_robot_seeds(self)
-        check_fields("system", self, [
-            ("duration", is_positive(self.duration, 600), "a time in (0, 600] s"),
-            ("noise", isinstance(self.noise, bool), "true or false"),
-            ("mismatch", isinstance(self.mismatch, (int, float)) and 0 <= self.mismatch < 0.3, "a fraction in [0, 0.3)"),
-            ("scheme", self.scheme in SCHEMES, f"one of {SCHEMES}"),
+        sc = self.scenario
+        for name in _DRAWN:
+            if getattr(sc, name) != getattr(CAMPAIGN_SCENARIO, name):
+                raise RobofdiError(f"system: field {name!r} is not an option: the campaign draws each run's mission, "
+                                   f"faults and seed, calibration sets the thresholds, and its 'diagnosers' list "
+                                   f"names the diagnosers")
+        check_fields("system", sc, [
+            ("noise", isinstance(sc.noise, bool), "true or false"),
+            ("mismatch", isinstance(sc.mismatch, (int, float)) and 0 <= sc.mismatch < 0.3, "a fraction in [0, 0.3)"),
         ])
-
-    def scenario(self, key: int, faults=(), bank: float = 0.3, pitch: float = 0.05, delta=None) -> FlightScenario:
-        return FlightScenario(faults=tuple(faults), seed=int(key), duration=float(self.duration), noise=self.noise,
-                              mismatch=float(self.mismatch), scheme=self.scheme, bank=bank, pitch=pitch, delta=delta)
+        object.__setattr__(self, "scenario", replace(sc, duration=float(sc.duration), mismatch=float(sc.mismatch)))
 
 
 @register_system
@@ -334,18 +342,18 @@ class FlightSurrogateSystem(RobotInstances):
         return {"actuator": actuator, "sensor": sensor}
 
     def calibrate(self, options, key, diagnosers):
-        sc = options.scenario(key, bank=0.4, pitch=0.08)        # the largest mission drawn (conservative δ)
+        sc = replace(options.scenario, seed=int(key), bank=0.4, pitch=0.08)   # the largest mission drawn (conservative δ)
         return cached("flight-surrogate-fdir", {"scenario": repr(replace(sc, faults=()))}, lambda: calibrate(sc))
 
     def mission(self, options, key, generator):
         bank = float(generator.uniform(0.15, 0.4) * generator.choice([-1.0, 1.0]))
         pitch = float(generator.uniform(0.02, 0.08))
-        return Mission(float(options.duration), {"bank": bank, "pitch": pitch}, {"bank_rad": bank, "pitch_rad": pitch})
+        return Mission(options.scenario.duration, {"bank": bank, "pitch": pitch}, {"bank_rad": bank, "pitch_rad": pitch})
 
     def build(self, options, calibration, key, mission, faults, seed, diagnosers):
         plan = mission.plan or {}
-        sc = replace(options.scenario(key, faults, bank=plan.get("bank", 0.3), pitch=plan.get("pitch", 0.05),
-                                      delta=float(calibration["delta"])),
+        sc = replace(options.scenario, faults=tuple(faults), seed=int(key), bank=plan.get("bank", 0.3),
+                     pitch=plan.get("pitch", 0.05), delta=float(calibration["delta"]),
                      sensor_threshold=tuple(calibration["sensor_threshold"]),
                      mmst_delta=float(calibration["mmst_delta"]), diagnosers=tuple(diagnosers),
                      calibration_threshold=tuple(calibration["calibration_threshold"]),
