@@ -304,7 +304,8 @@ def _run_damage(name, out, seed, progress, replay):
     with keep_partial(run_dir):
         with progress.stage("runs: ρ = 0, 0.6, 1.0 adaptive and baseline", 6, unit="run") as tick:
             for rho in (0.0, 0.6, 1.0):
-                f = (Fault("wing_damage", "component_wing_damage", "left_wing", onset=1.5, magnitude=rho),)
+                # Sim 6 (ρ = 0) is the undamaged aircraft: no fault at all (a zero-size fault is refused as unseeable)
+                f = (Fault("wing_damage", "component_wing_damage", "left_wing", onset=1.5, magnitude=rho),) if rho else ()
                 for scheme, store in (("damage", runs), ("baseline", baselines)):
                     store[rho] = build_loop(FlightScenario(f, seed, 12.0, scheme)).run(
                         12.0, seed=seed, run_key=f"rho{rho}/{scheme}", scenario=f"sim{6 + int(rho > 0) + int(rho > 0.8)}")
