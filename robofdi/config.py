@@ -25,7 +25,7 @@ from typing import Any, TypeVar
 
 from robofdi.errors import RobofdiError
 
-__all__ = ["part", "parts", "accepted", "compose", "evolve"]
+__all__ = ["part", "parts", "accepted", "compose", "evolve", "check_not_set"]
 
 T = TypeVar("T")
 
@@ -123,3 +123,11 @@ def compose(cls: type[T], values: Mapping | None = None, where: str | None = Non
 def evolve(obj: T, **changes) -> T:
     """``obj`` with ``changes``, each named flat or nested as in :func:`compose` (a new, validated instance)."""
     return _evolve_part(obj, changes, type(obj).__name__)
+
+
+def check_not_set(where: str, obj, default, names, why: str) -> None:
+    """Refuse fields of ``obj`` among ``names`` that differ from ``default``'s: values that are not options (a
+    campaign draws or calibrates them), ``where: field 'f' is not an option: why``."""
+    for name in names:
+        if getattr(obj, name) != getattr(default, name):
+            raise RobofdiError(f"{where}: field {name!r} is not an option: {why}")

@@ -25,7 +25,7 @@ import numpy as np
 
 from robofdi.calibration import cached
 from robofdi.checks import check_fields, check_robot_seeds, is_int, is_positive
-from robofdi.config import part
+from robofdi.config import check_not_set, part
 from robofdi.control.auv import POSE_NAMES, MissionLimits, TaskSpaceAuvControl, random_mission
 from robofdi.control.trajectory import Sequence as Mission
 from robofdi.decision import NisBankDecision, ThresholdDecision, calibrate_thresholds, startup_samples
@@ -489,10 +489,9 @@ class AuvOptions:
     def __post_init__(self):
         check_robot_seeds(self)
         sc = self.scenario
-        for name in _DRAWN:
-            if getattr(sc, name) != getattr(CAMPAIGN_SCENARIO, name):
-                raise RobofdiError(f"system: field {name!r} is not an option: the campaign draws each run's mission, "
-                                   f"faults and seed, and its 'diagnosers' list names the diagnosers")
+        check_not_set("system", sc, CAMPAIGN_SCENARIO, _DRAWN,
+                      "the campaign draws each run's mission, "
+                      "faults and seed, and its 'diagnosers' list names the diagnosers")
         check_fields("system", sc, [
             ("duration", is_positive(sc.duration, 3600), "a time in (0, 3600] s"),
             ("calibration_runs", is_int(sc.calibration_runs, 1), "an integer >= 1"),

@@ -27,7 +27,7 @@ import numpy as np
 
 from robofdi.calibration import cached
 from robofdi.checks import check_fields, check_robot_seeds, is_positive
-from robofdi.config import part
+from robofdi.config import check_not_set, part
 from robofdi.decision import SupervisorStatusDecision, ThresholdDecision
 from robofdi.errors import RobofdiError
 from robofdi.faults import Fault
@@ -310,11 +310,10 @@ class FlightSurrogateOptions:
     def __post_init__(self):
         check_robot_seeds(self)
         sc = self.scenario
-        for name in _DRAWN:
-            if getattr(sc, name) != getattr(CAMPAIGN_SCENARIO, name):
-                raise RobofdiError(f"system: field {name!r} is not an option: the campaign draws each run's mission, "
-                                   f"faults and seed, calibration sets the thresholds, and its 'diagnosers' list "
-                                   f"names the diagnosers")
+        check_not_set("system", sc, CAMPAIGN_SCENARIO, _DRAWN,
+                      "the campaign draws each run's mission, "
+                      "faults and seed, calibration sets the thresholds, and its 'diagnosers' list "
+                      "names the diagnosers")
         check_fields("system", sc, [
             ("noise", isinstance(sc.noise, bool), "true or false"),
             ("mismatch", isinstance(sc.mismatch, (int, float)) and 0 <= sc.mismatch < 0.3, "a fraction in [0, 0.3)"),

@@ -24,7 +24,7 @@ import numpy as np
 
 from robofdi.calibration import cached
 from robofdi.checks import check_fields, check_robot_seeds, is_int, is_positive
-from robofdi.config import part
+from robofdi.config import check_not_set, part
 from robofdi.control.linear import StateFeedback, lqr_gain
 from robofdi.decision import Alarms, ThresholdDecision, calibrate_thresholds
 from robofdi.errors import RobofdiError
@@ -207,10 +207,9 @@ class HelicopterOptions:
     def __post_init__(self):
         check_robot_seeds(self)
         sc = self.scenario
-        for name in _DRAWN:
-            if getattr(sc, name) != getattr(CAMPAIGN_SCENARIO, name):
-                raise RobofdiError(f"system: field {name!r} is not an option: the campaign draws each run's faults, "
-                                   f"and the robot seeds seed the belief")
+        check_not_set("system", sc, CAMPAIGN_SCENARIO, _DRAWN,
+                      "the campaign draws each run's faults, "
+                      "and the robot seeds seed the belief")
         check_fields("system", sc, [
             ("duration", is_positive(sc.duration, 600), "a time in (0, 600] s"),
             ("mismatch", isinstance(sc.mismatch, (int, float)) and 0 <= sc.mismatch < 0.5, "a fraction in [0, 0.5)"),

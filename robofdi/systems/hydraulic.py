@@ -29,7 +29,7 @@ import numpy as np
 
 from robofdi.calibration import cached
 from robofdi.checks import check_fields, check_robot_seeds, is_int, is_positive
-from robofdi.config import part
+from robofdi.config import check_not_set, part
 from robofdi.control.speed import RPM, SpeedPID, SpeedRamp
 from robofdi.decision import Signature, ThresholdDecision, calibrate_thresholds
 from robofdi.errors import RobofdiError
@@ -336,10 +336,9 @@ class HydraulicOptions:
     def __post_init__(self):
         check_robot_seeds(self)
         sc = self.scenario
-        for name in _DRAWN:
-            if getattr(sc, name) != getattr(CAMPAIGN_SCENARIO, name):
-                raise RobofdiError(f"system: field {name!r} is not an option: the campaign draws each run's operating "
-                                   f"profile, faults and seed, and its 'diagnosers' list names the diagnosers")
+        check_not_set("system", sc, CAMPAIGN_SCENARIO, _DRAWN,
+                      "the campaign draws each run's operating "
+                      "profile, faults and seed, and its 'diagnosers' list names the diagnosers")
         check_fields("system", sc, [
             ("duration", is_positive(sc.duration, 600) and sc.duration >= 3, "a time in [3, 600] s"),
             ("margin", is_positive(sc.margin) and sc.margin >= 1, "a number >= 1"),
