@@ -6,6 +6,7 @@ MLPRegressor, trained on fault-free data)."""
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import lru_cache
 
 import numpy as np
 import sympy as sp
@@ -24,9 +25,11 @@ __all__ = ["linear_ar_design", "linear_ar_residual", "plar_regions", "plar_resid
 _LINEAR_DOMAIN = {sp.Symbol("omega"): (0.1, 2.0), sp.Symbol("p_l"): (1e5, 5e6)}
 
 
+@lru_cache(maxsize=32)
 def linear_ar_design(params: HydraulicParameters, u0: float, p0: float):
     """The linear AR design (continuous parity space, Chow & Willsky): the NLAR engine on the model linearised at
-    (u0, p0)."""
+    (u0, p0). Cached per (params, u0, p0): the symbolic derivation takes ~2 s, and PLAR needs nine of them per
+    diagnoser built (the design is shared between callers: read it, do not modify it)."""
     return derive_nlar(linearised_model(params, u0, p0), _LINEAR_DOMAIN)
 
 
