@@ -18,7 +18,10 @@ from robofdi.sims.auv import AuvSimulator
 
 pytestmark = pytest.mark.slow
 
-BASE = AuvScenario(name="test-auv", duration=40.0, calibration_runs=2, calibration_duration=180.0, diagnosers=ALL_DIAGNOSERS)
+# Every diagnoser but the EKF bank, whose process-noise search and per-sample filters would double this module's
+# time; the bank has its own missions, calibration and no-alarm-before-onset checks in tests/test_auv_ekf_bank.py.
+BASE = AuvScenario(name="test-auv", duration=40.0, calibration_runs=2, calibration_duration=180.0,
+                   diagnosers=tuple(d for d in ALL_DIAGNOSERS if d != "ekf_bank"))
 
 
 @pytest.fixture(scope="module")
