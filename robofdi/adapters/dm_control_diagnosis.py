@@ -25,13 +25,12 @@ except ImportError:  # pragma: no cover - exercised only without the extra
     raise ImportError("robofdi.adapters.dm_control_diagnosis needs dm_control: pip install 'robofdi[dm_control]'") from None
 
 from robofdi.adapters.dm_control import LABELS_KEY, FaultyEnvironment
-from robofdi.decision import Signature, ThresholdDecision, calibrate_thresholds
+from robofdi.decision import ThresholdDecision, calibrate_thresholds
 from robofdi.errors import RobofdiError
 from robofdi.models.manipulator import ModelMismatch
 from robofdi.models.multibody import MultibodyModel
-from robofdi.observers.momentum import MomentumObserver
+from robofdi.observers.momentum import JointMomentumDiagnoser
 from robofdi.loop import Diagnosis, DiagnosisBank, Rates, Recorder
-from robofdi.observers.residual import Residual, check_measurement
 from robofdi.record import FaultLabels
 from robofdi.seeding import rng
 
@@ -61,37 +60,14 @@ MEASUREMENTS = ["x", "theta", "x_dot", "theta_dot"]
 MEASUREMENT_UNITS = ["m", "rad", "m/s", "rad/s"]
 
 
-class CartpoleDiagnoser:
-    """Momentum residual on both cart-pole joints (a :class:`~robofdi.protocols.Diagnoser`): ``update(y, u)`` with
-    y = :func:`cartpole_measurement` of the observation at sample k and u = the action held over the step that
-    ended there (ū(k−1), the commanded, fault-free action).
-
-    Residual components: the joint names (``slider`` [N], ``hinge_1`` [N·m]); signatures: one per actuator; no
-    identification candidates."""
+class CartpoleDiagnoser(JointMomentumDiagnoser):
+    """Momentum residual on both cart-pole joints (:class:`~robofdi.observers.momentum.JointMomentumDiagnoser`):
+    y = :func:`cartpole_measurement` of the observation at sample k (channels :data:`MEASUREMENTS`), u = the action
+    held over the step that ended there (ū(k−1), the commanded, fault-free action). Residual components: the joint
+    names (``slider`` [N], ``hinge_1`` [N·m]); signatures: one per actuator; no identification candidates."""
 
     def __init__(self, model: MultibodyModel, sample_time: float, gain: float = 20.0):
-        self.model = model
-        self.observer = MomentumObserver(model, sample_time, gain)
-        self.inputs = list(model.actuator_names)
-        self.measurements = list(MEASUREMENTS)
-        self.components = list(model.joint_names)
-        self.estimate_components, self.estimate_modes = [], []
-        self.units = {"residual": ["N" if k == "slide" else "N·m" for k in model.joint_kinds], "estimate": []}
-        self._signatures = [Signature(a, frozenset(j for j, b in zip(model.joint_names, model.B[:, k]) if b != 0))
-                            for k, a in enumerate(model.actuator_names)]
-        self.reset()
-
-    def signatures(self) -> list[Signature]:
-        return list(self._signatures)
-
-    def reset(self) -> None:
-        self.observer.reset()
-
-    def update(self, y: np.ndarray, u: np.ndarray) -> Residual:
-        """Residual at sample k (De Luca & Mattone 2003 eq. (10)) from y(k) and τ = B ū(k−1)."""
-        u = check_measurement(u, len(self.inputs), "u")
-        r = self.observer.update(y, self.model.joint_torque(u)).r
-        return Residual(r, np.zeros(0))
+        super().__init__(model, sample_time, gain, measurements=MEASUREMENTS, estimate=False)
 
 
 class ExcitationPolicy:

@@ -34,13 +34,12 @@ except ImportError:  # pragma: no cover - exercised only without the extra
     raise ImportError("robofdi.adapters.gymnasium_diagnosis needs gymnasium: pip install 'robofdi[gymnasium]'") from None
 
 from robofdi.adapters.gymnasium import FaultyEnv
-from robofdi.decision import Signature, ThresholdDecision, calibrate_thresholds
+from robofdi.decision import ThresholdDecision, calibrate_thresholds
 from robofdi.errors import RobofdiError
 from robofdi.loop import Diagnosis, DiagnosisBank, Rates
 from robofdi.models.manipulator import ModelMismatch
 from robofdi.models.multibody import MultibodyModel
-from robofdi.observers.momentum import MomentumObserver
-from robofdi.observers.residual import Residual, check_measurement
+from robofdi.observers.momentum import JointMomentumDiagnoser
 from robofdi.record import Record
 from robofdi.seeding import rng
 
@@ -128,40 +127,6 @@ def env_model(env, readout: JointReadout | None = None, mismatch: ModelMismatch 
     spec = getattr(env, "spec", None)
     return MultibodyModel(mujoco.MjModel.from_xml_path(path), getattr(spec, "id", "gymnasium"), mismatch,
                           joints=list(readout.joints))
-
-
-class JointMomentumDiagnoser:
-    """Momentum residual on every joint of ``model`` (a :class:`~robofdi.protocols.Diagnoser`): ``update(y, u)``
-    with y = [q; q̇] at sample k and u = the action held over the step that ended there (ū(k−1), as commanded).
-
-    Residual components: the joint names [N·m for hinges, N for slides]; signatures: one per actuator (the joints
-    its column of B reaches); the residual is also the estimate of the unmodelled joint force."""
-
-    def __init__(self, model: MultibodyModel, sample_time: float, gain: float = 10.0):
-        self.model = model
-        self.observer = MomentumObserver(model, sample_time, gain)
-        self.inputs = list(model.actuator_names)
-        self.measurements = [f"{j}_pos" for j in model.joint_names] + [f"{j}_vel" for j in model.joint_names]
-        self.components = list(model.joint_names)
-        self.estimate_components = list(model.joint_names)
-        self.estimate_modes = ["level"] * model.n
-        unit = ["N" if k == "slide" else "N·m" for k in model.joint_kinds]
-        self.units = {"residual": unit, "estimate": list(unit)}
-        self._signatures = [Signature(a, frozenset(j for j, b in zip(model.joint_names, model.B[:, k]) if b != 0))
-                            for k, a in enumerate(model.actuator_names)]
-        self.reset()
-
-    def signatures(self) -> list[Signature]:
-        return list(self._signatures)
-
-    def reset(self) -> None:
-        self.observer.reset()
-
-    def update(self, y: np.ndarray, u: np.ndarray) -> Residual:
-        """Residual at sample k (De Luca & Mattone 2003 eq. (10)) from y(k) and τ = B ū(k−1)."""
-        u = check_measurement(u, len(self.inputs), "u")
-        r = self.observer.update(y, self.model.joint_torque(u)).r
-        return Residual(r, r.copy())
 
 
 def make_env(env_id: str, steps: int, faults=(), seed: int = 0, diagnosis: DiagnosisBank | None = None,

@@ -15,11 +15,12 @@ import numpy as np
 from scipy.signal import lfilter
 
 from robofdi import RobofdiError
+from robofdi.decision.isolation import Signature
 from robofdi.models.friction import JointFriction
 from robofdi.models.manipulator import ManipulatorModel
 from robofdi.observers.residual import Residual, check_measurement
 
-__all__ = ["MomentumObserver", "identify_friction", "observer_filter"]
+__all__ = ["MomentumObserver", "JointMomentumDiagnoser", "identify_friction", "observer_filter"]
 
 
 class MomentumObserver:
@@ -101,3 +102,47 @@ def identify_friction(residuals: Sequence[np.ndarray], velocities: Sequence[np.n
         raise RobofdiError(f"identify_friction: {phi.shape[0]} samples after skip; expected at least 40")
     coef = np.array([np.linalg.lstsq(-phi[:, j], r[:, j], rcond=None)[0] for j in range(r.shape[1])])
     return JointFriction.from_coefficients(coef, stribeck_velocity, smoothing)
+
+
+class JointMomentumDiagnoser:
+    """Momentum residual on every joint of a MuJoCo-built ``model`` (a :class:`~robofdi.models.multibody.MultibodyModel`;
+    a :class:`~robofdi.protocols.Diagnoser`): ``update(y, u)`` with y = [q; q̇] at sample k and u = the action held
+    over the step that ended there (ū(k−1), as commanded), τ = B u.
+
+    Residual components: the joint names [N·m for hinges, N for slides]; signatures: one per actuator (the joints its
+    column of B reaches). ``measurements``: the names of y's channels (default ``<joint>_pos`` then ``<joint>_vel``);
+    ``estimate``: the residual is also the estimate of the unmodelled joint force (identification candidates), or
+    there are none. The environment adapters (Gymnasium, dm_control) share it."""
+
+    def __init__(self, model, sample_time: float, gain: float = 10.0, measurements: Sequence[str] | None = None,
+                 estimate: bool = True):
+        self.model = model
+        self.observer = MomentumObserver(model, sample_time, gain)
+        self.inputs = list(model.actuator_names)
+        joints = list(model.joint_names)
+        self.measurements = (list(measurements) if measurements is not None
+                             else [f"{j}_pos" for j in joints] + [f"{j}_vel" for j in joints])
+        if len(self.measurements) != 2 * model.n:
+            raise RobofdiError(f"JointMomentumDiagnoser: field 'measurements' must name {2 * model.n} channels "
+                               f"(q then q̇), got {len(self.measurements)}")
+        self.components = joints
+        self._estimate = bool(estimate)
+        unit = ["N" if k == "slide" else "N·m" for k in model.joint_kinds]
+        self.estimate_components = list(joints) if estimate else []
+        self.estimate_modes = ["level"] * model.n if estimate else []
+        self.units = {"residual": unit, "estimate": list(unit) if estimate else []}
+        self._signatures = [Signature(a, frozenset(j for j, b in zip(joints, model.B[:, k]) if b != 0))
+                            for k, a in enumerate(model.actuator_names)]
+        self.reset()
+
+    def signatures(self) -> list[Signature]:
+        return list(self._signatures)
+
+    def reset(self) -> None:
+        self.observer.reset()
+
+    def update(self, y: np.ndarray, u: np.ndarray) -> Residual:
+        """Residual at sample k (De Luca & Mattone 2003 eq. (10)) from y(k) and τ = B ū(k−1)."""
+        u = check_measurement(u, len(self.inputs), "u")
+        r = self.observer.update(y, self.model.joint_torque(u)).r
+        return Residual(r, r.copy() if self._estimate else np.zeros(0))
