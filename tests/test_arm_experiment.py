@@ -56,15 +56,26 @@ def test_run_arm7_actuator_step_detected_isolated_and_compensated(tmp_path, monk
     (["--robot", "no_such_arm.xml"], "no_such_arm.xml"),
     (["--joints", "joint1,elbow"], "elbow"),
 ])
-def test_run_arm_bad_input_is_one_line_before_any_calibration(tmp_path, args, message):
-    out = _cli("run", "arm", *args, "--out", str(tmp_path), "--quiet", cwd=tmp_path, cache=tmp_path / "cache")
-    assert out.returncode == 2 and out.stderr.count("\n") == 1 and message in out.stderr, out.stderr
+def test_run_arm_bad_input_is_one_line_before_any_calibration(tmp_path, monkeypatch, capsys, args, message):
+    # the command line in this process (the installed entry point is run as a process by the arm7 test above)
+    code, err = _main(tmp_path, monkeypatch, capsys, "run", "arm", *args, "--out", str(tmp_path), "--quiet")
+    assert code == 2 and err.count("\n") == 1 and message in err, err
     assert not (tmp_path / "cache").exists()                            # failed before calibrating
 
 
-def test_options_of_run_arm_are_refused_by_other_experiments(tmp_path):
-    out = _cli("run", "ch3-actuator", "--robot", "arm7.xml", cwd=tmp_path, cache=tmp_path / "cache")
-    assert out.returncode == 2 and "--robot" in out.stderr and "'ch3-actuator'" in out.stderr
+def test_options_of_run_arm_are_refused_by_other_experiments(tmp_path, monkeypatch, capsys):
+    code, err = _main(tmp_path, monkeypatch, capsys, "run", "ch3-actuator", "--robot", "arm7.xml")
+    assert code == 2 and "--robot" in err and "'ch3-actuator'" in err
+
+
+def _main(tmp_path, monkeypatch, capsys, *args) -> tuple[int, str]:
+    """``robofdi ARGS`` in this process, from ``tmp_path`` with a cache folder there: (exit code, stderr)."""
+    from robofdi.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("ROBOFDI_CACHE", str(tmp_path / "cache"))
+    code = main(list(args))
+    return code, capsys.readouterr().err
 
 
 def test_python_overrides_fail_at_once(tmp_path):
