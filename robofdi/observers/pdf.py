@@ -74,7 +74,7 @@ def s_domain_criterion(model: np.ndarray, measured: np.ndarray, s: np.ndarray, w
 
 
 class SDomainDiagnosis:
-    """θ̂(k) = θ̂(k−1) − λ ∂π/∂θ̂ |_{θ̂(k−1)} — Wang eq. (77), π the s-domain criterion (74) weighted by ``weight``
+    """θ̂(k) = θ̂(k−1) − λ ∂π/∂θ̂ at θ̂(k−1) — Wang eq. (77), π the s-domain criterion (74) weighted by ``weight``
     (e.g. :func:`criterion_weight`, (76)).
 
     transform(s, θ, multipliers) → Γ_y(s, θ, u_k) of the model (72) (the user's product of the parameters'
