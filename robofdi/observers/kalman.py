@@ -372,7 +372,7 @@ class ParameterFaultEKF:
 
         x(k+1) = (A + Σⱼ θⱼ Aⱼ) x(k) + B (I − diag r) u(k) + ω,   y = C x + v,   θ(k+1) = θ(k) + ξ_θ,  r(k+1) = r(k) + ξ_r
 
-    on the augmented state z = col(x, θ, r) (θθ x is bilinear, hence the EKF), Jacobian
+    on the augmented state z = col(x, θ, r) (the θ x term is bilinear, hence the EKF), Jacobian
     [[A(θ̂), [Aⱼ x̂]ⱼ, −B diag(u)], [0, I, 0], [0, 0, I]]. ``parameter_directions``: the Aⱼ (n×n each) — the
     modelling error's structure; process_noise (n×n, on x), measurement_noise (p×p), parameter_drift and
     fault_drift (the random-walk variances of θ and r, per sample), P0: initial covariance of z.
