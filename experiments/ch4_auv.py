@@ -229,7 +229,8 @@ def _run_ch4_auv(name, run_dir, seed, progress, replay):
                            "values": {labels[k]: rms[k] / base for k in labels}}],
         health_source=sc.health_source, method=f"reallocation ({sc.allocation}) around the isolated thrusters")
     summary["reproduction"] = [*tcm_reproduction(AuvModel.from_mjcf(sc.plant.mjcf, AuvModelMismatch.none()).B, limit),
-                               *thruster_reproduction(), *run_reproduction(sc, records, summary)]
+                               *thruster_reproduction(), *run_reproduction(sc, records, summary),
+                               *supervision_reproduction(sc)]
     with progress.stage("run folder: records, figures" + (", replay" if replay else "")):
         write_run_folder(run_dir, main, summary, {k: records[k] for k in ("fault_free", "no_ftc", "oracle")},
                          replay=False)
@@ -591,6 +592,71 @@ def thruster_reproduction() -> list[dict]:
                      {"bound (digest: 17.78, 10.0, 2.5, 1.11 from 250 rad/s)": law}, ours, "upper bound", ok,
                      note="the motor brakes through its back-EMF, so the decay is faster than the propeller-only law"))
     return rep
+
+
+class _CrashingController:
+    """The HW/SW failure of §3 (the digest's emulation): the controller task stops at ``crash`` s and its last
+    output stays on the bus (outputs held)."""
+
+    def __init__(self, inner, crash: float, dt: float):
+        self.inner, self.crash, self.dt, self._t, self._held = inner, crash, dt, 0.0, None
+
+    def update(self, y, reference):
+        t, self._t = self._t, self._t + self.dt
+        if t < self.crash or self._held is None:
+            self._held = np.array(self.inner.update(y, reference), dtype=float)
+        return self._held
+
+
+def supervision_reproduction(sc: AuvScenario, duration: float = 8.0, crash: float = 5.0,
+                             timeout: float = 0.05) -> list[dict]:
+    """The HW/SW watchdog on the vehicle (a short fault-free run of ``sc``'s plant, controller and allocation, the
+    controller task crashing at ``crash`` s; no diagnoser, no calibration) and the Theseus phase manager (§3.4) on
+    the same run's measured depth: descend, then home on an acoustic fix that never comes ('poor acoustic
+    conditions')."""
+    from robofdi.control.supervision import MissionPhase, PhaseFaultManager, Watchdog
+    from robofdi.loop import ClosedLoop
+    from robofdi.systems.auv import _allocation, _controller, _reference_columns
+
+    sim = sc.simulator()
+    model = sc.nominal_model(sim)
+    cols, units = _reference_columns()
+    controller = _CrashingController(_controller(model, sc.allocation), crash, sim.control_dt)
+    loop = ClosedLoop(sim, controller, sc.reference(), accommodation=_allocation(sc, model), reference_columns=cols,
+                      reference_units=units)
+    rec = loop.run(duration, sc.start_pose, seed=sc.seed, run_key="watchdog", scenario="watchdog")
+    dog = Watchdog(timeout)
+    alarms = np.array([dog.update(t, u) for t, u in zip(rec.time, rec.signals["u_cmd"])])
+    first = float(rec.time[np.argmax(alarms)]) if alarms.any() else None
+    watchdog = check("HW/SW failure (§3): watchdog on the controller's output, task crashed at 5 s",
+                     f"alarm after the {timeout:g} s timeout, none before the crash",
+                     {"first_alarm_s": first, "alarms_before_crash": int(alarms[rec.time < crash].sum())},
+                     2 * sim.control_dt, first is not None and crash + timeout <= first <= crash + timeout
+                     + 2 * sim.control_dt and not alarms[rec.time < crash].any(),
+                     note="outputs held (the digest's emulation); a healthy feedback task's output changes every "
+                          "tick with the sensor noise")
+    depth_col = rec.columns["signals/y_meas"].index("depth") if "depth" in rec.columns["signals/y_meas"] else None
+    if depth_col is None:
+        return [watchdog]
+    depth = rec.signals["y_meas"][:, depth_col]
+    target = float(depth[0])
+    manager = PhaseFaultManager([MissionPhase("hold_depth", 2.0), MissionPhase("homing", 3.0)])
+    behaviour = []
+    for t, d in zip(rec.time, depth):
+        phase = manager.behaviour
+        done = phase == "hold_depth" and t >= 1.0 and abs(d - target) < 0.2   # homing: the fix never comes
+        behaviour.append(manager.update(float(t), done))
+    homing_start = next((t for t, b in manager.log if b == "homing"), None)
+    theseus = check("Theseus fault manager (§3.4): homing without an acoustic fix → 'stop and wait' at phase start "
+                    "+ T_phase", "safe behaviour after T_phase = 3 s",
+                    {"homing_started_s": homing_start, "safe_behaviour_at_s": manager.failed_at,
+                     "behaviour_at_end": behaviour[-1], "log": manager.log}, 2 * sim.control_dt,
+                    homing_start is not None and manager.failed_at is not None
+                    and abs(manager.failed_at - homing_start - 3.0) <= 2 * sim.control_dt
+                    and behaviour[-1] == "stop_and_wait",
+                    note="phases on the run's measured depth; the 'stop under the ice and wait' behaviour is the "
+                         "phase's safe behaviour (the safe manoeuvre itself is not flown)")
+    return [watchdog, theseus]
 
 
 def _fault_free_window(sc: AuvScenario) -> tuple[float, float]:

@@ -9,8 +9,9 @@ import pytest
 from robofdi import RobofdiError
 from robofdi.experiments.adaptive_fe import PRINTED_RATE, analyse
 from robofdi.models.linear_examples import f16_vertical
-from robofdi.models.linear import discretize
+from robofdi.models.linear import LinearModel, discretize
 from robofdi.observers.adaptive import (
+    first_step_estimate,
     AdaptiveFaultEstimator, adaptive_fe_gains, adaptive_fe_lmi_gains, augmented_error_matrix, is_spd,
     lyapunov_certificate,
 )
@@ -85,3 +86,25 @@ def test_closed_loop_detects_and_isolates_the_elevator_bias():
     record, summary = run_f16(seed=1, sensor_noise=0.005, threshold=calibrate(F16Scenario(seed=1, sensor_noise=0.005)))
     d = {x["fault"]: x for x in summary["diagnosers"]["adaptive_fe"]["detections"]}
     assert d["elevator_bias"]["isolated"] == "elevator" and d["elevator_bias"]["delay"] < 1.0
+
+
+def test_remark2_first_step_estimate_is_exact_and_validates():
+    # noise-free 2-state plant, constant actuator fault from k = 0: x(0) and f from 3 stacked outputs
+    A = np.array([[0.9, 0.1], [0.0, 0.8]])
+    B = np.array([[0.0], [1.0]])
+    C = np.array([[1.0, 0.0]])
+    x, f = np.array([0.3, -0.2]), np.array([0.5])
+    us = np.array([[0.1], [-0.2], [0.05]])
+    ys = []
+    for k in range(4):
+        ys.append(C @ x)
+        if k < 3:
+            x = A @ x + B @ (us[k] + f)
+    x_last, f_hat = first_step_estimate(A, B, C, B, np.array(ys), us)
+    np.testing.assert_allclose(f_hat, f, atol=1e-12)
+    np.testing.assert_allclose(x_last, x, atol=1e-12)
+    with pytest.raises(RobofdiError, match="rank"):
+        first_step_estimate(A, B, C, B, np.array(ys[:2]), us[:1])          # 2 outputs for 3 unknowns
+    model = LinearModel(A, B, C, dt=0.1)
+    with pytest.raises(RobofdiError, match="first_step"):
+        AdaptiveFaultEstimator(model, np.zeros((2, 1)), G=np.zeros((1, 1)), first_step=1)

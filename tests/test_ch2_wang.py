@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.integrate
 import scipy.signal
 import scipy.stats
 
@@ -13,7 +14,11 @@ from robofdi.ftc import GainCompensation
 from robofdi.models.linear_examples import CHIP_REFINER, chip_refiner
 from robofdi.models.linear import LinearModel
 from robofdi.observers.gain import GainFaultObserver
-from robofdi.observers.pdf import EntropyDiagnosis, ScanningRLS, laplace_transform, rbf_basis
+from robofdi.ftc import reduced_actuator_set
+from robofdi.ftc.pdf_shaping import pdf_shaping_input
+from robofdi.observers.pdf import (
+    EntropyDiagnosis, ScanningRLS, criterion_weight, laplace_transform, rbf_basis, s_domain_criterion,
+)
 from robofdi.protocols import Health
 
 
@@ -146,3 +151,31 @@ def test_entropy_diagnosis_converges_with_the_abs_mean_term():
         u = gen.uniform(0.5, 1.5)
         signed.update((u, F_true * u + gen.uniform(-0.5, 0.5)))
     assert signed.F < F_true - 0.1        # the literal signed mean drags F̂ down (digest W8)
+
+
+def test_s_domain_criterion_weight_shaping_and_reconfiguration_validate():
+    # (76) at hand-computed points; (74) is 0 when model and measurement agree; bad input → one-line errors
+    s = np.array([0.0, 0.5, 1.0, 2.0])
+    K = criterion_weight(s, 2.0, 3.0, 0.5)
+    expected = 3.0 * s[1:] ** 2 * np.exp(-0.5 * s[1:]) / (8 * 4.0 * (np.log(2.0) ** 2 + np.log(s[1:]) ** 2))
+    assert K[0] == 0.0 and np.allclose(K[1:], expected, rtol=1e-12)
+    grid = np.linspace(0.1, 3.0, 50)
+    G = (1 + 0.3 * grid) ** -2
+    assert s_domain_criterion(G, G, grid, np.ones_like(grid)) == 0.0
+    assert s_domain_criterion(G**2, G, grid, np.ones_like(grid)) == pytest.approx(
+        scipy.integrate.simpson(np.log(G) ** 2, x=grid))
+    with pytest.raises(RobofdiError, match="'M0'"):
+        criterion_weight(s, 1.0)
+    with pytest.raises(RobofdiError, match="> 0"):
+        s_domain_criterion(-G, G, grid, np.ones_like(grid))
+    with pytest.raises(RobofdiError, match="'R'"):
+        pdf_shaping_input(lambda s, th, u: G, [1.0], G, grid, np.ones_like(grid), 0.0, (0.1, 1.0))
+    with pytest.raises(RobofdiError, match="'bounds'"):
+        pdf_shaping_input(lambda s, th, u: G, [1.0], G, grid, np.ones_like(grid), 1.0, (1.0, 0.1))
+    B = np.array([[0.0, 0.5], [1.0, 0.2]])
+    red = reduced_actuator_set(B, np.zeros((1, 2)), [0.6, 1e-5], 1e-3)
+    assert red.kept == (0,) and np.allclose(red.Bf, 0.6 * B[:, [0]]) and np.allclose(red.expand([2.0], 2), [2.0, 0])
+    with pytest.raises(RobofdiError, match="no actuator left"):
+        reduced_actuator_set(B, np.zeros((1, 2)), [0.0, 0.0], 1e-3)
+    with pytest.raises(RobofdiError, match="'f_hat'"):
+        reduced_actuator_set(B, np.zeros((1, 2)), [1.0], 1e-3)

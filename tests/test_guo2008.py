@@ -104,3 +104,18 @@ def test_existence_conditions_raise():
     obs = UnknownInputObserver(m, [-3.0] * 6)
     with pytest.raises(RobofdiError, match="'u' must be a vector of 5"):
         obs.update(np.zeros(6), np.zeros(4))
+
+
+def test_spr_output_form_equals_pinv_for_square_C_and_refuses_when_the_condition_fails():
+    # the adaptive law's output form for a non-square C (spec B.2 [ERRATUM]): P T bᵢ = Cᵀ Gᵢ
+    m = discretize(aircraft_lateral(), 1e-3)
+    pinv = LockInPlaceBank(m, [-3] * 6)
+    spr = LockInPlaceBank(m, [-3] * 6, output_form="spr")
+    np.testing.assert_allclose(spr._adapt, pinv._adapt, atol=1e-12)           # square C: the same law
+    keep = [0, 1, 2, 4, 5]                                                      # drop the α output: C is 5×6
+    short = LinearModel(m.A, m.B, m.C[keep], E=m.E, dt=m.dt, input_names=m.input_names,
+                        output_names=[m.output_names[i] for i in keep], state_names=m.state_names)
+    with pytest.raises(RobofdiError, match="range of Cᵀ; actuator 'elevator_left'"):
+        LockInPlaceBank(short, [-3, -3.5, -4, -4.5, -5, -5.5], output_form="spr")
+    with pytest.raises(RobofdiError, match="output_form"):
+        LockInPlaceBank(m, [-3] * 6, output_form="other")

@@ -13,6 +13,7 @@ from robofdi.faults import Fault, Oscillation
 from robofdi.models.linear_examples import HELICOPTER_NOISE, helicopter
 from robofdi.models.linear import LinearModel
 from robofdi.observers.kalman import (
+    ParameterFaultEKF,
     KalmanFaultEstimator, reduced_order_covariances, reduced_order_design, steady_state_gain,
 )
 from robofdi.systems.helicopter import (
@@ -211,3 +212,25 @@ def test_bad_input_names_the_condition():
     fe = KalmanFaultEstimator(m, S, Q, fault_outputs=FAULT_OUTPUTS)
     with pytest.raises(RobofdiError, match="'y' must be a vector of 3"):
         fe.update(np.zeros(2), np.zeros(2))
+
+
+def test_parameter_fault_ekf_is_exact_noise_free_on_a_scalar_plant_and_validates():
+    # x⁺ = (a + θ a_θ) x + b (1 − r) u, y = x, noise-free: the EKF recovers θ and r (Remark 5) — a 1-state check
+    from robofdi.models.linear import LinearModel
+
+    model = LinearModel([[0.9]], [[1.0]], [[1.0]], dt=0.1)
+    theta, r = 0.5, 0.3
+    ekf = ParameterFaultEKF(model, [[[0.1]]], [[1e-12]], [[1e-10]], parameter_drift=0.0, fault_drift=0.0,
+                            P0=np.diag([1.0, 1.0, 1.0]))
+    x, u_prev = 1.0, 0.0
+    gen = np.random.default_rng(0)
+    for _ in range(200):
+        ekf.update(np.array([x]), np.array([u_prev]))
+        u_prev = float(gen.normal())
+        x = (0.9 + theta * 0.1) * x + (1 - r) * u_prev
+    assert ekf.parameter_estimate[0] == pytest.approx(theta, abs=1e-4)
+    assert ekf.fault_estimate[0] == pytest.approx(r, abs=1e-4)
+    with pytest.raises(RobofdiError, match="parameter_directions"):
+        ParameterFaultEKF(model, [[[0.1, 0.2]]], [[1.0]], [[1.0]])
+    with pytest.raises(RobofdiError, match="fault_drift"):
+        ParameterFaultEKF(model, [], [[1.0]], [[1.0]], fault_drift=-1.0)

@@ -173,6 +173,30 @@ def test_adaptive_residual_is_simple_minus_ripple_estimate(model, plant):
     assert moved
 
 
+def test_freeze_threshold_stops_the_adaptation_after_the_first_crossing(model, plant):
+    """freeze_on_detect (the digest's ch3 option): θ̂ stops at the sample whose residual crosses the threshold."""
+    xs, us = plant
+    ripple = RippleModel(N_JOINTS, model.torque_limit)
+    est = Adaptive(ripple, 2.0 / GAMMA, None, step=2.0)
+    r = run(state_observer(model), xs, us)
+    k_cross = STEP_K + 1                                     # the joint-3 velocity step shows at k = 21
+    threshold = np.full(2 * N_JOINTS, np.inf)
+    threshold[STEP_ROW] = 0.5 * STEP_SIZE
+    obs = state_observer(model, est, freeze_threshold=np.where(np.isfinite(threshold), threshold, 1e9))
+    obs.update(xs[0], np.zeros(N_JOINTS))
+    thetas = []
+    for k in range(1, len(xs)):
+        obs.update(xs[k], us[k - 1])
+        thetas.append(est.theta.copy())
+    assert abs(r[k_cross, STEP_ROW]) > 0.5 * STEP_SIZE and est.frozen
+    assert not np.allclose(thetas[k_cross - 2], thetas[k_cross - 1])        # it still adapted at the crossing
+    assert all(np.array_equal(thetas[k_cross - 1], th) for th in thetas[k_cross:])
+    obs.reset()
+    assert not est.frozen
+    with pytest.raises(RobofdiError, match="freeze_threshold"):
+        state_observer(model, est, freeze_threshold=np.ones(3))
+
+
 def test_residual_does_not_depend_on_observer_gains(model, plant):
     xs, us = plant
     obs_a = state_observer(model, Recursive(GAMMA), K1=0.1, K2=0.1)

@@ -13,6 +13,8 @@ which equals (similarity) the augmented-state observer A_a − K_a C_a with A_a 
 K_a = [L + EΓF; ΓF]: :func:`adaptive_fe_gains` places its poles (scipy.signal.place_poles) and returns (L, ΓF).
 The Lyapunov certificate (P > 0 with A_augᵀ P A_aug − P = −I, scipy's discrete Lyapunov solver) exists iff the
 spectral radius is < 1 — the reconstructed condition (6) for fixed gains (Remark 3 fixes one unknown).
+Remark 2 (the state at the first step from stacked outputs, then an online fault estimate at that step):
+:func:`first_step_estimate`, used by ``AdaptiveFaultEstimator(first_step=N)``.
 """
 from __future__ import annotations
 
@@ -28,6 +30,7 @@ from robofdi.models.linear import LinearModel, require_discrete
 from robofdi.observers.residual import Residual, check_measurement
 
 __all__ = ["augmented_error_matrix", "lyapunov_certificate", "adaptive_fe_gains", "adaptive_fe_lmi_gains",
+           "first_step_estimate",
            "AdaptiveFaultEstimator", "is_spd"]
 
 
@@ -123,6 +126,41 @@ def adaptive_fe_lmi_gains(model: LinearModel, E, decay: float = 0.95, solver: st
     return Ka[:n] - E @ G, G, Pv
 
 
+def first_step_estimate(A, B, C, E, ys, us) -> tuple[np.ndarray, np.ndarray]:
+    """Remark 2 of the seed-004 paper (reconstructed): x(0) and a constant fault f from the stacked outputs
+    y(0) … y(N−1) with the inputs u(0) … u(N−2), by least squares on
+
+        y(j) = C Aʲ x(0) + Σ_{i<j} C A^{j−1−i} (B u(i) + E f),   j = 0 … N−1
+
+    (the observability matrix of the augmented pair ([[A, E], [0, I]], [C 0]) over N steps, required of full column
+    rank n + q); returns (x̂(N−1), f̂), the state at the window's last sample propagated with the estimates."""
+    A, B, C, E = (np.atleast_2d(np.asarray(v, dtype=float)) for v in (A, B, C, E))
+    ys, us = np.atleast_2d(np.asarray(ys, dtype=float)), np.asarray(us, dtype=float).reshape(-1, B.shape[1])
+    n, q, N = A.shape[0], E.shape[1], ys.shape[0]
+    if ys.shape[1] != C.shape[0] or us.shape[0] != N - 1:
+        raise RobofdiError(f"first_step_estimate: need ys of shape (N, {C.shape[0]}) and us of shape (N − 1, "
+                           f"{B.shape[1]}), got {ys.shape} and {us.shape}")
+    rows, rhs = [], []
+    Aj = np.eye(n)
+    drive_u = np.zeros(n)                     # Σ_{i<j} A^{j−1−i} B u(i)
+    drive_f = np.zeros((n, q))                # Σ_{i<j} A^{j−1−i} E
+    for j in range(N):
+        rows.append(np.hstack([C @ Aj, C @ drive_f]))
+        rhs.append(ys[j] - C @ drive_u)
+        if j < N - 1:
+            drive_u = A @ drive_u + B @ us[j]
+            drive_f = A @ drive_f + E
+            Aj = A @ Aj
+    O = np.vstack(rows)
+    if np.linalg.matrix_rank(O) < n + q:
+        raise RobofdiError(f"first_step_estimate: the stacked observability matrix over N = {N} samples has rank "
+                           f"{np.linalg.matrix_rank(O)} < n + q = {n + q} (window too short or (A, C, E) not "
+                           f"observable): Remark 2 does not apply")
+    sol = np.linalg.lstsq(O, np.concatenate(rhs), rcond=None)[0]
+    x0, f = sol[:n], sol[n:]
+    return Aj @ x0 + drive_u + drive_f @ f, f
+
+
 def _fault_matrix(E, n: int, where: str) -> np.ndarray:
     E = np.array(E, dtype=float)
     if E.ndim == 1:
@@ -144,11 +182,18 @@ class AdaptiveFaultEstimator:
     y − C x̂ is ``innovation``); a threshold decision on f̂ isolates the fault channel.
     ``spectral_radius`` and ``lyapunov`` (the certificate P) are reported. ``operating_point`` (x₀, u₀): the model is
     a linearisation about the equilibrium (x₀, u₀) — the observer then works on x − x₀, u − u₀, y − C x₀.
+    ``first_step`` = N (Remark 2): the first N samples are stacked and x̂, f̂ at the N-th come from
+    :func:`first_step_estimate`; before it the estimator reports f̂ = 0 and a zero residual (no estimate yet). None
+    (default): x̂ starts from the least-squares C x̂ = y(0) and f̂ = 0.
     """
 
     def __init__(self, model: LinearModel, L, F=None, Gamma=None, E=None, G=None, fault_names=None,
-                 operating_point=None):
+                 operating_point=None, first_step: int | None = None):
         where = "AdaptiveFaultEstimator"
+        if first_step is not None and (isinstance(first_step, bool) or not isinstance(first_step, int)
+                                       or first_step < 2):
+            raise RobofdiError(f"{where}: field 'first_step' must be None or an integer >= 2, got {first_step!r}")
+        self.first_step = first_step
         self.model = model = require_discrete(model, where, "diagnosis")
         n, p = model.n, model.p
         self.E = E = _fault_matrix(model.B if E is None else E, n, where)
@@ -195,6 +240,7 @@ class AdaptiveFaultEstimator:
     def reset(self) -> None:
         self._x = None
         self._y = None
+        self._window: list = []
         self.fault_estimate = np.zeros(self.E.shape[1])
         self.innovation = np.zeros(self.model.p)
 
@@ -208,6 +254,17 @@ class AdaptiveFaultEstimator:
         md = self.model
         y = check_measurement(y, md.p, "y") - self.y0
         u = check_measurement(u, md.m, "u") - self.u0
+        if self._x is None and self.first_step is not None:
+            self._window.append((y, u))
+            if len(self._window) < self.first_step:
+                return Residual(np.zeros(self.E.shape[1]), np.zeros(self.E.shape[1]))
+            ys = np.array([w[0] for w in self._window])
+            us = np.array([w[1] for w in self._window[1:]])        # u(k−1) arrives with y(k)
+            self._x, self.fault_estimate = first_step_estimate(md.A, md.B, md.C, self.E, ys, us)
+            self._window = []
+            r = y - md.C @ self._x
+            self._y, self.innovation = y, r
+            return Residual(self.fault_estimate.copy(), self.fault_estimate.copy())
         if self._x is None:
             self._x = np.linalg.lstsq(md.C, y, rcond=None)[0]
         else:

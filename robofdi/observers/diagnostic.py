@@ -176,7 +176,11 @@ class RippleModel:
 
 
 class Adaptive(_Estimating):
-    """θ̂(k+1) = θ̂(k) + Zᵀ Γ_θ (e(k+1) − F e(k)),  Γ_θ = 2 (Z Zᵀ + Q)⁻¹ — eqs. (37)–(39)."""
+    """θ̂(k+1) = θ̂(k) + Zᵀ Γ_θ (e(k+1) − F e(k)),  Γ_θ = 2 (Z Zᵀ + Q)⁻¹ — eqs. (37)–(39).
+
+    :meth:`freeze` stops the adaptation until ``reset`` (the digest's ``freeze_on_detect``, driven by
+    :class:`DiagnosticObserver`'s ``freeze_threshold``); η̂ is still evaluated with the frozen θ̂.
+    """
 
     def __init__(self, model: RippleModel, Q: np.ndarray, theta0: np.ndarray | None = None, step: float = 2.0):
         if not (np.isfinite(step) and 0 < step <= 2):
@@ -193,11 +197,13 @@ class Adaptive(_Estimating):
         if theta0.shape != (model.p,) or not np.all(np.isfinite(theta0)):
             raise RobofdiError(f"Adaptive: field 'theta0' must be {model.p} finite values")
         self.theta0 = theta0
+        self.frozen = False
 
     def reset(self, dim):
         super().reset(dim)
         self.theta = self.theta0.copy()
         self._Z = None
+        self.frozen = False
 
     def prepare(self, x, u):
         n = self.ripple.n
@@ -208,8 +214,12 @@ class Adaptive(_Estimating):
         """Γ_θ = 2 (Z Zᵀ + Q)⁻¹ — eq. (39); ``step`` replaces the factor 2."""
         return self.step * np.linalg.inv(Z @ Z.T + self.Q)
 
+    def freeze(self) -> None:
+        """Stop adapting θ̂ (a fault is not the ripple's to learn)."""
+        self.frozen = True
+
     def update(self, r, r_model, x, u):
-        if self._Z is None:
+        if self._Z is None or self.frozen:
             return
         if self._q is None:                      # eqs. (37), (39) as printed
             self.theta = self.theta + self._Z.T @ (self.gain(self._Z) @ r)
@@ -232,6 +242,11 @@ class DiagnosticObserver:
     Identification (Sec. 6): ``estimate`` holds δτ̂ = (M̂/T) f̂₂ per joint (components ``joint{i}``) with
     f̂ = η̂, and the per-sample position-fault increment f̂₁ = r₁ (components ``joint{i}_pos``, summed from
     the isolation sample on by :class:`robofdi.decision.Identification`).
+
+    freeze_threshold: the digest's ``freeze_on_detect`` [RECONSTRUCTED; the chapter is silent] — thresholds on this
+    observer's residual (2n, its ``residual_space`` units, e.g. the decision's calibrated ones; None: never). Once
+    any |r_i| exceeds its threshold the estimator's adaptation stops until ``reset`` (``Adaptive.freeze``), so the
+    ripple model cannot absorb the fault; estimators that do not adapt ignore it.
     """
 
     def __init__(
@@ -244,6 +259,7 @@ class DiagnosticObserver:
         velocity: str = "measured",
         eval_at: str = "measured",
         residual_space: str = "torque",
+        freeze_threshold=None,
     ):
         self.euler = EulerArmModel(model, T)
         self.model, self.T, self.n = model, float(T), model.n
@@ -267,6 +283,10 @@ class DiagnosticObserver:
         self.F = np.concatenate([1.0 - K1, 1.0 - K2])          # F = blkdiag(I − K1, I − K2), eq. (25)
         self.Ko = np.block([[np.diag(K1), T * np.eye(n)], [np.zeros((n, n)), np.diag(K2)]])  # eq. (24)
         self.estimator = estimator if estimator is not None else NoEstimate()
+        self.freeze_threshold = None if freeze_threshold is None else np.asarray(freeze_threshold, dtype=float)
+        if self.freeze_threshold is not None and (self.freeze_threshold.shape != (2 * n,)
+                                                  or not np.all(self.freeze_threshold > 0)):
+            raise RobofdiError(f"DiagnosticObserver: field 'freeze_threshold' must be None or {2 * n} thresholds > 0")
         self.velocity, self.eval_at, self.residual_space = velocity, eval_at, residual_space
         names = model.joint_names
         self.inputs = list(names)
@@ -327,7 +347,10 @@ class DiagnosticObserver:
         r = e - self.F * self._e_prev          # eq. (26)
         est.update(r, r_model, self._x_prev, u)
         self._x_prev, self._e_prev = x, e
-        return self._output(x, r, est.fault_estimate(r_model), r_model)
+        res = self._output(x, r, est.fault_estimate(r_model), r_model)
+        if self.freeze_threshold is not None and hasattr(est, "freeze") and np.any(np.abs(res.r) > self.freeze_threshold):
+            est.freeze()                        # freeze_on_detect, from the next sample on
+        return res
 
     def _output(self, x: np.ndarray, r: np.ndarray, f_hat: np.ndarray, r_model: np.ndarray) -> Residual:
         n, T = self.n, self.T

@@ -30,7 +30,7 @@ from robofdi.models.linear import LinearModel, covariance_factor, format_mode, r
 from robofdi.observers.residual import Residual, check_measurement
 
 __all__ = ["ReducedOrderDesign", "reduced_order_design", "reduced_order_covariances", "steady_state_gain",
-           "KalmanFaultEstimator", "COVARIANCE_MODES"]
+           "KalmanFaultEstimator", "COVARIANCE_MODES", "ParameterFaultEKF"]
 
 COVARIANCE_MODES = ("as_printed", "swapped", "corrected")
 #: Smallest singular value (relative to ‖CE‖) below which E₃ counts as singular.
@@ -362,3 +362,101 @@ class KalmanFaultEstimator:
         ok = den > 0
         self._r = np.where(ok, num / np.where(ok, den, 1.0), self._r)
         return self._r.copy()
+
+
+class ParameterFaultEKF:
+    """Extended Kalman filter for state, uncertain parameters and loss of effectiveness — Jiang & Chowdhury (2005),
+    Remark 5 ("if other kinds of uncertainties such as modelling errors are considered (entering the system in
+    multiplicative form), the augmented system becomes nonlinear ... an EKF should be used to estimate both the
+    state and unknown parameters", after Ljung 1979). The paper gives no equations; the reading here [RECONSTRUCTED]:
+
+        x(k+1) = (A + Σⱼ θⱼ Aⱼ) x(k) + B (I − diag r) u(k) + ω,   y = C x + v,   θ(k+1) = θ(k) + ξ_θ,  r(k+1) = r(k) + ξ_r
+
+    on the augmented state z = col(x, θ, r) (the θ x term is bilinear, hence the EKF), Jacobian
+    [[A(θ̂), [Aⱼ x̂]ⱼ, −B diag(u)], [0, I, 0], [0, 0, I]]. ``parameter_directions``: the Aⱼ (n×n each) — the
+    modelling error's structure; process_noise (n×n, on x), measurement_noise (p×p), parameter_drift and
+    fault_drift (the random-walk variances of θ and r, per sample), P0: initial covariance of z.
+    Residual and estimate: r̂ per actuator (the loss of effectiveness, unit 1, named like the inputs); θ̂ is
+    ``parameter_estimate``. ``update(y(k), u(k−1))``: predict with u(k−1), correct with y(k).
+    """
+
+    def __init__(self, model: LinearModel, parameter_directions, process_noise, measurement_noise,
+                 parameter_drift=1e-8, fault_drift=1e-6, P0=None, x0=None):
+        where = "ParameterFaultEKF"
+        self.model = model = require_discrete(model, where, "diagnosis")
+        n, m, p = model.n, model.m, model.p
+        dirs = np.array(parameter_directions, dtype=float).reshape(-1, n, n) if np.size(parameter_directions) == 0 \
+            else np.array(parameter_directions, dtype=float)
+        if dirs.ndim == 2:
+            dirs = dirs[None]
+        if dirs.ndim != 3 or dirs.shape[1:] != (n, n) or not np.all(np.isfinite(dirs)):
+            raise RobofdiError(f"{where}: field 'parameter_directions' must be a list of finite {n}x{n} matrices")
+        self.directions, self.n_theta = dirs, dirs.shape[0]
+        nz = n + self.n_theta + m
+        self.Qx = _positive_definite(process_noise, n, "process_noise", where, "process covariance")
+        self.R = _positive_definite(measurement_noise, p, "measurement_noise", where, "measurement covariance")
+        drift_t = np.broadcast_to(np.asarray(parameter_drift, dtype=float), (self.n_theta,))
+        drift_r = np.broadcast_to(np.asarray(fault_drift, dtype=float), (m,))
+        if np.any(drift_t < 0) or np.any(drift_r < 0) or not (np.all(np.isfinite(drift_t)) and np.all(np.isfinite(drift_r))):
+            raise RobofdiError(f"{where}: fields 'parameter_drift' and 'fault_drift' must be variances >= 0")
+        self.Q = scipy.linalg.block_diag(self.Qx, np.diag(drift_t), np.diag(drift_r))
+        self.P0 = np.eye(nz) if P0 is None else _positive_definite(P0, nz, "P0", where, "initial covariance")
+        self.x0 = None if x0 is None else check_measurement(x0, n, "x0")
+        self.inputs = list(model.input_names)
+        self.measurements = list(model.output_names)
+        self.components = list(model.input_names)
+        self.estimate_components = list(model.input_names)
+        self.estimate_modes = ["level"] * m
+        self.units = {"residual": ["1"] * m, "estimate": ["1"] * m}
+        self.reset()
+
+    def reset(self) -> None:
+        self._z = None
+        self._P = self.P0.copy()
+        self.innovation = np.zeros(self.model.p)
+
+    def signatures(self) -> list:
+        from robofdi.decision import Signature
+
+        return [Signature(c, frozenset({c})) for c in self.components]
+
+    @property
+    def state_estimate(self) -> np.ndarray | None:
+        return None if self._z is None else self._z[: self.model.n].copy()
+
+    @property
+    def parameter_estimate(self) -> np.ndarray:
+        n = self.model.n
+        return np.zeros(self.n_theta) if self._z is None else self._z[n:n + self.n_theta].copy()
+
+    @property
+    def fault_estimate(self) -> np.ndarray:
+        return np.zeros(self.model.m) if self._z is None else self._z[self.model.n + self.n_theta:].copy()
+
+    def update(self, y: np.ndarray, u: np.ndarray) -> Residual:
+        md = self.model
+        n, nt = md.n, self.n_theta
+        y = check_measurement(y, md.p, "y")
+        u = check_measurement(u, md.m, "u")
+        H = np.hstack([md.C, np.zeros((md.p, nt + md.m))])
+        if self._z is None:
+            x = np.linalg.lstsq(md.C, y, rcond=None)[0] if self.x0 is None else self.x0
+            self._z = np.concatenate([x, np.zeros(nt + md.m)])
+        else:
+            x, th, r = self._z[:n], self._z[n:n + nt], self._z[n + nt:]
+            A_th = md.A + np.tensordot(th, self.directions, axes=1)
+            J = np.eye(n + nt + md.m)
+            J[:n, :n] = A_th
+            J[:n, n:n + nt] = np.einsum("jab,b->aj", self.directions, x)
+            J[:n, n + nt:] = -md.B * u[None, :]
+            self._z = np.concatenate([A_th @ x + md.B @ ((1.0 - r) * u), th, r])       # prediction
+            self._P = J @ self._P @ J.T + self.Q
+        self.innovation = y - H @ self._z
+        S = H @ self._P @ H.T + self.R
+        K = np.linalg.solve(S, H @ self._P).T
+        self._z = self._z + K @ self.innovation
+        I_KH = np.eye(self._z.size) - K @ H
+        self._P = I_KH @ self._P @ I_KH.T + K @ self.R @ K.T                          # Joseph form
+        if not (all_finite(self._z) and all_finite(self._P.ravel())):
+            raise RobofdiError("ParameterFaultEKF: the estimate diverged (non-finite); check the model and noises")
+        return Residual(self.fault_estimate, self.fault_estimate)

@@ -1,6 +1,9 @@
 """Fault detection and diagnosis from output PDFs of random-parameter systems — Wang, book ch. 2, Secs. 6–8.
 
     laplace_transform      Γ(s) = ∫₀^∞ γ(x) e^{−sx} dx of a PDF on a grid, and its derivatives — eqs. (61)–(63)
+    criterion_weight       the largest admissible weight K(s) of the s-domain criterion — eq. (76)
+    s_domain_criterion     π(θ̂) = ∫ K(s) (log Γ_y(s, θ̂)/Γ_y(s))² ds on a grid of s — eq. (74)
+    SDomainDiagnosis       θ̂(k) = θ̂(k−1) − λ ∂π/∂θ̂ — eq. (77)
     rbf_basis              Gaussian radial basis B_p(s) for the log-transform expansion (81)–(82) [RECONSTRUCTED]
     ScanningRLS            RLS over the scan points s_q within one sample, detection |ε_q| > λ — eqs. (84)–(92)
     EntropyDiagnosis       F̂(k) = F̂(k−1) − λ ∂J/∂F, J = entropy + mean of the residual PDF — eqs. (95)–(100)
@@ -20,7 +23,8 @@ import scipy.stats
 
 from robofdi.errors import RobofdiError
 
-__all__ = ["laplace_transform", "rbf_basis", "ScanningRLS", "EntropyDiagnosis", "MEAN_TERMS"]
+__all__ = ["laplace_transform", "criterion_weight", "s_domain_criterion", "SDomainDiagnosis", "rbf_basis",
+           "ScanningRLS", "EntropyDiagnosis", "MEAN_TERMS"]
 
 MEAN_TERMS = ("signed", "abs", "squared")
 
@@ -37,6 +41,79 @@ def laplace_transform(pdf: np.ndarray, x: np.ndarray, s, derivative: int = 0) ->
     s = np.atleast_1d(np.asarray(s, dtype=float))
     kernel = (-x[None, :]) ** derivative * np.exp(-s[:, None] * x[None, :])
     return scipy.integrate.simpson(pdf[None, :] * kernel, x=x, axis=1)
+
+
+def criterion_weight(s, M0: float, M1: float = 1.0, M2: float = 1.0) -> np.ndarray:
+    """K(s) = M₁ s² e^{−M₂ s} / (8 M₀² [(log M₀)² + (log s)²]), the upper bound of (76) that keeps π finite (75).
+    M0: a uniform upper bound of the output PDFs (≠ 1, else K(1) is unbounded); M1, M2 > 0: user constants."""
+    s = np.atleast_1d(np.asarray(s, dtype=float))
+    for name, v in (("M0", M0), ("M1", M1), ("M2", M2)):
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.floating)) or not (np.isfinite(v) and v > 0):
+            raise RobofdiError(f"criterion_weight: field {name!r} must be a finite number > 0, got {v!r}")
+    if M0 == 1.0:
+        raise RobofdiError("criterion_weight: field 'M0' must not be 1 (the bound (76) is infinite at s = 1)")
+    if np.any(s < 0):
+        raise RobofdiError("criterion_weight: 's' must be >= 0")
+    with np.errstate(divide="ignore"):
+        log_s = np.where(s > 0, np.log(np.where(s > 0, s, 1.0)), np.inf)
+    return np.where(s > 0, M1 * s**2 * np.exp(-M2 * s) / (8 * M0**2 * (np.log(M0) ** 2 + log_s**2)), 0.0)
+
+
+def s_domain_criterion(model: np.ndarray, measured: np.ndarray, s: np.ndarray, weight: np.ndarray) -> float:
+    """π = ∫ K(s) (log Γ_model(s)/Γ_measured(s))² ds by Simpson's rule on the grid ``s`` — eq. (74); the PDF-shaping
+    cost (113) is the same integral with the target PDF's transform in place of the measured one."""
+    s = np.asarray(s, dtype=float)
+    model, measured, weight = (np.asarray(v, dtype=float) for v in (model, measured, weight))
+    if s.ndim != 1 or s.size < 3 or np.any(np.diff(s) <= 0):
+        raise RobofdiError("s_domain_criterion: 's' must be an increasing grid of >= 3 points")
+    if not (model.shape == measured.shape == weight.shape == s.shape):
+        raise RobofdiError("s_domain_criterion: 'model', 'measured' and 'weight' must have one value per s")
+    if np.any(model <= 0) or np.any(measured <= 0):
+        raise RobofdiError("s_domain_criterion: Laplace transforms of PDFs must be > 0 on the grid (Sec. 6)")
+    return float(scipy.integrate.simpson(weight * np.log(model / measured) ** 2, x=s))
+
+
+class SDomainDiagnosis:
+    """θ̂(k) = θ̂(k−1) − λ ∂π/∂θ̂ at θ̂(k−1) — Wang eq. (77), π the s-domain criterion (74) weighted by ``weight``
+    (e.g. :func:`criterion_weight`, (76)).
+
+    transform(s, θ, multipliers) → Γ_y(s, θ, u_k) of the model (72) (the user's product of the parameters'
+    transforms); ``update`` takes the measured Γ_y(s, u_k) on the grid ``s`` (e.g. :func:`laplace_transform` of the
+    measured output PDF, assumption A1) with the sample's multipliers and takes ``steps`` gradient steps (the
+    gradient by central differences of ``h`` per parameter [RECONSTRUCTED]; the chapter gives one step per sample).
+    """
+
+    def __init__(self, transform: Callable, s: Sequence[float], weight: Sequence[float], theta0, rate: float,
+                 h: float = 1e-4, steps: int = 1):
+        self.transform, self.s, self.weight = transform, np.asarray(s, dtype=float), np.asarray(weight, dtype=float)
+        if self.s.ndim != 1 or self.weight.shape != self.s.shape:
+            raise RobofdiError("SDomainDiagnosis: 'weight' must hold one value per point of 's'")
+        if not (np.isfinite(rate) and rate > 0) or not (np.isfinite(h) and h > 0):
+            raise RobofdiError("SDomainDiagnosis: fields 'rate' (λ) and 'h' must be > 0")
+        if isinstance(steps, bool) or not isinstance(steps, int) or steps < 1:
+            raise RobofdiError(f"SDomainDiagnosis: field 'steps' must be an integer >= 1, got {steps!r}")
+        self.theta = np.atleast_1d(np.array(theta0, dtype=float))
+        self.rate, self.h, self.steps = float(rate), float(h), steps
+
+    def criterion(self, theta, measured, multipliers) -> float:
+        """π(θ) of (74) against the measured transform."""
+        return s_domain_criterion(self.transform(self.s, np.asarray(theta, dtype=float), multipliers), measured,
+                                  self.s, self.weight)
+
+    def gradient(self, measured, multipliers) -> np.ndarray:
+        """∂π/∂θ at θ̂ by central differences."""
+        g = np.empty_like(self.theta)
+        for i in range(self.theta.size):
+            d = np.zeros_like(self.theta)
+            d[i] = self.h
+            g[i] = (self.criterion(self.theta + d, measured, multipliers)
+                    - self.criterion(self.theta - d, measured, multipliers)) / (2 * self.h)
+        return g
+
+    def update(self, measured, multipliers) -> np.ndarray:
+        for _ in range(self.steps):
+            self.theta = self.theta - self.rate * self.gradient(measured, multipliers)   # (77)
+        return self.theta
 
 
 def rbf_basis(centres: Sequence[float], width: float) -> Callable[[np.ndarray], np.ndarray]:

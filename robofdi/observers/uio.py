@@ -23,7 +23,7 @@ from robofdi.errors import RobofdiError, all_finite
 from robofdi.models.linear import LinearModel, format_mode, require_discrete, unobservable_modes, vector_field
 from robofdi.observers.residual import Residual, check_measurement
 
-__all__ = ["UIODesign", "uio_design", "UnknownInputObserver", "LockInPlaceBank"]
+__all__ = ["UIODesign", "uio_design", "UnknownInputObserver", "LockInPlaceBank", "spr_output_gains"]
 
 
 @dataclass(frozen=True)
@@ -148,6 +148,23 @@ class UnknownInputObserver:
         return None if self._z is None else self._z + self.design.H @ self._y
 
 
+def spr_output_gains(P, TB, C, names=None, tol: float = 1e-8) -> np.ndarray:
+    """Rows Gᵢᵀ with P T bᵢ = Cᵀ Gᵢ (the Kalman–Yakubovich / SPR output condition of Guo et al.'s law (16), spec B.2
+    [ERRATUM]), by least squares; refuses (naming the actuator) when the relative residual exceeds ``tol``."""
+    P, TB, C = (np.asarray(v, dtype=float) for v in (P, TB, C))
+    names = list(names) if names is not None else [str(i) for i in range(TB.shape[1])]
+    target = P @ TB                                                       # column i: P T bᵢ
+    G = np.linalg.lstsq(C.T, target, rcond=None)[0]                       # column i: Gᵢ
+    for i in range(TB.shape[1]):
+        miss = np.linalg.norm(C.T @ G[:, i] - target[:, i])
+        scale = np.linalg.norm(target[:, i])
+        if scale > 0 and miss > tol * scale:
+            raise RobofdiError(f"LockInPlaceBank: output_form 'spr' needs P T bᵢ in the range of Cᵀ; actuator "
+                               f"{names[i]!r} misses it by {miss / scale:.3g} (relative): use output_form='pinv' or "
+                               f"another Q_lyap")
+    return G.T
+
+
 class LockInPlaceBank:
     """Diagnoser protocol: the adaptive multiple-model bank of Guo et al. (2008) eqs. (12)–(18).
 
@@ -160,11 +177,21 @@ class LockInPlaceBank:
     F_c = diag(poles) is the s-plane observer matrix (P = I/(2σ) for the paper's F = −σI, Q = I). Plus a nominal
     UIO (all actuators healthy) for detection. Residual components: "nominal", then one per actuator — the norms
     ‖r₀‖, ‖rᵢ‖ (output units of the weighted residual, W = ``weights``); estimate: ûᵢ per actuator (lock value).
+
+    output_form: how the unmeasurable P eᵢ of (16) is formed from rᵢ = C eᵢ (spec B.2 [ERRATUM]):
+    "pinv" (default) P C⁺ rᵢ — exact when C has full column rank (C⁺C = I, the paper's square C); for a non-square
+    C (p < n) it sees only the projection C⁺C eᵢ and the Lyapunov argument of Theorem 2 does not hold.
+    "spr" the output form of the Kalman–Yakubovich (SPR) condition P T bᵢ = Cᵀ Gᵢ: ûᵢ += γᵢ Gᵢᵀ rᵢ, which equals
+    γᵢ (T bᵢ)ᵀ P eᵢ exactly for any C; refused (one-line error) when the condition does not hold for the P of
+    ``Q_lyap`` (then no output-only law with this P has the Lyapunov decrease).
     """
 
     def __init__(self, model: LinearModel, poles: Sequence[complex], E=None, gamma=50.0, u_min=-2.0, u_max=2.0,
-                 weights=None, Q_lyap=None):
+                 weights=None, Q_lyap=None, output_form: str = "pinv"):
         where = "LockInPlaceBank"
+        if output_form not in ("pinv", "spr"):
+            raise RobofdiError(f"{where}: field 'output_form' must be 'pinv' or 'spr', got {output_form!r}")
+        self.output_form = output_form
         self.model = model = require_discrete(model, where, "diagnosis")
         n, m, p = model.n, model.m, model.p
         self.design = d = uio_design(model, poles, E)
@@ -182,7 +209,10 @@ class LockInPlaceBank:
         self.P = scipy.linalg.solve_continuous_lyapunov(Fc.T, -Ql)
         self._Cpinv = np.linalg.pinv(model.C)
         self._Tb = d.T @ model.B                                          # column i: T bᵢ
-        self._adapt = (self._Tb.T @ self.P @ self._Cpinv) * self.gamma[:, None]   # row i: γᵢ (T bᵢ)ᵀ P C⁺
+        if output_form == "pinv":
+            self._adapt = (self._Tb.T @ self.P @ self._Cpinv) * self.gamma[:, None]   # row i: γᵢ (T bᵢ)ᵀ P C⁺
+        else:
+            self._adapt = self.gamma[:, None] * spr_output_gains(self.P, self._Tb, model.C, model.input_names)
         self.inputs = list(model.input_names)
         self.measurements = list(model.output_names)
         self.components = ["nominal"] + [f"lock_{a}" for a in self.inputs]

@@ -1,0 +1,45 @@
+"""Mission supervision (book ch. 4, §3 and §3.4): the Theseus phase manager and the HW/SW watchdog, on scripted
+event streams (their run on the AUV is a `reproduction` entry of ch4-auv)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from robofdi import RobofdiError
+from robofdi.control.supervision import MissionPhase, PhaseFaultManager, Watchdog
+
+
+def test_a_phase_that_does_not_complete_in_time_switches_to_its_safe_behaviour():
+    manager = PhaseFaultManager([MissionPhase("descend", 2.0), MissionPhase("homing", 3.0, "stop_and_wait"),
+                                 MissionPhase("surface", 5.0)])
+    dt, out = 0.1, []
+    for k in range(100):
+        t = k * dt
+        done = manager.behaviour == "descend" and t >= 1.0          # descend completes at 1 s; homing never does
+        out.append(manager.update(t, done))
+    assert manager.log[0] == (0.0, "descend") and manager.log[1] == (1.0, "homing")
+    assert manager.failed.name == "homing" and manager.failed_at == pytest.approx(4.1)   # first tick past 1 + 3 s
+    assert out[-1] == "stop_and_wait" and "surface" not in out
+    complete = PhaseFaultManager([MissionPhase("a", 1.0)])
+    assert complete.update(0.0, False) == "a" and complete.update(0.5, True) == "mission_complete"
+    with pytest.raises(RobofdiError, match="timeout"):
+        MissionPhase("x", 0.0)
+    with pytest.raises(RobofdiError, match="unique"):
+        PhaseFaultManager([MissionPhase("a", 1.0), MissionPhase("a", 2.0)])
+
+
+def test_watchdog_flags_a_held_output_after_its_timeout_and_not_a_changing_one():
+    gen = np.random.default_rng(0)
+    dog = Watchdog(0.05)
+    alarms = []
+    held = None
+    for k in range(300):
+        t = k * 0.01
+        u = gen.normal(size=3) if t < 2.0 else held
+        held = u if t < 2.0 else held
+        alarms.append((t, dog.update(t, u)))
+    first = next(t for t, a in alarms if a)
+    assert not any(a for t, a in alarms if t < 2.0)
+    assert first == pytest.approx(2.0 - 0.01 + 0.06, abs=1e-9)     # last change at 1.99 s, > 0.05 s later
+    with pytest.raises(RobofdiError, match="timeout"):
+        Watchdog(-1.0)
