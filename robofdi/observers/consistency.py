@@ -20,6 +20,12 @@ the design runs):
   held peak keeps that sample: the row is the peak of |ν| over :data:`STEP_HOLD`, over its largest fault-free
   value (the step scale).
 
+A frozen velocity sensor (its reading held) has no step at onset, so ν says nothing; the kinematic row alarms as
+the joint moves on, and alone it would call it an encoder fault. A drive's velocity estimate carries noise and
+never repeats: the step row also holds the run of consecutive samples whose velocity reading did not change
+(|Δq̇| ≤ :data:`FROZEN_CHANGE`), over :data:`FROZEN_SAMPLES` — the stuck-value check of sensor validation. On
+fault-free data with noise it is 0; with noise-free sensors calibration sees the runs and the threshold rises.
+
 A position step smaller than the windows' scales (a few encoder counts) shows only in the single-sample kinematic
 term, for one sample: such a sample — one whose increment is more than a velocity step of ν can make, the test
 above — is held in ``joint<i>_kin`` for :data:`STEP_HOLD`, so that the step persists long enough to be
@@ -60,7 +66,8 @@ from robofdi.observers.kinematic import (
 from robofdi.observers.momentum import MomentumObserver, identify_friction
 from robofdi.observers.residual import Residual, check_measurement
 
-__all__ = ["ConsistencyDesign", "ConsistencyResidual", "design_consistency", "DEFAULT_GAIN", "STEP_HOLD"]
+__all__ = ["ConsistencyDesign", "ConsistencyResidual", "design_consistency", "DEFAULT_GAIN", "STEP_HOLD",
+           "FROZEN_CHANGE", "FROZEN_SAMPLES"]
 
 #: Momentum-observer bandwidth K_O [1/s] of the consistency residual: fast enough that an abrupt fault of twice
 #: the smallest detectable size crosses its bound within a few 2 ms samples.
@@ -70,6 +77,10 @@ DEFAULT_GAIN = 150.0
 #: velocity innovation in ``joint<i>_step`` (a velocity step the step row sees is large enough for the kinematic
 #: row to alarm within a few samples: the hold only has to reach into the confirmation window).
 STEP_HOLD = 0.1
+#: A velocity reading that changed by at most this [rad/s or m/s] from the previous sample is a repeat (held).
+FROZEN_CHANGE = 1e-9
+#: Consecutive repeated velocity readings that make the step row 1 (its largest fault-free value, at least).
+FROZEN_SAMPLES = 2
 
 
 @dataclass(frozen=True, eq=False)
@@ -142,6 +153,7 @@ class ConsistencyResidual:
         self._features = None
         self._v_prev = None
         self._r_prev = None
+        self._repeats = np.zeros(self.n)     # consecutive samples with an unchanged velocity reading
         self.innovation = np.zeros(self.n)      # ν of the last sample [rad/s]
         self._steps = np.zeros((self._hold, self.n))     # ring buffer of |ν| / scale over the hold
         self._jumps = np.zeros((self._hold, self.n))    # ring buffer of position-step ratios
@@ -185,6 +197,7 @@ class ConsistencyResidual:
             self._features = envelope_features(np.zeros(n), v)
         else:       # the residual's own first-order dynamics: a torque acting over (k−1, k] shows in r_k
             self._features = (1 - self._a) * self._features + self._a * envelope_features(u, self._v_prev)
+            self._repeats = np.where(np.abs(v - self._v_prev) <= FROZEN_CHANGE, self._repeats + 1, 0.0)
         self._v_prev = v
         kin, e = self._kinematic.update(q, v)
         position_step, single = self._position_steps(e)
@@ -200,7 +213,8 @@ class ConsistencyResidual:
         jumps = self._jumps.max(axis=0)
         self._steps[self._k % self._hold] = np.where(jumps > 0, 0.0, np.abs(self.innovation) / self.design.step_scale)
         self._k += 1
-        z = np.concatenate([r / self.bound(), np.maximum(kin, jumps), self._steps.max(axis=0)])
+        held = self._repeats / FROZEN_SAMPLES
+        z = np.concatenate([r / self.bound(), np.maximum(kin, jumps), np.maximum(self._steps.max(axis=0), held)])
         estimate = np.concatenate([r, e, -e / self.T])
         return Residual(z, estimate)
 
