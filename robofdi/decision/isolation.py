@@ -235,7 +235,8 @@ class ThresholdDecision:
                 if not picks:
                     return Alarms(alarm=alarm, isolated=tuple(previous))
                 kept = {c for c, p in zip(self.components, persisted) if p}
-                picks = [f for f in previous if self._by_fault[f].required <= kept and f not in picks] + picks
+                still = [f for f in previous if self._by_fault[f].required <= kept or f in picks]
+                picks = still + [f for f in picks if f not in still]
             self._isolated = list(picks)
             new = tuple(f for f in self._isolated if f not in previous)
             return Alarms(alarm=alarm, isolated=tuple(self._isolated), new=new)
