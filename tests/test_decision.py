@@ -221,3 +221,41 @@ def test_evidence_is_validated(evidence):
     sigs = [Signature("j_pos", {"j_kin"})]
     with pytest.raises(RobofdiError, match="evidence"):
         ThresholdDecision(["j_kin", "j_step"], np.ones(2), sigs, evidence=evidence)
+
+
+def _episode(decision, rows, samples):
+    return [decision.update(np.array(rows, dtype=float)) for _ in range(samples)]
+
+
+def test_a_false_isolation_is_revised_by_a_later_fault_once_its_episode_is_over():
+    """An encoder hypothesis confirmed on a short fault-free transient may raise every dynamic row (allowed); latched,
+    it explains — and so masks — a later actuator fault. With ``release`` the quiet time ends the episode, the next
+    alarm is decided afresh, and the stale hypothesis, whose row did not persist, is dropped."""
+    comps = ["j1", "j2", "j1_kin"]
+    sigs = [Signature("j1", {"j1"}), Signature("j2", {"j2"}), Signature("j1_pos", {"j1_kin"}, {"j1", "j2"})]
+    latched = ThresholdDecision(comps, np.ones(3), sigs, confirm=3)
+    revisable = ThresholdDecision(comps, np.ones(3), sigs, confirm=3, release=20)
+    out = {}
+    for name, d in (("latched", latched), ("revisable", revisable)):
+        _episode(d, [0, 0, 2], 5)            # the false alarm: the kinematic row alone
+        _episode(d, [0, 0, 0], 30)           # quiet
+        out[name] = _episode(d, [0, 3, 0], 10)       # the real fault: actuator j2
+    assert latched.update(np.zeros(3)).isolated == ("j1_pos",)
+    assert out["latched"][-1].isolated == ("j1_pos",)
+    assert out["revisable"][-1].isolated == ("j2",) and any(a.new == ("j2",) for a in out["revisable"])
+    assert out["revisable"][0].isolated == ("j1_pos",)       # reported until the new window decides
+
+
+def test_revision_keeps_a_hypothesis_its_evidence_still_supports():
+    comps = ["j1", "j2", "j1_kin"]
+    sigs = [Signature("j1", {"j1"}), Signature("j2", {"j2"}), Signature("j1_pos", {"j1_kin"}, {"j1"})]
+    d = ThresholdDecision(comps, np.ones(3), sigs, confirm=3, release=20)
+    _episode(d, [0, 0, 2], 5)
+    _episode(d, [0, 0, 0], 30)
+    assert _episode(d, [0, 3, 2], 10)[-1].isolated == ("j1_pos", "j2")
+    d.reset()
+    _episode(d, [0, 0, 2], 5)
+    _episode(d, [0, 0, 0], 30)
+    assert _episode(d, [0, 0, 0.5], 10)[-1].isolated == ("j1_pos",)      # nothing new alarmed: unchanged
+    with pytest.raises(RobofdiError, match="release"):
+        ThresholdDecision(comps, np.ones(3), sigs, release=-1)

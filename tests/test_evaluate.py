@@ -69,6 +69,19 @@ def test_detection_delay_isolation_and_false_alarm_episode():
     assert m["time_to_isolation"]["tau3"] == pytest.approx(0.010)
 
 
+def test_time_to_correct_isolation_follows_a_revised_isolation():
+    """A wrong first call (joint5 at 1.010 s) revised to the true target at 1.200 s: the first isolation stays
+    wrong, the time to correct isolation and the final call see the revision."""
+    tr = trace(alarm_on=[(0, 1.006, DURATION)])
+    tr.isolated = np.where(T_DIAG >= 1.2 - 1e-9, "joint3", np.where(T_DIAG >= 1.01 - 1e-9, "joint5", "")).astype(object)
+    m = evaluate_diagnoser(record({"tau3": labels(1.0)}, {"recursive": tr}), "recursive", [spec("tau3", "joint3", 1.0)])
+    assert m["isolation_correct"] == {"tau3": False} and m["time_to_isolation"]["tau3"] == pytest.approx(0.010)
+    assert m["time_to_correct_isolation"]["tau3"] == pytest.approx(0.200)
+    assert m["final_isolation_correct"] == {"tau3": True}
+    first = evaluate_diagnoser(*single_fault_record()[:1], "recursive", single_fault_record()[1])
+    assert first["time_to_correct_isolation"]["tau3"] == pytest.approx(first["time_to_isolation"]["tau3"])
+
+
 def test_estimate_rmse_after_isolation_is_exact():
     rec, faults = single_fault_record()
     assert evaluate_diagnoser(rec, "recursive", faults)["estimate_rmse"]["tau3"] == pytest.approx(0.5, abs=1e-12)

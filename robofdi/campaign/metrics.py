@@ -2,7 +2,9 @@
 
 Per diagnoser: false-alarm rate over fault-free runs (runs with at least one alarm episode) with its exact 95 %
 Clopper–Pearson interval; detection rate, isolation accuracy, confusion matrix, delay median and 90th percentile,
-all also per fault kind (and per kind and profile);
+all also per fault kind (and per kind and profile); the share of faults whose true target is isolated at
+some time after detection (``eventually_correct``: a revisable isolation may reach it after a wrong first
+call) with the median time to that correct isolation, next to the median time to (correct) first isolation;
 detection probability against fault size per (kind, target) and the minimum detectable
 fault read from that curve. Error rows (runs that raised) are counted and left out of every rate.
 """
@@ -53,6 +55,9 @@ def _fault_metrics(rows: pd.DataFrame) -> dict:
     detected = rows["detected"].fillna(False).astype(bool)
     correct = rows["correct"].fillna(False).astype(bool) & detected
     delays = rows.loc[detected, "delay"].astype(float).to_numpy()
+    to_correct = (rows["time_to_correct_isolation"].dropna().astype(float).to_numpy()
+                  if "time_to_correct_isolation" in rows else np.array([]))
+    eventually = int(to_correct.size)
     return {
         "faults": n,
         "detection": _rate(int(detected.sum()), n),
@@ -61,6 +66,11 @@ def _fault_metrics(rows: pd.DataFrame) -> dict:
         "delay_median": float(np.median(delays)) if delays.size else None,
         "delay_p90": float(np.percentile(delays, 90)) if delays.size else None,
         "runs_with_false_alarm_before_onset": int((rows["false_alarms"].fillna(0) > 0).sum()),
+        # a revisable isolation: the true target isolated at some time after detection, and how soon
+        "eventually_correct": _rate(eventually, n),
+        "time_to_correct_isolation_median": float(np.median(to_correct)) if to_correct.size else None,
+        "time_to_isolation_median": (float(rows.loc[correct, "time_to_isolation"].dropna().astype(float).median())
+                                     if correct.any() else None),
     }
 
 

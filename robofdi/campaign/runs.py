@@ -25,10 +25,11 @@ __all__ = ["run_seed", "faulty_indices", "draw_fault", "execute_run", "COLUMNS",
 COLUMNS = ("index", "run_seed", "robot_seed", "faulty", "diagnoser", "fault", "kind", "target", "profile", "magnitude",
            "unit", "limit", "size", "onset", "end", "duration", "detected", "detection_time", "delay", "isolated",
            "correct", "time_to_isolation", "estimate_error", "false_alarms", "first_false_alarm_time", "wall_time",
-           "error", "mission")
+           "error", "mission", "time_to_correct_isolation", "final_correct")
 #: Unit of each numeric column (``unit`` names the unit of magnitude, limit and estimate_error per row).
 UNITS = {"magnitude": "column 'unit'", "limit": "column 'unit'", "size": "fraction of the target's limit (|magnitude|/limit)",
          "onset": "s", "end": "s", "duration": "s", "detection_time": "s", "delay": "s", "time_to_isolation": "s",
+         "time_to_correct_isolation": "s (first time the true target is isolated, after detection)",
          "estimate_error": "column 'unit' (RMSE of the estimate after correct isolation)",
          "false_alarms": "alarm episodes starting while no fault is active", "first_false_alarm_time": "s",
          "wall_time": "s (the run's wall-clock time on its worker)"}
@@ -90,7 +91,9 @@ def _rows(spec, index, seed, key, fault, info, record, mission) -> list[dict]:
             det = m["detections"][0]
             row.update(detected=det["time"] is not None, detection_time=det["time"], delay=det["delay"],
                        isolated=det["isolated"], correct=bool(m["isolation_correct"][fault.name]),
-                       time_to_isolation=m["time_to_isolation"][fault.name], estimate_error=m["estimate_rmse"][fault.name])
+                       time_to_isolation=m["time_to_isolation"][fault.name], estimate_error=m["estimate_rmse"][fault.name],
+                       time_to_correct_isolation=m["time_to_correct_isolation"][fault.name],
+                       final_correct=bool(m["final_isolation_correct"][fault.name]))
         rows.append(row)
     return rows
 

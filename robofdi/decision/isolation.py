@@ -88,6 +88,13 @@ class ThresholdDecision:
     add a fault only for components it cannot raise (a velocity fault isolated from its step row is not joined
     by the encoder fault its kinematic row alone would suggest, once the step row has decayed).
 
+    Revision: with ``release`` = R > 0 samples (and ``confirm``), an isolation is a decision the evidence can
+    overturn. Once no component has alarmed for R samples the alarm episode that led to it is over, and the next
+    alarm opens a fresh confirmation window over every hypothesis; at its end the faults it isolates join those
+    of the earlier isolation whose required components persisted in that window too, and the others are dropped
+    (a false isolation on a fault-free transient does not explain, and so mask, a later real fault). A window
+    that isolates nothing leaves the isolation as it was. R = 0: latched for the run, as before.
+
     Evidence thresholds: inside a confirmation window a component counts as evidence when |r_j| exceeds
     ``evidence_j`` (default: its alarm threshold; at most that). A lower evidence level suits a component that
     only tells hypotheses apart: it need not carry the false-alarm rate on its own, because it is read only
@@ -106,6 +113,7 @@ class ThresholdDecision:
     blanking: int = 0
     confirm: int = 0
     evidence: np.ndarray | None = None
+    release: int = 0
     _isolated: list[str] = field(default_factory=list, init=False, repr=False)
 
     def __post_init__(self):
@@ -149,7 +157,7 @@ class ThresholdDecision:
                     f"signature {sig.fault!r}: component {unknown[0]!r} is not a residual component; "
                     f"expected one of {list(self.components)}"
                 )
-        for name in ("blanking", "confirm"):
+        for name in ("blanking", "confirm", "release"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
                 raise RobofdiError(f"{name}: expected an integer number of samples >= 0, got {value!r}")
@@ -163,6 +171,8 @@ class ThresholdDecision:
         self._samples = 0
         self._window = None         # (samples left, peak ratio, alarmed) while a first alarm is being confirmed
         self._quiet_for = None      # the isolated tuple _quiet was made for
+        self._since_alarm = 0       # samples since the last alarm (revision: release)
+        self._revising = False      # a confirmation window is open to revise an isolation
         self._shape = (len(self.components),)
 
     def _quiet(self) -> Alarms:
@@ -196,10 +206,17 @@ class ThresholdDecision:
         self._samples += 1
         if self._samples <= self.blanking:
             return Alarms(alarm=np.zeros(m, dtype=bool), isolated=tuple(self._isolated))
-        if peak <= 1.0 and self._window is None:
-            return self._quiet()
+        if peak <= 1.0:
+            self._since_alarm += 1
+            if self._window is None:
+                return self._quiet()
+        else:
+            if (self.release and self.confirm and self._isolated and self._window is None
+                    and self._since_alarm >= self.release):
+                self._revising = True       # a new alarm episode: decide again over every hypothesis
+            self._since_alarm = 0
         alarm = ratio > 1.0
-        if self.confirm and not self._isolated:
+        if self.confirm and (not self._isolated or self._revising):
             evident = ratio > self._evidence_ratio
             if self._window is None and alarm.any():
                 self._window = [self.confirm, ratio.copy(), evident.astype(int)]
@@ -208,12 +225,21 @@ class ThresholdDecision:
                 np.maximum(self._window[1], ratio, out=self._window[1])
                 self._window[2] += evident
             if self._window is None or self._window[0] > 0:
-                return Alarms(alarm=alarm, isolated=())
+                return Alarms(alarm=alarm, isolated=tuple(self._isolated) if self._revising else ())
             ratio, persisted = self._window[1], self._window[2] >= 2
             self._window = None
             picks = self._isolate(ratio, persisted)
+            previous = list(self._isolated)
+            if self._revising:
+                self._revising = False
+                if not picks:
+                    return Alarms(alarm=alarm, isolated=tuple(previous))
+                kept = {c for c, p in zip(self.components, persisted) if p}
+                still = [f for f in previous if self._by_fault[f].required <= kept or f in picks]
+                picks = still + [f for f in picks if f not in still]
             self._isolated = list(picks)
-            return Alarms(alarm=alarm, isolated=tuple(self._isolated), new=tuple(self._isolated))
+            new = tuple(f for f in self._isolated if f not in previous)
+            return Alarms(alarm=alarm, isolated=tuple(self._isolated), new=new)
         if self.confirm and self.latch and self._isolated:      # a confirmed fault keeps explaining its components
             alarm_new = alarm & ~np.isin(self.components, list(self._explained()))
             picks = self._isolate(ratio, alarm_new)

@@ -119,6 +119,10 @@ def evaluate_diagnoser(record: Record, name: str, faults: Sequence[Mapping]) -> 
     * ``isolated`` for F (detected): the first fault name in the trace's ``isolated`` string ("a+b") that is
       present at some t in [onset_F, end_F) but was not at the last sample before onset_F; None if none.
       ``isolation_correct[F]`` is whether it equals F's target; ``time_to_isolation[F]`` = its time - onset.
+    * ``time_to_correct_isolation[F]``: the first t in [detection time, end_F) at which F's target is among the
+      isolated faults, minus onset (None if never: a revisable isolation may reach the target after a wrong
+      first call); ``final_isolation_correct[F]``: whether the target is isolated at the last sample inside
+      [onset_F, end_F).
     * ``estimate_rmse[F]``: when isolated correctly and the target is one of ``estimate_components``, the
       RMSE between that estimate column and the true value label over the samples t in [isolation time, end_F);
       None otherwise.
@@ -151,12 +155,14 @@ def evaluate_diagnoser(record: Record, name: str, faults: Sequence[Mapping]) -> 
 
     isolated_sets = _isolated_sets(trace)
     detections, isolation_correct, time_to_isolation, estimate_rmse = [], {}, {}, {}
+    time_to_correct, final_correct = {}, {}
     for w in windows:
         inside = w.contains(t)
         hits = np.flatnonzero(inside & rises.any(axis=1))
         if hits.size == 0:
             detections.append({"fault": w.name, "time": None, "delay": None, "isolated": None})
             isolation_correct[w.name], time_to_isolation[w.name], estimate_rmse[w.name] = False, None, None
+            time_to_correct[w.name], final_correct[w.name] = None, False
             continue
         k_det = int(hits[0])
         iso_name, k_iso = _first_new_isolation(isolated_sets, t, w, inside)
@@ -170,6 +176,9 @@ def evaluate_diagnoser(record: Record, name: str, faults: Sequence[Mapping]) -> 
         isolation_correct[w.name] = correct
         time_to_isolation[w.name] = None if k_iso is None else float(t[k_iso] - w.onset)
         estimate_rmse[w.name] = _estimate_rmse(record, trace, w, inside, k_iso) if correct else None
+        right = [k for k in np.flatnonzero(inside) if k >= k_det and w.target in isolated_sets[k]]
+        time_to_correct[w.name] = float(t[right[0]] - w.onset) if right else None
+        final_correct[w.name] = w.target in isolated_sets[int(np.flatnonzero(inside)[-1])]
 
     return {
         "false_alarms": int(false_rises.size),
@@ -179,6 +188,8 @@ def evaluate_diagnoser(record: Record, name: str, faults: Sequence[Mapping]) -> 
         "missed_detections": sum(d["time"] is None for d in detections),
         "isolation_correct": isolation_correct,
         "time_to_isolation": time_to_isolation,
+        "time_to_correct_isolation": time_to_correct,
+        "final_isolation_correct": final_correct,
     }
 
 

@@ -37,7 +37,8 @@ class ArmSchemeSettings:
     momentum-observer bandwidth K_O [1/s]; residual space of the observers ("torque" or "state"); bandwidth K_O
     [1/s] of the consistency scheme's momentum rows, its target false-alarm rate [1/h] (thresholds by
     extreme-value theory, :func:`robofdi.decision.extreme_value_thresholds`) and its isolation confirmation
-    window [samples] (:class:`robofdi.decision.ThresholdDecision` ``confirm``), and its kinematic windows [s];
+    window [samples] (:class:`robofdi.decision.ThresholdDecision` ``confirm``), the quiet time [s] after which an
+    isolation may be revised (``release``), and its kinematic windows [s];
     the sliding-mode scheme's switching gain Λ [rad/s²], integration sub-step [s], in-sample filter constant [s]
     and equivalent-control low-pass [s] at the diagnosis rate, by default the momentum baseline's bandwidth 1/K_O
     (:class:`robofdi.observers.sliding_mode_arm.ArmSlidingModeObserver`)."""
@@ -51,6 +52,7 @@ class ArmSchemeSettings:
     consistency_gain: float = 100.0
     consistency_false_alarm_rate: float = 0.1
     consistency_confirm: int = 3
+    consistency_release: float = 0.5
     consistency_windows: tuple = WINDOWS
     smo_gain: float = 200.0
     smo_substep: float = 2e-6
@@ -104,7 +106,8 @@ class SchemeCalibration:
     ``thresholds``: "margin" (ρ_i = margin · max |r_i| over the runs, Caccavale & Villani Sec. 6) or
     "false_alarm_rate" (extreme-value thresholds for ``settings.consistency_false_alarm_rate`` per hour, and
     evidence levels for the discriminating rows: their largest fault-free value, at least 1);
-    ``confirm``: the isolation confirmation window [samples] of its decision; ``random_motions`` and ``top_speed``:
+    ``confirm``: the isolation confirmation window [samples] of its decision; ``release``: the quiet samples
+    after which its isolation may be revised (0: latched); ``random_motions`` and ``top_speed``:
     what the calibration suite must hold for it (random motions, half of them held out; the top-speed motion)."""
 
     design: Callable | None = None
@@ -112,6 +115,7 @@ class SchemeCalibration:
     confirm: int = 0
     random_motions: int = 0
     top_speed: bool = False
+    release: int = 0
 
 
 def _design_consistency(model, inputs, settings: ArmSchemeSettings, skip: int) -> ConsistencyDesign:
@@ -127,5 +131,6 @@ def scheme_calibration(name: str, settings: ArmSchemeSettings = ArmSchemeSetting
         raise RobofdiError(f"scheme_calibration: unknown scheme {name!r}; expected one of {list(ALL_SCHEMES)}")
     if name == "consistency":
         return SchemeCalibration(_design_consistency, "false_alarm_rate", settings.consistency_confirm,
-                                 random_motions=6, top_speed=True)
+                                 random_motions=6, top_speed=True,
+                                 release=max(1, int(round(settings.consistency_release / settings.T))))
     return SchemeCalibration()

@@ -20,6 +20,12 @@ the design runs):
   held peak keeps that sample: the row is the peak of |ν| over :data:`STEP_HOLD`, over its largest fault-free
   value (the step scale).
 
+A frozen velocity sensor (its reading held) has no step at onset, so ν says nothing; the kinematic row alarms as
+the joint moves on, and alone it would call it an encoder fault. A drive's velocity estimate carries noise and
+never repeats: the step row also holds the run of consecutive samples whose velocity reading did not change
+(|Δq̇| ≤ :data:`FROZEN_CHANGE`), over :data:`FROZEN_SAMPLES` — the stuck-value check of sensor validation. On
+fault-free data with noise it is 0; with noise-free sensors calibration sees the runs and the threshold rises.
+
 A position step smaller than the windows' scales (a few encoder counts) shows only in the single-sample kinematic
 term, for one sample: such a sample — one whose increment is more than a velocity step of ν can make, the test
 above — is held in ``joint<i>_kin`` for :data:`STEP_HOLD`, so that the step persists long enough to be
@@ -55,12 +61,13 @@ from robofdi.errors import RobofdiError
 from robofdi.models.friction import JointFriction
 from robofdi.models.manipulator import ManipulatorModel
 from robofdi.observers.kinematic import (
-    WINDOWS, KinematicConsistency, design_window_scales, identify_skew, kinematic_increments,
+    WINDOWS, KinematicConsistency, design_window_scales, identify_skew, kinematic_increments, window_reach,
 )
 from robofdi.observers.momentum import MomentumObserver, identify_friction
 from robofdi.observers.residual import Residual, check_measurement
 
-__all__ = ["ConsistencyDesign", "ConsistencyResidual", "design_consistency", "DEFAULT_GAIN", "STEP_HOLD"]
+__all__ = ["ConsistencyDesign", "ConsistencyResidual", "design_consistency", "DEFAULT_GAIN", "STEP_HOLD",
+           "FROZEN_CHANGE", "FROZEN_SAMPLES"]
 
 #: Momentum-observer bandwidth K_O [1/s] of the consistency residual: fast enough that an abrupt fault of twice
 #: the smallest detectable size crosses its bound within a few 2 ms samples.
@@ -70,15 +77,20 @@ DEFAULT_GAIN = 150.0
 #: velocity innovation in ``joint<i>_step`` (a velocity step the step row sees is large enough for the kinematic
 #: row to alarm within a few samples: the hold only has to reach into the confirmation window).
 STEP_HOLD = 0.1
+#: A velocity reading that changed by at most this [rad/s or m/s] from the previous sample is a repeat (held).
+FROZEN_CHANGE = 1e-9
+#: Consecutive repeated velocity readings that make the step row 1 (its largest fault-free value, at least).
+FROZEN_SAMPLES = 2
 
 
 @dataclass(frozen=True, eq=False)
 class ConsistencyDesign:
     """What :class:`ConsistencyResidual` learns once per robot: ``friction`` (identified), ``envelope`` (n, 4)
-    bound coefficients of the dynamic rows, ``skew`` (n,) [s] and ``window_scales`` (n, len(windows), 2) of the
+    bound coefficients of the dynamic rows, ``skew`` (n,) [s] and ``window_scales`` (n, len(windows), 3) of the
     kinematic rows (:func:`~robofdi.observers.kinematic.design_window_scales`), ``step_scale`` (n,) [rad/s] of
-    the step rows (the largest fault-free |ν|), the observer ``gain`` K_O [1/s], sample time ``T`` [s] and the
-    kinematic ``windows`` [s]."""
+    the step rows (the largest fault-free |ν|), the observer ``gain`` K_O [1/s], sample time ``T`` [s], the
+    kinematic ``windows`` [s] and the operating envelope the kinematic scales were designed on, ``reach``
+    (n, len(windows), 2) (:func:`~robofdi.observers.kinematic.window_reach`; None: unbounded)."""
 
     friction: JointFriction
     envelope: np.ndarray
@@ -88,6 +100,7 @@ class ConsistencyDesign:
     gain: float
     T: float
     windows: tuple = WINDOWS
+    reach: np.ndarray | None = None
 
     def arrays(self) -> dict[str, np.ndarray]:
         """Flat arrays (for caching in an .npz); :meth:`from_arrays` inverts it."""
@@ -95,7 +108,7 @@ class ConsistencyDesign:
         return {"friction": f.coefficients, "friction_shape": np.array([f.stribeck_velocity, f.smoothing]),
                 "envelope": self.envelope, "skew": self.skew, "window_scales": self.window_scales,
                 "step_scale": self.step_scale, "gain_T": np.array([self.gain, self.T]),
-                "windows": np.array(self.windows, dtype=float)}
+                "windows": np.array(self.windows, dtype=float)} | ({} if self.reach is None else {"reach": self.reach})
 
     @classmethod
     def from_arrays(cls, a: dict) -> ConsistencyDesign:
@@ -103,7 +116,7 @@ class ConsistencyDesign:
         return cls(JointFriction.from_coefficients(a["friction"], float(shape[0]), float(shape[1])),
                    np.asarray(a["envelope"]), np.asarray(a["skew"]), np.asarray(a["window_scales"]),
                    np.asarray(a["step_scale"]), float(a["gain_T"][0]), float(a["gain_T"][1]),
-                   tuple(float(w) for w in a["windows"]))
+                   tuple(float(w) for w in a["windows"]), None if "reach" not in a else np.asarray(a["reach"]))
 
 
 class ConsistencyResidual:
@@ -117,7 +130,8 @@ class ConsistencyResidual:
             raise RobofdiError(f"ConsistencyResidual: design is for {design.skew.shape[0]} joints, the model has {n}")
         self.model, self.design, self.n, self.T = model, design, n, design.T
         self._momentum = MomentumObserver(model, design.T, design.gain, design.friction)
-        self._kinematic = KinematicConsistency(design.T, design.skew, design.window_scales, design.windows)
+        self._kinematic = KinematicConsistency(design.T, design.skew, design.window_scales, design.windows,
+                                               design.reach)
         self._a = design.gain * design.T
         self._hold = max(1, int(round(STEP_HOLD / design.T)))
         self._single = int(np.argmin(design.windows))       # the single-sample kinematic window
@@ -139,10 +153,17 @@ class ConsistencyResidual:
         self._features = None
         self._v_prev = None
         self._r_prev = None
+        self._repeats = np.zeros(self.n)     # consecutive samples with an unchanged velocity reading
         self.innovation = np.zeros(self.n)      # ν of the last sample [rad/s]
         self._steps = np.zeros((self._hold, self.n))     # ring buffer of |ν| / scale over the hold
         self._jumps = np.zeros((self._hold, self.n))    # ring buffer of position-step ratios
         self._k = 0
+
+    @property
+    def outside_envelope(self) -> np.ndarray:
+        """(n,) bool: the last sample was outside the operating envelope the kinematic scales were designed on
+        (their tolerance was widened there, :class:`~robofdi.observers.kinematic.KinematicConsistency`)."""
+        return self._kinematic.outside
 
     def bound(self) -> np.ndarray:
         """The current operating-point bound of the dynamic rows [N·m]."""
@@ -155,13 +176,12 @@ class ConsistencyResidual:
             return np.zeros(self.n)
         return np.linalg.solve(mass, r - previous) / self.design.gain
 
-    def _position_steps(self, e: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _position_steps(self, e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(mask, |e_k| / single-sample scale) per joint; the mask marks a position step: an increment more than
         a velocity step of ν can make. A step b in q̇_k adds −(T/2 + τ_s) b to e_k
         (:mod:`~robofdi.observers.kinematic`), so |e_k| > 2 (T/2 + |τ_s|) |ν| + the single-sample scale (a
         factor 2 for ν's own error) is a position step."""
-        a, b = self.design.window_scales[:, self._single, 0], self.design.window_scales[:, self._single, 1]
-        scale = a + b * np.abs(v)
+        scale = self._kinematic.scale[:, self._single]
         velocity_step_increment = 2 * (self.T / 2 + np.abs(self.design.skew)) * np.abs(self.innovation)
         return np.abs(e) > velocity_step_increment + scale, np.abs(e) / scale
 
@@ -177,9 +197,10 @@ class ConsistencyResidual:
             self._features = envelope_features(np.zeros(n), v)
         else:       # the residual's own first-order dynamics: a torque acting over (k−1, k] shows in r_k
             self._features = (1 - self._a) * self._features + self._a * envelope_features(u, self._v_prev)
+            self._repeats = np.where(np.abs(v - self._v_prev) <= FROZEN_CHANGE, self._repeats + 1, 0.0)
         self._v_prev = v
         kin, e = self._kinematic.update(q, v)
-        position_step, single = self._position_steps(e, v)
+        position_step, single = self._position_steps(e)
         # a position step moved M(q) q̇ and so ν, and the observer and the controller answer it for a while: no
         # evidence of a velocity-sensor fault until it has left the hold; the step itself is held instead. Nor is
         # any ν held from before the step, but the previous sample's: the change is at this sample or, for a
@@ -192,7 +213,8 @@ class ConsistencyResidual:
         jumps = self._jumps.max(axis=0)
         self._steps[self._k % self._hold] = np.where(jumps > 0, 0.0, np.abs(self.innovation) / self.design.step_scale)
         self._k += 1
-        z = np.concatenate([r / self.bound(), np.maximum(kin, jumps), self._steps.max(axis=0)])
+        held = self._repeats / FROZEN_SAMPLES
+        z = np.concatenate([r / self.bound(), np.maximum(kin, jumps), np.maximum(self._steps.max(axis=0), held)])
         estimate = np.concatenate([r, e, -e / self.T])
         return Residual(z, estimate)
 
@@ -231,7 +253,7 @@ def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray,
 
     plain = replay(MomentumObserver(model, T, gain))
     friction = identify_friction(plain, [np.asarray(Y)[:, n:] for Y, _ in runs], gain, T, skip)
-    unit = ConsistencyDesign(friction, np.ones((n, 4)), np.zeros(n), np.ones((n, len(windows), 2)), np.ones(n),
+    unit = ConsistencyDesign(friction, np.ones((n, 4)), np.zeros(n), np.ones((n, len(windows), 3)), np.ones(n),
                              gain, T, tuple(windows))
     features, residuals, step = [], [], np.full(n, 1e-9)
     for Y, U in runs:
@@ -250,4 +272,5 @@ def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray,
     vs = [np.asarray(Y)[:, n:] for Y, _ in runs]
     skew = identify_skew(qs, vs, T, skip)
     scales = design_window_scales([kinematic_increments(q, v, T, skew) for q, v in zip(qs, vs)], vs, T, skip, windows)
-    return ConsistencyDesign(friction, envelope, skew, scales, step, gain, T, tuple(windows))
+    reach = window_reach(vs, T, skip, windows)
+    return ConsistencyDesign(friction, envelope, skew, scales, step, gain, T, tuple(windows), reach)

@@ -8,10 +8,17 @@ Per joint and sample (trapezoidal integration with a sampling skew τ_s between 
 A position-sensor step shows as one large e_k; a position drift or a velocity bias as a persistent mean of e,
 which the sums over sliding windows of W samples accumulate (the GLR for a change in mean of known duration,
 Basseville & Nikiforov 1993, Sec. 2.4, evaluated on a few window lengths). Each window's sum is divided by its
-fault-free scale σ_W = a_W + b_W · mean_W |q̇| (integration errors grow with speed; a, b >= 0 designed as the
-tightest bound over fault-free runs, :func:`robofdi.decision.envelope.design_envelope`), so the residual
+fault-free scale σ_W = a_W + b_W · mean_W |q̇| + c_W · |q̇_k − q̇_{k−W}| (integration errors grow with speed;
+the skew's error telescopes in a window sum to δτ_s (q̇_k − q̇_{k−W}); a, b, c >= 0 designed as the tightest
+bound over fault-free runs, :func:`robofdi.decision.envelope.design_envelope`), so the residual
 max_W |Σ_W e| / σ_W is dimensionless and ≤ 1 on fault-free data where the scales were designed. Actuator
 faults cannot raise it: the relation is pure kinematics.
+
+The scales are valid over the operating envelope they were designed on: the largest mean_W |q̇| and
+|q̇_k − q̇_{k−W}| seen (``reach``). Outside it the bound is not extrapolated linearly: σ_W is multiplied by how
+far outside the point is (the product of the ratios over the reach, each at least 1), and the samples outside
+are counted (:attr:`KinematicConsistency.outside`), so a motion faster than any calibrated one widens the
+tolerance instead of raising a false alarm.
 
 Valid only when the velocity does not come from differentiating the same encoder (then e ≡ 0 by construction
 and encoder faults must be found through the dynamics).
@@ -25,7 +32,8 @@ import numpy as np
 from robofdi.decision.envelope import design_envelope
 from robofdi.errors import RobofdiError
 
-__all__ = ["KinematicConsistency", "kinematic_increments", "identify_skew", "design_window_scales", "WINDOWS"]
+__all__ = ["KinematicConsistency", "kinematic_increments", "identify_skew", "design_window_scales", "WINDOWS",
+           "SKEW_INSTRUMENT", "window_reach"]
 
 #: Window lengths [s] of the accumulated inconsistency (0 = the single sample).
 WINDOWS = (0.0, 0.1, 0.5, 2.0, 4.0)
@@ -44,13 +52,32 @@ def kinematic_increments(q: np.ndarray, v: np.ndarray, T: float, skew: np.ndarra
     return e
 
 
+#: Instrument of :func:`identify_skew`: the velocity change q̇_{k−L} − q̇_{k−L−S} with lag L and span S [samples].
+SKEW_INSTRUMENT = (2, 2)
+
+
 def identify_skew(qs: Sequence[np.ndarray], vs: Sequence[np.ndarray], T: float, skip: int = 0) -> np.ndarray:
-    """Least-squares sampling skew τ_s [s] per joint from fault-free runs (e with τ_s = 0 regressed on Δq̇)."""
+    """Sampling skew τ_s [s] per joint from fault-free runs: e (with τ_s = 0) regressed on Δq̇_k by instrumental
+    variables (Söderström & Stoica 1989, *System Identification*, Sec. 8.1: τ = Σ e z / Σ Δq̇ z).
+
+    Ordinary least squares is biased towards 0 here (errors in variables): the regressor Δq̇_k carries twice the
+    velocity-noise variance, which on slow motions is as large as the true velocity change (measured on arm6:
+    0.14–0.2 ms where the integration implies 0.25 ms). The instrument z_k = q̇_{k−2} − q̇_{k−4}
+    (:data:`SKEW_INSTRUMENT`) follows the true velocity change of a smooth motion but shares no noise sample
+    with e_k (whose noise is that of q_k, q_{k−1}, q̇_k and q̇_{k−1}), so the estimate is consistent. For a
+    plant integrated with semi-implicit Euler steps of h and accelerations constant over a sample, the skew
+    is h/2 (q gains h·q̇_{j+1} per step: Σ h q̇_j − T (q̇_k + q̇_{k−1})/2 = (h/2) Δq̇)."""
+    lag, span = SKEW_INSTRUMENT
+    first = max(skip, 1, lag + span)
     num, den = 0.0, 0.0
     for q, v in zip(qs, vs):
-        e = kinematic_increments(q, v, T)[max(skip, 1):]
-        dv = np.diff(np.asarray(v, dtype=float), axis=0)[max(skip, 1) - 1:]
-        num, den = num + (e * dv).sum(axis=0), den + (dv * dv).sum(axis=0)
+        v = np.asarray(v, dtype=float)
+        if v.shape[0] <= first:
+            continue
+        e = kinematic_increments(q, v, T)[first:]
+        dv = (v[1:] - v[:-1])[first - 1:]
+        z = v[first - lag:v.shape[0] - lag] - v[first - lag - span:v.shape[0] - lag - span]
+        num, den = num + (e * z).sum(axis=0), den + (dv * z).sum(axis=0)
     den = np.asarray(den, dtype=float)
     if np.isscalar(num) or np.any(den <= 0):
         raise RobofdiError("identify_skew: the fault-free runs must move every joint (no velocity change seen)")
@@ -72,23 +99,33 @@ def _window_sums(x: np.ndarray, sizes: Sequence[int]) -> np.ndarray:
     return out
 
 
-def _scale_features(mean_speed: np.ndarray) -> np.ndarray:
-    return np.stack([np.ones_like(mean_speed), mean_speed], axis=-1)
+def _scale_features(mean_speed: np.ndarray, change: np.ndarray) -> np.ndarray:
+    return np.stack([np.ones_like(mean_speed), mean_speed, change], axis=-1)
+
+
+def _window_features(v: np.ndarray, sizes: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+    """(mean_W |q̇|, |q̇_k − q̇_{k−W}|), each (N, n, len(sizes)), of velocities v (N, n) (fewer at the start)."""
+    v = np.asarray(v, dtype=float)
+    dv = np.zeros_like(v)
+    dv[1:] = v[1:] - v[:-1]
+    return _window_sums(np.abs(v), sizes) / np.array(sizes), np.abs(_window_sums(dv, sizes))
 
 
 def design_window_scales(increments: Sequence[np.ndarray], velocities: Sequence[np.ndarray], T: float,
                          skip: int = 0, windows: Sequence[float] = WINDOWS) -> np.ndarray:
-    """Scale coefficients (n, len(windows), 2) = (a_W, b_W) [rad, rad/(rad/s)] of σ_W = a_W + b_W mean_W |q̇|:
-    the tightest such bound on |Σ_W e| over fault-free runs (increments e and velocities: one (N, n) each)."""
+    """Scale coefficients (n, len(windows), 3) = (a_W, b_W, c_W) [rad, rad/(rad/s), s] of
+    σ_W = a_W + b_W mean_W |q̇| + c_W |q̇_k − q̇_{k−W}|: the tightest such bound on |Σ_W e| over fault-free runs
+    (increments e and velocities: one (N, n) each)."""
     if not increments or len(increments) != len(velocities):
         raise RobofdiError("design_window_scales: expected as many increment as velocity runs (>= 1)")
     sizes = _window_samples(T, windows)
     sums = [_window_sums(np.asarray(e, dtype=float), sizes) for e in increments]
-    speeds = [_window_sums(np.abs(np.asarray(v, dtype=float)), sizes) / np.array(sizes) for v in velocities]
+    feats = [_window_features(v, sizes) for v in velocities]
     n = sums[0].shape[1]
-    coef = np.zeros((n, len(sizes), 2))
+    coef = np.zeros((n, len(sizes), 3))
     for j in range(len(sizes)):
-        coef[:, j] = design_envelope([_scale_features(s[..., j]) for s in speeds], [s[..., j] for s in sums], skip)
+        coef[:, j] = design_envelope([_scale_features(f[0][..., j], f[1][..., j]) for f in feats],
+                                     [s[..., j] for s in sums], skip)
     coef[..., 0] = np.maximum(coef[..., 0], 1e-9)      # a quantised, resting joint still gets a positive scale
     learnt = [j for j, w in enumerate(windows) if w <= LEARNT_WINDOW]
     if learnt:
@@ -96,46 +133,83 @@ def design_window_scales(increments: Sequence[np.ndarray], velocities: Sequence[
         for j, w in enumerate(windows):
             if w > LEARNT_WINDOW:
                 coef[:, j, 0] = np.maximum(coef[:, j, 0], coef[:, base, 0] * np.sqrt(sizes[j] / sizes[base]))
-                coef[:, j, 1] = np.maximum(coef[:, j, 1], coef[:, base, 1])
+                coef[:, j, 1:] = np.maximum(coef[:, j, 1:], coef[:, base, 1:])
     return coef
 
 
-class KinematicConsistency:
-    """Stepping form: ``update(q, v)`` → (per joint: max_W |Σ_W e| / σ_W (dimensionless), e_k [rad])."""
+def window_reach(velocities: Sequence[np.ndarray], T: float, skip: int = 0,
+                 windows: Sequence[float] = WINDOWS) -> np.ndarray:
+    """The operating envelope the scales were designed on: (n, len(windows), 2) largest mean_W |q̇| [rad/s] and
+    |q̇_k − q̇_{k−W}| [rad/s] over the fault-free runs (samples k < ``skip`` left out)."""
+    sizes = _window_samples(T, windows)
+    reach = None
+    for v in velocities:
+        speed, change = _window_features(v, sizes)
+        here = np.stack([speed[skip:].max(axis=0), change[skip:].max(axis=0)], axis=-1)
+        reach = here if reach is None else np.maximum(reach, here)
+    if reach is None:
+        raise RobofdiError("window_reach: expected at least one fault-free run")
+    return np.maximum(reach, 1e-9)
 
-    def __init__(self, T: float, skew: np.ndarray, scales: np.ndarray, windows: Sequence[float] = WINDOWS):
+
+class KinematicConsistency:
+    """Stepping form: ``update(q, v)`` → (per joint: max_W |Σ_W e| / σ_W (dimensionless), e_k [rad]).
+    ``reach`` (n, len(windows), 2): the designed operating envelope (:func:`window_reach`); None = unbounded.
+    :attr:`outside` (n,) says, per joint, whether the last sample was outside it in some window, and
+    :attr:`outside_samples` counts such samples since :meth:`reset`; :attr:`scale` (n, len(windows)) holds the
+    last sample's σ_W [rad]."""
+
+    def __init__(self, T: float, skew: np.ndarray, scales: np.ndarray, windows: Sequence[float] = WINDOWS,
+                 reach: np.ndarray | None = None):
         self.T = float(T)
         self.skew = np.asarray(skew, dtype=float)
         self.scales = np.asarray(scales, dtype=float)
         n = self.skew.shape[0]
-        if (self.scales.shape != (n, len(windows), 2) or np.any(self.scales[..., 0] <= 0)
-                or np.any(self.scales[..., 1] < 0)):
-            raise RobofdiError(f"KinematicConsistency: field 'scales' must be an ({n}, {len(windows)}, 2) array of "
-                               f"(a > 0, b >= 0), got shape {self.scales.shape}")
+        if (self.scales.shape != (n, len(windows), 3) or np.any(self.scales[..., 0] <= 0)
+                or np.any(self.scales[..., 1:] < 0)):
+            raise RobofdiError(f"KinematicConsistency: field 'scales' must be an ({n}, {len(windows)}, 3) array of "
+                               f"(a > 0, b >= 0, c >= 0), got shape {self.scales.shape}")
+        self.reach = None if reach is None else np.asarray(reach, dtype=float)
+        if self.reach is not None and (self.reach.shape != (n, len(windows), 2) or np.any(self.reach <= 0)):
+            raise RobofdiError(f"KinematicConsistency: field 'reach' must be None or an ({n}, {len(windows)}, 2) "
+                               f"array > 0, got shape {self.reach.shape}")
         self.sizes = _window_samples(self.T, windows)
         self.reset()
 
     def reset(self) -> None:
         self._prev = None
         n = self.skew.shape[0]
-        self._history = np.zeros((max(self.sizes) + 1, 2, n))   # ring buffer of cumulative sums of e and |q̇|
+        self._history = np.zeros((max(self.sizes) + 1, 3, n))   # ring buffer of cumulative sums of e, |q̇|, Δq̇
         self._k = 0
+        self.outside = np.zeros(n, dtype=bool)
+        self.outside_samples = np.zeros(n, dtype=int)
 
     def update(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         if self._prev is None:
-            e = np.zeros_like(q)
+            e, dv = np.zeros_like(q), np.zeros_like(q)
         else:
             qp, vp = self._prev
-            e = q - qp - self.T * (v + vp) / 2 - self.skew * (v - vp)
+            dv = v - vp
+            e = q - qp - self.T * (v + vp) / 2 - self.skew * dv
         self._prev = (q, v)
         size = self._history.shape[0]
-        now = np.stack([e, np.abs(v)])
+        now = np.stack([e, np.abs(v), dv])
         cum = self._history[(self._k - 1) % size] + now if self._k else now
         self._history[self._k % size] = cum
         ratio = np.zeros_like(q)
+        outside = np.zeros(q.shape, dtype=bool)
+        scales = np.empty((q.shape[0], len(self.sizes)))
         for j, w in enumerate(self.sizes):
             window = cum - self._history[(self._k - w) % size] if self._k >= w else cum
-            scale = self.scales[:, j, 0] + self.scales[:, j, 1] * window[1] / w
+            speed, change = window[1] / w, np.abs(window[2])
+            scale = self.scales[:, j, 0] + self.scales[:, j, 1] * speed + self.scales[:, j, 2] * change
+            if self.reach is not None:      # outside the designed envelope: widen, never extrapolate linearly
+                excess = np.maximum(speed / self.reach[:, j, 0], 1.0) * np.maximum(change / self.reach[:, j, 1], 1.0)
+                outside |= excess > 1.0
+                scale = scale * excess
+            scales[:, j] = scale
             ratio = np.maximum(ratio, np.abs(window[0]) / scale)
         self._k += 1
+        self.outside, self.scale = outside, scales
+        self.outside_samples += outside
         return ratio, e

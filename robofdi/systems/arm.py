@@ -55,6 +55,7 @@ from robofdi.sims.arm import ArmPlant
 from robofdi.systems import RobotInstances, register_system
 
 __all__ = ["ArmScenario", "ArmOptions", "ArmMissions", "ARM_MISMATCH", "arm_scenario", "Calibration",
+           "CALIBRATION_SEGMENTS", "ENVELOPE_MOTIONS",
            "calibration_trajectories", "calibration_records", "calibrate",
            "calibration", "parts", "run_scenario", "build_loop", "check_scenario"]
 
@@ -78,7 +79,10 @@ class ArmScenario:
     nominal-model errors, and the runs' sensor noise (each from its own stream); the same seed gives the same
     record. ``rates`` None: control at the simulator's control period (≈ 1 kHz, a multiple of the physics step
     of the file), diagnosis at 500 Hz where that divides the control rate, else at the control rate.
-    ``calibration``: fault-free calibration motions by name; None derives them from the robot.
+    ``calibration``: fault-free calibration motions by name; None derives them from the robot, over the
+    operating envelope the runs declare: ``envelope_speed`` and ``envelope_segments`` (as :class:`ArmMissions`;
+    faster than "normal" or more than :data:`CALIBRATION_SEGMENTS` segments adds :data:`ENVELOPE_MOTIONS`
+    random motions like them, :func:`calibration_trajectories`).
     ``accommodation``: None or "compensation" (subtract the identified
     actuator fault after isolation) with health from ``health_source`` (a scheme name or "oracle").
     """
@@ -97,6 +101,8 @@ class ArmScenario:
     threshold_margin: float = 1.2
     startup_blanking: float = STARTUP_BLANKING
     calibration: Mapping | None = None
+    envelope_speed: Any = "normal"
+    envelope_segments: int = 1
     accommodation: str | None = None
     health_source: str | None = None
 
@@ -121,6 +127,8 @@ class ArmScenario:
             ("startup_blanking", is_number(self.startup_blanking) and 0 <= self.startup_blanking < self.run_duration,
              "a time in [0, run duration) s"),
             ("rates", self.rates is None or isinstance(self.rates, Rates), "None or a Rates"),
+            ("envelope_speed", _is_speed(self.envelope_speed), "one of ['fast', 'normal', 'slow'] or a number >= 1"),
+            ("envelope_segments", is_int(self.envelope_segments, 1), "an integer >= 1"),
         ])
         unknown = [s for s in self.schemes if s not in ALL_SCHEMES]
         if unknown:
@@ -162,17 +170,54 @@ class ArmScenario:
         return replace(self.settings, T=1.0 / rates.diagnosis_hz)
 
 
+#: Segments of the calibration suite's random motions (:func:`robofdi.control.calibration_motions`).
+CALIBRATION_SEGMENTS = 3
+#: Random motions added to the calibration suite at the declared envelope's speed and segments, when it is wider
+#: than the suite's own (half of them design the learnt schemes, half set their thresholds: :func:`design_split`).
+ENVELOPE_MOTIONS = 4
+
+
+def _is_speed(value) -> bool:
+    from robofdi.control import SPEEDS
+
+    return value in SPEEDS or (isinstance(value, (int, float)) and not isinstance(value, bool) and value >= 1)
+
+
+def _beyond_suite(speed, segments: int) -> bool:
+    """Whether missions of this speed and segments leave what the calibration suite covers ("normal" random
+    motions of :data:`CALIBRATION_SEGMENTS` segments; the top-speed motion covers "normal" speeds only)."""
+    from robofdi.control import SPEEDS
+
+    factor = SPEEDS[speed][0] if isinstance(speed, str) else float(speed)
+    return factor < SPEEDS["normal"][0] or segments > CALIBRATION_SEGMENTS
+
+
 def calibration_trajectories(scenario: ArmScenario, sim: ArmSimulator | None = None,
                              model: ManipulatorModel | None = None) -> dict:
-    """The scenario's fault-free calibration motions: its own, or derived from the robot's ranges and limits."""
+    """The scenario's fault-free calibration motions: its own, or derived from the robot's ranges and limits,
+    with :data:`ENVELOPE_MOTIONS` random motions at the declared envelope's speed and segments when it is wider
+    than the suite's (a learnt scheme that needs random motions only), interleaved with the suite's random
+    motions so that the design and the held-out halves (:func:`design_split`) both hold some."""
     if scenario.calibration is not None:
         return dict(scenario.calibration)
     sim = sim or scenario.simulator()
     model = model or scenario.nominal_model(sim)
     limits = MotionLimits.from_ranges(sim.joint_range[:, 0], sim.joint_range[:, 1], model.torque_limit)
     rules = [scheme_calibration(s, scenario.settings) for s in scenario.schemes]
-    return calibration_motions(model, limits, scenario.seed, n_random=max((r.random_motions for r in rules), default=0),
-                               top_speed=any(r.top_speed for r in rules))
+    n_random = max((r.random_motions for r in rules), default=0)
+    motions = calibration_motions(model, limits, scenario.seed, n_random=n_random,
+                                  top_speed=any(r.top_speed for r in rules))
+    if not n_random or not _beyond_suite(scenario.envelope_speed, scenario.envelope_segments):
+        return motions
+    extra = {f"random_envelope_{i}": random_point_to_point(
+        model, limits, rng(scenario.seed, "calibration", f"random_envelope_{i}"), scenario.envelope_segments,
+        speed=scenario.envelope_speed) for i in range(1, ENVELOPE_MOTIONS + 1)}
+    randoms, others = [k for k in motions if k.startswith("random_")], [k for k in motions if not k.startswith("random_")]
+    a, b = randoms[:len(randoms) // 2], randoms[len(randoms) // 2:]
+    e = list(extra)
+    order = [*others, *a, *e[:len(e) // 2], *b, *e[len(e) // 2:]]
+    both = motions | extra
+    return {k: both[k] for k in order}
 
 
 def design_split(names) -> tuple[list[str], list[str]]:
@@ -324,9 +369,10 @@ def calibration(scenario: ArmScenario, progress: Callable[[int], None] | None = 
 def _diagnoses(scenario: ArmScenario, model: ManipulatorModel, cal: Calibration, settings: ArmSchemeSettings) -> dict:
     diagnoses = {}
     for name, diagnoser in arm_schemes(model, settings, cal.theta0, scenario.schemes, designs=cal.designs).items():
+        rule = scheme_calibration(name, settings)
         decision = ThresholdDecision(diagnoser.components, cal.thresholds[name], diagnoser.signatures(),
-                                     blanking=cal.blanking, confirm=scheme_calibration(name, settings).confirm,
-                                     evidence=cal.evidence.get(name))
+                                     blanking=cal.blanking, confirm=rule.confirm, evidence=cal.evidence.get(name),
+                                     release=rule.release)
         diagnoses[name] = Diagnosis(diagnoser, decision)
     return diagnoses
 
@@ -432,8 +478,7 @@ class ArmMissions:
         from robofdi.control import SPEEDS
 
         check_fields("ArmMissions", self, [
-            ("speed", self.speed in SPEEDS or (isinstance(self.speed, (int, float)) and not isinstance(self.speed, bool)
-                                                and self.speed >= 1), f"one of {sorted(SPEEDS)} or a number >= 1"),
+            ("speed", _is_speed(self.speed), f"one of {sorted(SPEEDS)} or a number >= 1"),
             ("segments", is_int(self.segments, 1), "an integer >= 1"),
             ("tail", isinstance(self.tail, (int, float)) and 0 <= self.tail < 60, "a time in [0, 60) s"),
         ])
@@ -513,7 +558,8 @@ class ArmSystem(RobotInstances):
             motion = self.mission(options, key, rng(key, "campaign", "calibration-placeholder")).plan
         return ArmScenario("campaign-arm", motion=motion, duration=duration, faults=tuple(faults),
                            injection=options.injection, plant=replace(options.plant, joints=tuple(sim.joint_names)),
-                           mismatch=options.mismatch, seed=int(key), schemes=tuple(diagnosers))
+                           mismatch=options.mismatch, seed=int(key), schemes=tuple(diagnosers),
+                           envelope_speed=options.missions.speed, envelope_segments=options.missions.segments)
 
     def calibrate(self, options, key, diagnosers):
         return calibration(self._scenario(options, key, diagnosers))
