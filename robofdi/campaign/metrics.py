@@ -4,7 +4,11 @@ Per diagnoser: false-alarm rate over fault-free runs (runs with at least one ala
 Clopper–Pearson interval; detection rate, isolation accuracy, confusion matrix, delay median and 90th percentile,
 all also per fault kind (and per kind and profile);
 detection probability against fault size per (kind, target) and the minimum detectable
-fault read from that curve. Error rows (runs that raised) are counted and left out of every rate.
+fault read from that curve — only for kinds with a size (not :data:`~robofdi.faults.MAGNITUDE_FREE`: a lock, float,
+hard-over or freeze has none). Faults whose target a diagnoser cannot name (column ``isolable``: a mass change on a
+link) count as not correctly isolated in ``correctly_isolated`` and ``isolation_accuracy`` as before, and are
+counted apart: ``not_isolable`` and ``isolation_accuracy_isolable`` (correct among the detected isolable ones).
+Error rows (runs that raised) are counted and left out of every rate.
 """
 from __future__ import annotations
 
@@ -12,6 +16,8 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import isotonic_regression
 from scipy.stats import binomtest
+
+from robofdi.faults import MAGNITUDE_FREE
 
 __all__ = ["clopper_pearson", "detection_curve", "analyse", "MISSED", "UNISOLATED"]
 
@@ -53,6 +59,8 @@ def _fault_metrics(rows: pd.DataFrame) -> dict:
     detected = rows["detected"].fillna(False).astype(bool)
     correct = rows["correct"].fillna(False).astype(bool) & detected
     delays = rows.loc[detected, "delay"].astype(float).to_numpy()
+    able = (rows["isolable"].astype(object).where(rows["isolable"].notna(), True).astype(bool)
+            if "isolable" in rows else pd.Series(True, index=rows.index))        # tables before the column
     return {
         "faults": n,
         "detection": _rate(int(detected.sum()), n),
@@ -61,6 +69,8 @@ def _fault_metrics(rows: pd.DataFrame) -> dict:
         "delay_median": float(np.median(delays)) if delays.size else None,
         "delay_p90": float(np.percentile(delays, 90)) if delays.size else None,
         "runs_with_false_alarm_before_onset": int((rows["false_alarms"].fillna(0) > 0).sum()),
+        "not_isolable": int((~able).sum()),
+        "isolation_accuracy_isolable": _rate(int((correct & able).sum()), int((detected & able).sum())),
     }
 
 
@@ -94,6 +104,8 @@ def analyse(table: pd.DataFrame, detection_level: float = 0.9, diagnosers=None) 
             "detectability": {},
         }
         for (kind, target), g in faulty.groupby(["kind", "target"], sort=True):
+            if kind in MAGNITUDE_FREE:          # no size: detected or not (by_kind), no minimum detectable fault
+                continue
             size, det = g["size"].to_numpy(float), g["detected"].fillna(False).astype(bool).to_numpy()
             smallest, _, _ = _minimum_detectable(size, det, detection_level)
             limit = float(g["limit"].iloc[0])
