@@ -53,7 +53,7 @@ def main(argv=None) -> int:
 
     system = get_system("arm")
     per_mission = {}
-    for robot in args.robot or ["arm6.xml", "arm7.xml", "arm7_gripper.xml"]:
+    for robot in args.robot or ["arm6.xml", "arm7.xml"]:
         options = compose(system.options_type, {"robot": robot, "torque_motors": args.torque_motors,
                                                 "segments": args.segments, "speed": args.speed}, "system")
         sim, model, _ = system._base(options)
