@@ -77,7 +77,7 @@ def results_table(entries, diagnosers=None) -> pd.DataFrame:
         table[col] = table[col].astype("int64")
     for col in ("faulty",):
         table[col] = table[col].astype(bool)
-    for col in ("detected", "correct", "final_correct"):
+    for col in ("detected", "correct", "final_correct", "isolable"):
         table[col] = table[col].astype("boolean")
     table["false_alarms"] = table["false_alarms"].astype("Int64")
     for col in ("magnitude", "limit", "size", "onset", "end", "duration", "detection_time", "delay", "time_to_isolation",

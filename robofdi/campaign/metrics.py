@@ -6,7 +6,11 @@ all also per fault kind (and per kind and profile); the share of faults whose tr
 some time after detection (``eventually_correct``: a revisable isolation may reach it after a wrong first
 call) with the median time to that correct isolation, next to the median time to (correct) first isolation;
 detection probability against fault size per (kind, target) and the minimum detectable
-fault read from that curve. Error rows (runs that raised) are counted and left out of every rate.
+fault read from that curve — only for kinds with a size (not :data:`~robofdi.faults.MAGNITUDE_FREE`: a lock, float,
+hard-over or freeze has none). Faults whose target a diagnoser cannot name (column ``isolable``: a mass change on a
+link) count as not correctly isolated in ``correctly_isolated`` and ``isolation_accuracy`` as before, and are
+counted apart: ``not_isolable`` and ``isolation_accuracy_isolable`` (correct among the detected isolable ones).
+Error rows (runs that raised) are counted and left out of every rate.
 """
 from __future__ import annotations
 
@@ -14,6 +18,8 @@ import numpy as np
 import pandas as pd
 from scipy.optimize import isotonic_regression
 from scipy.stats import binomtest
+
+from robofdi.faults import MAGNITUDE_FREE
 
 __all__ = ["clopper_pearson", "detection_curve", "analyse", "MISSED", "UNISOLATED"]
 
@@ -58,6 +64,8 @@ def _fault_metrics(rows: pd.DataFrame) -> dict:
     to_correct = (rows["time_to_correct_isolation"].dropna().astype(float).to_numpy()
                   if "time_to_correct_isolation" in rows else np.array([]))
     eventually = int(to_correct.size)
+    able = (rows["isolable"].astype(object).where(rows["isolable"].notna(), True).astype(bool)
+            if "isolable" in rows else pd.Series(True, index=rows.index))        # tables before the column
     return {
         "faults": n,
         "detection": _rate(int(detected.sum()), n),
@@ -71,6 +79,8 @@ def _fault_metrics(rows: pd.DataFrame) -> dict:
         "time_to_correct_isolation_median": float(np.median(to_correct)) if to_correct.size else None,
         "time_to_isolation_median": (float(rows.loc[correct, "time_to_isolation"].dropna().astype(float).median())
                                      if correct.any() else None),
+        "not_isolable": int((~able).sum()),
+        "isolation_accuracy_isolable": _rate(int((correct & able).sum()), int((detected & able).sum())),
     }
 
 
@@ -104,6 +114,8 @@ def analyse(table: pd.DataFrame, detection_level: float = 0.9, diagnosers=None) 
             "detectability": {},
         }
         for (kind, target), g in faulty.groupby(["kind", "target"], sort=True):
+            if kind in MAGNITUDE_FREE:          # no size: detected or not (by_kind), no minimum detectable fault
+                continue
             size, det = g["size"].to_numpy(float), g["detected"].fillna(False).astype(bool).to_numpy()
             smallest, _, _ = _minimum_detectable(size, det, detection_level)
             limit = float(g["limit"].iloc[0])

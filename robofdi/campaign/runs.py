@@ -25,14 +25,16 @@ __all__ = ["run_seed", "faulty_indices", "draw_fault", "execute_run", "COLUMNS",
 COLUMNS = ("index", "run_seed", "robot_seed", "faulty", "diagnoser", "fault", "kind", "target", "profile", "magnitude",
            "unit", "limit", "size", "onset", "end", "duration", "detected", "detection_time", "delay", "isolated",
            "correct", "time_to_isolation", "estimate_error", "false_alarms", "first_false_alarm_time", "wall_time",
-           "error", "mission", "time_to_correct_isolation", "final_correct")
+           "error", "mission", "time_to_correct_isolation", "final_correct", "isolable")
 #: Unit of each numeric column (``unit`` names the unit of magnitude, limit and estimate_error per row).
 UNITS = {"magnitude": "column 'unit'", "limit": "column 'unit'", "size": "fraction of the target's limit (|magnitude|/limit)",
          "onset": "s", "end": "s", "duration": "s", "detection_time": "s", "delay": "s", "time_to_isolation": "s",
          "time_to_correct_isolation": "s (first time the true target is isolated, after detection)",
          "estimate_error": "column 'unit' (RMSE of the estimate after correct isolation)",
          "false_alarms": "alarm episodes starting while no fault is active", "first_false_alarm_time": "s",
-         "wall_time": "s (the run's wall-clock time on its worker)"}
+         "wall_time": "s (the run's wall-clock time on its worker)",
+         "isolable": "whether the diagnoser can name the fault's target at all (one of its residual components or "
+                     "identified faults): a mass fault on a link no diagnoser names is not isolable"}
 
 
 def run_seed(campaign_seed: int, index: int) -> int:
@@ -48,7 +50,9 @@ def faulty_indices(spec: CampaignSpec) -> np.ndarray:
 
 
 def draw_fault(spec: CampaignSpec, seed: int, duration: float) -> tuple[Fault, dict]:
-    """The run's fault from ``rng(seed, "fault")``: an entry by weight, then target, size, sign, profile, onset."""
+    """The run's fault from ``rng(seed, "fault")``: an entry by weight, then target, size, sign, profile, onset,
+    end, and last (only for a hard-over drawn from the target's limit) the limit: ± limit_fraction × the target's
+    limit, with the drawn sign."""
     g = rng(seed, "fault")
     weights = np.array([d.weight for d in spec.faults])
     dist = spec.faults[int(g.choice(len(weights), p=weights / weights.sum()))]
@@ -61,14 +65,27 @@ def draw_fault(spec: CampaignSpec, seed: int, duration: float) -> tuple[Fault, d
         magnitude = float(g.uniform(low, high))
     if dist.magnitude_fraction is not None:
         magnitude *= limit
-    if dist.random_sign and g.random() < 0.5:
+    negative = bool(dist.random_sign and g.random() < 0.5)
+    if negative:
         magnitude = -magnitude
     profile = profile_from_dict(dist.profiles[int(g.integers(len(dist.profiles)))])
     onset = round(float(g.uniform(*dist.onset_fraction)) * duration, 3)
     end = None if dist.duration is None else round(onset + float(g.uniform(*dist.duration)), 3)
+    params = dist.params
+    if dist.limit_fraction is not None:               # hard-over to ± a fraction of this target's own limit
+        drawn = float(g.uniform(*dist.limit_fraction)) * limit
+        params, magnitude = {**params, "limit": -drawn if negative else drawn}, 0.0
     fault = Fault(f"{dist.kind}:{target}", dist.kind, target, onset=onset, end=end, magnitude=magnitude,
-                  profile=profile, params=dist.params)
+                  profile=profile, params=params)
     return fault, {"unit": unit, "limit": limit}
+
+
+def isolable(trace, target: str) -> bool:
+    """Whether a diagnoser's trace can name ``target``: one of its residual components, identified faults or
+    isolated names (its hypotheses)."""
+    names = set(trace.components) | set(trace.estimate_components)
+    names |= {n for s in set(map(str, trace.isolated)) for n in s.split("+") if n}
+    return target in names
 
 
 def _rows(spec, index, seed, key, fault, info, record, mission) -> list[dict]:
@@ -93,7 +110,8 @@ def _rows(spec, index, seed, key, fault, info, record, mission) -> list[dict]:
                        isolated=det["isolated"], correct=bool(m["isolation_correct"][fault.name]),
                        time_to_isolation=m["time_to_isolation"][fault.name], estimate_error=m["estimate_rmse"][fault.name],
                        time_to_correct_isolation=m["time_to_correct_isolation"][fault.name],
-                       final_correct=bool(m["final_isolation_correct"][fault.name]))
+                       final_correct=bool(m["final_isolation_correct"][fault.name]),
+                       isolable=isolable(record.diagnosers[d], fault.target))
         rows.append(row)
     return rows
 

@@ -23,6 +23,19 @@
     duration = [0.5, 1.5]          # optional: the fault ends after this long [s]; default: stays
     params = {}                    # kind parameters (hard_over: limit; sensor_delay: delay; …)
     weight = 1.0                   # relative probability of this entry
+
+Kinds without a size (:data:`~robofdi.faults.MAGNITUDE_FREE`: lock in place, float, hard-over, freeze, dropout,
+delay) need neither ``magnitude`` nor ``magnitude_fraction`` (``magnitude = [0.0, 0.0]`` is accepted, the same
+entry), and campaign.json reports no minimum detectable fault for them.
+
+``actuator_hard_over`` without ``params.limit``: the limit is drawn per run from the drawn target's own limit (the
+robot's motor torque limit on an arm), ``± limit_fraction`` × that limit, the sign drawn (``limit_fraction`` a
+range in (0, 1], default [1.0, 1.0]: the motor saturates; ``random_sign = false`` keeps +). With ``params.limit``
+the one absolute value of the entry is used, as before.
+
+Scale kinds (``actuator_scale``, ``sensor_scale``: gain 1 + m) take signed ranges: ``magnitude = [-0.5, 0.5]``
+draws gains from 0.5 to 1.5 (m > −1: the gain stays positive), and ``random_sign = true`` mirrors a range
+[0.1, 0.5] into gains 0.5–0.9 and 1.1–1.5.
 """
 from __future__ import annotations
 
@@ -44,10 +57,10 @@ from robofdi.protocols import System
 from robofdi.seeding import check_seed
 from robofdi.systems import fault_limit, get_system
 from robofdi.errors import RobofdiError
-from robofdi.faults import FAULT_KINDS, Fault, check_size
+from robofdi.faults import FAULT_KINDS, MAGNITUDE_FREE, Fault, check_size
 from robofdi.faults.profiles import profile_from_dict
 
-__all__ = ["CampaignSpec", "FaultDistribution", "load_spec", "parse_spec", "SIGNED_KINDS", "shipped_specs"]
+__all__ = ["CampaignSpec", "FaultDistribution", "load_spec", "parse_spec", "SIGNED_KINDS", "SCALE_KINDS", "shipped_specs"]
 
 #: The most runs a campaign may have (its results table is built in memory).
 MAX_RUNS = 1_000_000
@@ -55,6 +68,9 @@ MAX_RUNS = 1_000_000
 MAGNITUDE_DRAWS = ("uniform", "log_uniform")
 #: Kinds whose magnitude has a sign that matters and a symmetric range (random_sign defaults to true).
 SIGNED_KINDS = ("actuator_additive", "actuator_drift", "sensor_bias", "sensor_drift", "sensor_outliers")
+#: Gain kinds (gain 1 + m): signed ranges with low > −1 (a gain below 1 and above 1), random_sign allowed (default
+#: false).
+SCALE_KINDS = ("actuator_scale", "sensor_scale")
 
 
 def _number(v) -> bool:
@@ -96,7 +112,13 @@ class FaultDistribution:
     duration: tuple | None = None
     params: dict = field(default_factory=dict)
     weight: float = 1.0
+    limit_fraction: tuple | None = None     # actuator_hard_over without params.limit: ± this × the target's limit
     limits: dict = field(default_factory=dict, compare=False)       # target -> (limit, unit), filled by resolve()
+
+    @property
+    def sized(self) -> bool:
+        """Whether the entry's faults have a size (False for :data:`~robofdi.faults.MAGNITUDE_FREE` kinds)."""
+        return self.kind not in MAGNITUDE_FREE
 
     @classmethod
     def resolve(cls, where: str, table: dict, system: System, options) -> FaultDistribution:
@@ -123,17 +145,33 @@ class FaultDistribution:
                 raise RobofdiError(f"{where}.targets: unknown target {p!r} for {kind}; expected one of {', '.join(pool)}")
             targets += [t for t in hit if t not in targets]
         limits = {t: fault_limit(all_targets, kind, t) for t in targets}
-        signed = table.get("random_sign", kind in SIGNED_KINDS)
+        params = table.get("params", {})
+        free_limit = kind == "actuator_hard_over" and isinstance(params, dict) and "limit" not in params
+        if "limit_fraction" in table and not free_limit:
+            raise RobofdiError(f"{where}.limit_fraction: only for actuator_hard_over without params.limit (the limit "
+                               "drawn per target from its own limit), got it for "
+                               f"{kind if kind != 'actuator_hard_over' else 'an entry with params.limit'}")
+        limit_fraction = None
+        if free_limit:
+            limit_fraction = _range(f"{where}.limit_fraction", table.get("limit_fraction", [1.0, 1.0]), 0.0, 1.0)
+            if limit_fraction[0] <= 0:
+                raise RobofdiError(f"{where}.limit_fraction: expected fractions in (0, 1] of the target's limit, got "
+                                   f"{list(limit_fraction)}")
+        sign_kinds = SIGNED_KINDS + SCALE_KINDS + (("actuator_hard_over",) if free_limit else ())
+        signed = table.get("random_sign", kind in SIGNED_KINDS or free_limit)
         if not isinstance(signed, bool):
             raise RobofdiError(f"{where}.random_sign: expected true or false, got {signed!r}")
-        if signed and kind not in SIGNED_KINDS:
+        if signed and kind not in sign_kinds:
             raise RobofdiError(f"{where}.random_sign: {kind} has no sign to draw; expected false "
-                               f"(true only for {', '.join(SIGNED_KINDS)})")
+                               f"(true only for {', '.join(SIGNED_KINDS + SCALE_KINDS)} and a hard-over drawn from "
+                               "the target's limit)")
         given = [k for k in ("magnitude", "magnitude_fraction") if k in table]
+        if kind in MAGNITUDE_FREE and not given:
+            given, table = ["magnitude"], {**table, "magnitude": [0.0, 0.0]}     # no size: the kind ignores it
         if len(given) != 1:
             raise RobofdiError(f"{where}: give exactly one of 'magnitude' (in the kind's unit) or 'magnitude_fraction' "
                                f"(of the target's limit), got {given or 'neither'}")
-        low = 0.0 if signed or kind not in SIGNED_KINDS else -1.0
+        low = -1.0 if (kind in SIGNED_KINDS and not signed) or (kind in SCALE_KINDS and not signed) else 0.0
         if "magnitude_fraction" in table:
             magnitude, fraction = None, _range(f"{where}.magnitude_fraction", table["magnitude_fraction"], low, 1.0)
         else:
@@ -142,6 +180,9 @@ class FaultDistribution:
                 if max(abs(magnitude[0]), abs(magnitude[1])) > lim.limit or (magnitude[0] < 0 and low == 0.0):
                     raise RobofdiError(f"{where}.magnitude: [{magnitude[0]:g}, {magnitude[1]:g}] is outside the limits of "
                                        f"target {t!r}: [{low * lim.limit:g}, {lim.limit:g}] {lim.unit}")
+        if kind in SCALE_KINDS and (fraction or magnitude)[0] <= -1.0:
+            raise RobofdiError(f"{where}.{given[0]}: a gain 1 + m must stay positive, expected low > -1, got "
+                               f"[{(fraction or magnitude)[0]:g}, {(fraction or magnitude)[1]:g}]")
         draw = table.get("magnitude_draw", "uniform")
         if draw not in MAGNITUDE_DRAWS:
             raise RobofdiError(f"{where}.magnitude_draw: expected one of {', '.join(MAGNITUDE_DRAWS)}, got {draw!r}")
@@ -161,7 +202,6 @@ class FaultDistribution:
         weight = table.get("weight", 1.0)
         if not (_number(weight) and weight > 0):
             raise RobofdiError(f"{where}.weight: expected a number > 0, got {weight!r}")
-        params = table.get("params", {})
         parsed = []
         for i, p in enumerate(profiles):
             try:
@@ -169,12 +209,14 @@ class FaultDistribution:
                 probe = max(limits.values(), key=lambda lim: lim.limit)
                 low_high = [v * probe.limit for v in fraction] if fraction else list(magnitude)
                 size = max(low_high, key=abs)                 # 0 only when the range is [0, 0]
-                check_size(Fault("probe", kind, targets[0], onset=0.0, magnitude=size, profile=profile, params=params))
+                probe_params = {**params, "limit": probe.limit} if free_limit else params
+                check_size(Fault("probe", kind, targets[0], onset=0.0, magnitude=size, profile=profile,
+                                 params=probe_params))
             except RobofdiError as exc:
                 raise RobofdiError(f"{where}.profiles[{i}]: {exc}") from None
             parsed.append(profile.to_dict())
         return cls(kind, tuple(targets), magnitude, fraction, draw, signed, tuple(parsed), onset, duration, dict(params),
-                   float(weight), {t: (lim.limit, lim.unit) for t, lim in limits.items()})
+                   float(weight), limit_fraction, {t: (lim.limit, lim.unit) for t, lim in limits.items()})
 
 
 @dataclass(frozen=True)
@@ -208,7 +250,8 @@ class CampaignSpec:
         return {"system": self.system, "seed": self.seed, "fault_free_runs": self.fault_free_runs,
                 "faulty_runs": self.faulty_runs, "diagnosers": list(self.diagnosers), "records": self.records,
                 "detection_level": self.detection_level, "system_options": json.loads(json.dumps(opts, default=list)),
-                "faults": [{k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(f).items()}
+                "faults": [{k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(f).items()
+                            if not (k == "limit_fraction" and v is None)}      # as before it existed: same fingerprint
                            for f in self.faults]}
 
     def fingerprint(self) -> str:

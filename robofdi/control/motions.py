@@ -35,6 +35,9 @@ _GRAVITY_SHARE = 0.8
 _MAX_TRIES = 400
 # Self-collision is checked along straight joint paths every this many rad of the largest joint displacement.
 _COLLISION_STEP = 0.05
+# Clearance [m] a planned path keeps between links not joined to each other: the tracked motion deviates from the
+# reference (fast motions on robosuite's Panda: paths that passed 3.5–12 mm from link 5 ran link 7 into it).
+SELF_CLEARANCE = 0.015
 #: One turn [rad]: the widest working range of a joint (MotionLimits).
 TURN = 2 * np.pi
 # The duration is fitted to (1 − this) × the budget at the sampled path points, to cover the torque between them
@@ -353,12 +356,30 @@ def _generator(seed, *names: str) -> np.random.Generator:
     return seeded_rng(seed, "motion", *names)
 
 
+def _rigid_and_adjacent(m) -> tuple[np.ndarray, np.ndarray]:
+    """(ngeom, ngeom) masks: geoms on bodies no joint moves apart (a base on its mount: the same contact at every
+    pose, not the motion's doing), and geoms on a body and its parent (whose clearance is the joint's design)."""
+    root = np.empty(m.nbody, dtype=int)
+    for b in range(m.nbody):                  # parents come before their children in MuJoCo's body order
+        root[b] = b if (b == 0 or m.body_jntnum[b] > 0) else root[m.body_parentid[b]]
+    body = np.asarray(m.geom_bodyid, dtype=int)
+    group = root[body]
+    rigid = group[:, None] == group[None, :]
+    parent = np.asarray(m.body_parentid, dtype=int)[body]
+    adjacent = (parent[:, None] == body[None, :]) | (body[:, None] == parent[None, :])
+    return rigid, adjacent & ~rigid
+
+
 class _SelfCollision:
     """Contacts of the arm's own geometry at given joint positions: MuJoCo's collision detection
     (``mj_kinematics`` + ``mj_collision``: the file's contype/conaffinity, parent filter and excludes) on the
-    model file the belief was read from (never the running simulator); the other joints at their reference."""
+    model file the belief was read from (never the running simulator); the other joints at their reference.
 
-    def __init__(self, path: Path, joint_names: tuple):
+    A pose collides when two geoms touch (closer than the file's margin), or when two links that are not a body
+    and its parent come within ``clearance`` [m] (MuJoCo's margin on the scratch model). Pairs on bodies no
+    joint moves apart (:func:`_rigid_and_adjacent`) never count: they are the same at every pose."""
+
+    def __init__(self, path: Path, joint_names: tuple, clearance: float = SELF_CLEARANCE):
         import mujoco
 
         self._mujoco = mujoco
@@ -367,17 +388,29 @@ class _SelfCollision:
         self.active = bool(np.any((m.geom_contype != 0) | (m.geom_conaffinity != 0)))
         self.d = mujoco.MjData(m)
         self.qadr = np.array([m.jnt_qposadr[mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j)] for j in joint_names])
+        self.rigid, self.adjacent = _rigid_and_adjacent(m)
+        self.margin = m.geom_margin.copy()          # the file's own: a contact as the simulator reports it
+        self.clearance = float(clearance)
+        m.geom_margin[:] = np.maximum(self.margin, self.clearance)
+
+    def contacts(self, q) -> list[tuple[int, int, float]]:
+        """(geom1, geom2, distance [m]) of every pair at pose q that counts (class docstring)."""
+        m, d = self.m, self.d
+        d.qpos[:] = m.qpos0
+        d.qpos[self.qadr] = q
+        self._mujoco.mj_kinematics(m, d)
+        self._mujoco.mj_collision(m, d)
+        out = []
+        for c in d.contact[:d.ncon]:
+            g1, g2, dist = int(c.geom1), int(c.geom2), float(c.dist)
+            if self.rigid[g1, g2]:
+                continue
+            if dist < max(self.margin[g1], self.margin[g2]) or (not self.adjacent[g1, g2] and dist < self.clearance):
+                out.append((g1, g2, dist))
+        return out
 
     def free(self, poses: np.ndarray) -> bool:
-        m, d = self.m, self.d
-        for q in poses:
-            d.qpos[:] = m.qpos0
-            d.qpos[self.qadr] = q
-            self._mujoco.mj_kinematics(m, d)
-            self._mujoco.mj_collision(m, d)
-            if d.ncon:
-                return False
-        return True
+        return not any(self.contacts(q) for q in poses)
 
 
 def _self_collision(path: str, joint_names: tuple) -> _SelfCollision:
