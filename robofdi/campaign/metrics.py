@@ -78,7 +78,7 @@ def _fault_metrics(rows: pd.DataFrame) -> dict:
         "eventually_correct": _rate(eventually, n),
         "time_to_correct_isolation_median": float(np.median(to_correct)) if to_correct.size else None,
         "time_to_isolation_median": (float(rows.loc[correct, "time_to_isolation"].dropna().astype(float).median())
-                                     if correct.any() else None),
+                                     if correct.any() and "time_to_isolation" in rows else None),
         "not_isolable": int((~able).sum()),
         "isolation_accuracy_isolable": _rate(int((correct & able).sum()), int((detected & able).sum())),
     }
