@@ -34,6 +34,14 @@ __all__ = ["skew", "thruster_matrix", "phantom_thruster_matrix", "T_euler_from_b
 AXES = ("X", "Y", "Z", "K", "M", "N")
 
 
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a × b for 3-vectors, written out: the same products and differences as ``np.cross`` (so bit-identical
+    results) at a tenth of its cost on one pair (``np.cross`` spends its time in axis bookkeeping)."""
+    a0, a1, a2 = a.tolist()
+    b0, b1, b2 = b.tolist()
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+
+
 def skew(v: np.ndarray) -> np.ndarray:
     """S(v) with S(v) w = v × w."""
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
@@ -306,7 +314,7 @@ class AuvModel:
         """C(ν)ν in Kirchhoff form: [p; h] = M ν, C(ν)ν = [ω × p; ω × h + v × p]."""
         ph = self.M @ nu
         v, w = nu[:3], nu[3:]
-        return np.concatenate([np.cross(w, ph[:3]), np.cross(w, ph[3:]) + np.cross(v, ph[:3])])
+        return np.concatenate([cross(w, ph[:3]), cross(w, ph[3:]) + cross(v, ph[:3])])
 
     def damping(self, nu_r: np.ndarray) -> np.ndarray:
         """D(ν_r)ν_r = (D_l + D_q |ν_r|) ν_r."""
@@ -317,7 +325,7 @@ class AuvModel:
         p = self.hydro
         fg = R[2] * -p.weight          # R^T (0, 0, −W)
         fb = R[2] * p.buoyancy
-        return -np.concatenate([fg + fb, np.cross(self._rg, fg) + np.cross(self._rb, fb)])
+        return -np.concatenate([fg + fb, cross(self._rg, fg) + cross(self._rb, fb)])
 
     def bias(self, R: np.ndarray, nu: np.ndarray, current: np.ndarray | None = None) -> np.ndarray:
         """n = C(ν)ν + D(ν_r)ν_r + g(R); ``current`` [m/s] the world-frame ocean current (ν_r = ν − R^T ν_c)."""

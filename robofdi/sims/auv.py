@@ -264,7 +264,11 @@ class AuvSimulator:
         i = np.where(self._blocked, np.clip(v_term / th.resistance, -th.max_current, th.max_current), i)
         w = self.speed + dt * (th.motor_constant * i - th.torque_coefficient * np.abs(self.speed) * self.speed) / th.inertia
         self.speed = np.where(self._blocked, 0.0, w)
-        axial = np.einsum("ij,ij->i", self._dir, v_rel + np.cross(w_body, self._pos))
+        w0, w1, w2 = w_body.tolist()
+        P0, P1, P2 = self._pos.T                      # ω × r per thruster, written out as np.cross computes it
+        swirl = np.empty_like(self._pos)
+        swirl[:, 0], swirl[:, 1], swirl[:, 2] = w1 * P2 - w2 * P1, w2 * P0 - w0 * P2, w0 * P1 - w1 * P0
+        axial = np.einsum("ij,ij->i", self._dir, v_rel + swirl)
         self.thrust = th.thrust(self.speed) - self.inflow_loss * np.abs(self.speed) * axial
         leak = np.where(self._flood > 0, self._flood * v_term / self.leak_resistance, 0.0)
         self.motor_current, self.terminal_voltage = i + leak, v_term
