@@ -42,6 +42,12 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
 
 
+def clip(a: np.ndarray, low: float, high: float) -> np.ndarray:
+    """``np.clip(a, low, high)`` of a float array without its dispatch overhead (≈ 15 µs a call on the AUV's
+    8-vectors): the same selection, max then min."""
+    return np.minimum(np.maximum(a, low), high)
+
+
 def skew(v: np.ndarray) -> np.ndarray:
     """S(v) with S(v) w = v × w."""
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
@@ -192,7 +198,7 @@ class ThrusterParameters:
         T = np.asarray(thrust, dtype=float)
         w = np.sqrt(np.abs(T) / self.thrust_coefficient)
         V = self.motor_constant * w + self.resistance * self.torque_coefficient * w * w / self.motor_constant
-        return np.clip(np.sign(T) * V, -self.max_voltage, self.max_voltage)
+        return clip(np.sign(T) * V, -self.max_voltage, self.max_voltage)
 
     def thrust(self, speed: np.ndarray) -> np.ndarray:
         """``T = c |Ω|Ω`` [N]."""
@@ -201,7 +207,7 @@ class ThrusterParameters:
 
     def speed_rate(self, speed: np.ndarray, voltage: np.ndarray) -> np.ndarray:
         """Ω̇ [rad/s²] of the class docstring (current limited to ±I_max)."""
-        i = np.clip((voltage - self.motor_constant * speed) / self.resistance, -self.max_current, self.max_current)
+        i = clip((voltage - self.motor_constant * speed) / self.resistance, -self.max_current, self.max_current)
         return (self.motor_constant * i - self.torque_coefficient * np.abs(speed) * speed) / self.inertia
 
 

@@ -31,7 +31,7 @@ import scipy.stats
 
 from robofdi.decision import Signature
 from robofdi.errors import RobofdiError
-from robofdi.models.auv import AuvModel
+from robofdi.models.auv import AuvModel, clip
 from robofdi.observers.residual import Residual, check_measurement
 
 __all__ = ["EkfBank", "horizontal_thrusters", "nis_bound", "calibrate_process_noise", "nominal_nis",
@@ -164,7 +164,7 @@ class EkfBank:
     def update(self, y, u) -> Residual:
         """One sample: predict every filter with the thrust of u = ū(k−1), update with y(k); residual = windowed NIS."""
         y = check_measurement(y, len(self.measurements), "y")
-        u = np.clip(check_measurement(u, len(self.inputs), "u"), -self.thrust_limit, self.thrust_limit)
+        u = clip(check_measurement(u, len(self.inputs), "u"), -self.thrust_limit, self.thrust_limit)
         z = y[self._y_index]
         n = len(self._mask)
         if self._x is None:
