@@ -163,19 +163,30 @@ class EkfBank:
 
     def update(self, y, u) -> Residual:
         """One sample: predict every filter with the thrust of u = ū(k−1), update with y(k); residual = windowed NIS."""
+        z, u = self._measured(y, u)
+        return self._filter(z, self._drive(u))
+
+    def _measured(self, y, u) -> tuple[np.ndarray, np.ndarray]:
+        """The planar measurements z of y and the thrust demand u clipped to the drivers' limit."""
         y = check_measurement(y, len(self.measurements), "y")
-        u = clip(check_measurement(u, len(self.inputs), "u"), -self.thrust_limit, self.thrust_limit)
-        z = y[self._y_index]
-        n = len(self._mask)
-        if self._x is None:
-            self._x = np.tile(np.concatenate([z, [0.0, 0.0]]), (n, 1))
+        return y[self._y_index], clip(check_measurement(u, len(self.inputs), "u"), -self.thrust_limit, self.thrust_limit)
+
+    def _drive(self, u: np.ndarray) -> np.ndarray:
+        """The nominal thrusters driven by the commanded voltage over one sample → the horizontal thrusters' mean
+        thrust [N] (it depends on u only: calibration computes it once for every process-noise level)."""
         th = self.model.thruster
         v_cmd = th.voltage_for_thrust(u)
         h = self.T / self.substeps
         T_before = th.thrust(self._speed)[self._h]
-        for _ in range(self.substeps):                   # the nominal thrusters driven by the commanded voltage
+        for _ in range(self.substeps):
             self._speed = self._speed + h * th.speed_rate(self._speed, v_cmd)
-        thrust = 0.5 * (T_before + th.thrust(self._speed)[self._h])
+        return 0.5 * (T_before + th.thrust(self._speed)[self._h])
+
+    def _filter(self, z: np.ndarray, thrust: np.ndarray) -> Residual:
+        """Every filter's predict (with ``thrust``) and update (with z) → the windowed NIS."""
+        n = len(self._mask)
+        if self._x is None:
+            self._x = np.tile(np.concatenate([z, [0.0, 0.0]]), (n, 1))
         self.thrust = thrust
         tau = np.empty((3, n))
         for j in range(n):
@@ -216,14 +227,33 @@ def nominal_nis(bank: EkfBank, y: np.ndarray, u: np.ndarray) -> np.ndarray:
     return np.array([bank.update(yk, uk).r[0] for yk, uk in zip(y, u)])
 
 
+def _drives(bank: EkfBank, y: np.ndarray, u: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(z, thrust) per sample of one run: what :meth:`EkfBank.update` feeds its filters (independent of q)."""
+    bank.reset()
+    out = []
+    for yk, uk in zip(y, u):
+        z, uc = bank._measured(yk, uk)
+        out.append((z, bank._drive(uc)))
+    return out
+
+
+def _nominal_nis_of(bank: EkfBank, drives) -> np.ndarray:
+    """:func:`nominal_nis` from the run's precomputed (z, thrust) pairs: the same numbers without the thruster model."""
+    bank._mask = bank._mask[:1]
+    bank.reset()
+    return np.array([bank._filter(z, thrust).r[0] for z, thrust in drives])
+
+
 def calibrate_process_noise(runs, make_bank, skip: int, margin: float = 1.25, bounds=(1e-3, 1e4),
                             iterations: int = 8) -> float:
     """The force-mismatch level q [N²] of :class:`EkfBank` from fault-free runs ``runs`` = [(y, u), ...] (as
     :func:`robofdi.loop.diagnoser_inputs`): the smallest q (bisection in log q) for which the nominal filter's
     windowed NIS stays below bound/margin on every run after ``skip`` samples. ``make_bank(q)`` builds the bank."""
+    drives = [_drives(make_bank(bounds[1]), y, u) for y, u in runs]
+
     def peak(q):
         bank = make_bank(q)
-        return max(float(nominal_nis(bank, y, u)[skip:].max()) for y, u in runs) / bank.bound
+        return max(float(_nominal_nis_of(bank, d)[skip:].max()) for d in drives) / bank.bound
 
     lo, hi = np.log(bounds[0]), np.log(bounds[1])
     if peak(np.exp(hi)) * margin > 1:
