@@ -14,7 +14,7 @@ import numpy as np
 
 from robofdi.control.trajectory import Sequence
 from robofdi.errors import RobofdiError, all_finite
-from robofdi.models.auv import AuvModel, T_euler_from_body, rotation_from_euler
+from robofdi.models.auv import AuvModel, T_euler_from_body, cross, rotation_from_euler
 from robofdi.seeding import rng
 
 __all__ = ["TaskSpaceAuvControl", "navigation_pose", "random_mission", "MissionLimits", "POSE_NAMES", "wrap"]
@@ -67,7 +67,7 @@ class TaskSpaceAuvControl:
         # J̇ν: linear part R S(ω) ν1; angular part Ṫ ν2 by a directional difference of T along η̇2
         h = 1e-6
         T_dot_nu = (T_euler_from_body(eta[3:] + h * deta[3:]) - T) @ nu[3:] / h
-        nu_dot = np.concatenate([R.T @ a[:3] - np.cross(nu[3:], nu[:3]), np.linalg.solve(T, a[3:] - T_dot_nu)])
+        nu_dot = np.concatenate([R.T @ a[:3] - cross(nu[3:], nu[:3]), np.linalg.solve(T, a[3:] - T_dot_nu)])
         self.tau = self.model.wrench(R, nu, nu_dot)
         return self.B_pinv @ self.tau
 

@@ -29,7 +29,7 @@ from scipy.optimize import lsq_linear
 from robofdi.control.auv import navigation_pose, wrap
 from robofdi.errors import RobofdiError, all_finite
 from robofdi.ftc.smc_ca import SMCCAController, SMCCADesign, singular_patterns, smc_ca_design, weighted_pinv
-from robofdi.models.auv import AuvModel, T_euler_from_body, rotation_from_euler
+from robofdi.models.auv import AuvModel, T_euler_from_body, cross, rotation_from_euler
 from robofdi.protocols import Health
 
 __all__ = ["SlidingModeAuvControl", "HealthWeightedAllocation", "auv_smc_ca_check", "SmcAuvSettings"]
@@ -109,7 +109,7 @@ class SlidingModeAuvControl:
         a = ddeta_d + v
         h = 1e-6
         T_dot_nu = (T_euler_from_body(eta[3:] + h * deta[3:]) - T) @ nu[3:] / h
-        nu_dot = np.concatenate([R.T @ a[:3] - np.cross(nu[3:], nu[:3]), np.linalg.solve(T, a[3:] - T_dot_nu)])
+        nu_dot = np.concatenate([R.T @ a[:3] - cross(nu[3:], nu[:3]), np.linalg.solve(T, a[3:] - T_dot_nu)])
         self.tau = self.model.wrench(R, nu, nu_dot)
         return self.B_pinv @ self.tau
 

@@ -26,12 +26,27 @@ import numpy as np
 
 from robofdi.errors import RobofdiError
 
-__all__ = ["skew", "thruster_matrix", "phantom_thruster_matrix", "T_euler_from_body", "T_body_from_euler", "rotation_from_euler",
+__all__ = ["cross", "clip",
+           "skew", "thruster_matrix", "phantom_thruster_matrix", "T_euler_from_body", "T_body_from_euler", "rotation_from_euler",
            "euler_from_rotation", "FossenParameters", "ThrusterParameters", "AuvModelMismatch", "AuvModel",
            "ODIN_LIKE", "ODIN_THRUSTER", "thruster_layout", "AXES"]
 
 #: Names of the generalised-force axes (body frame): surge, sway, heave forces [N]; roll, pitch, yaw moments [N·m].
 AXES = ("X", "Y", "Z", "K", "M", "N")
+
+
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a × b of two 3-vector arrays, written out: the same products and differences as ``np.cross`` (so
+    bit-identical results), ≈ 25× cheaper on one pair (``np.cross`` spends its time in axis bookkeeping)."""
+    a0, a1, a2 = a.tolist()
+    b0, b1, b2 = b.tolist()
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
+
+
+def clip(a: np.ndarray, low: float, high: float) -> np.ndarray:
+    """``np.clip(a, low, high)`` of a float array, the same selection (max then min) without clip's dispatch:
+    ≈ 30 % cheaper on the AUV's 8-vectors."""
+    return np.minimum(np.maximum(a, low), high)
 
 
 def skew(v: np.ndarray) -> np.ndarray:
@@ -184,7 +199,7 @@ class ThrusterParameters:
         T = np.asarray(thrust, dtype=float)
         w = np.sqrt(np.abs(T) / self.thrust_coefficient)
         V = self.motor_constant * w + self.resistance * self.torque_coefficient * w * w / self.motor_constant
-        return np.clip(np.sign(T) * V, -self.max_voltage, self.max_voltage)
+        return clip(np.sign(T) * V, -self.max_voltage, self.max_voltage)
 
     def thrust(self, speed: np.ndarray) -> np.ndarray:
         """``T = c |Ω|Ω`` [N]."""
@@ -193,7 +208,7 @@ class ThrusterParameters:
 
     def speed_rate(self, speed: np.ndarray, voltage: np.ndarray) -> np.ndarray:
         """Ω̇ [rad/s²] of the class docstring (current limited to ±I_max)."""
-        i = np.clip((voltage - self.motor_constant * speed) / self.resistance, -self.max_current, self.max_current)
+        i = clip((voltage - self.motor_constant * speed) / self.resistance, -self.max_current, self.max_current)
         return (self.motor_constant * i - self.torque_coefficient * np.abs(speed) * speed) / self.inertia
 
 
@@ -306,7 +321,7 @@ class AuvModel:
         """C(ν)ν in Kirchhoff form: [p; h] = M ν, C(ν)ν = [ω × p; ω × h + v × p]."""
         ph = self.M @ nu
         v, w = nu[:3], nu[3:]
-        return np.concatenate([np.cross(w, ph[:3]), np.cross(w, ph[3:]) + np.cross(v, ph[:3])])
+        return np.concatenate([cross(w, ph[:3]), cross(w, ph[3:]) + cross(v, ph[:3])])
 
     def damping(self, nu_r: np.ndarray) -> np.ndarray:
         """D(ν_r)ν_r = (D_l + D_q |ν_r|) ν_r."""
@@ -317,7 +332,7 @@ class AuvModel:
         p = self.hydro
         fg = R[2] * -p.weight          # R^T (0, 0, −W)
         fb = R[2] * p.buoyancy
-        return -np.concatenate([fg + fb, np.cross(self._rg, fg) + np.cross(self._rb, fb)])
+        return -np.concatenate([fg + fb, cross(self._rg, fg) + cross(self._rb, fb)])
 
     def bias(self, R: np.ndarray, nu: np.ndarray, current: np.ndarray | None = None) -> np.ndarray:
         """n = C(ν)ν + D(ν_r)ν_r + g(R); ``current`` [m/s] the world-frame ocean current (ν_r = ν − R^T ν_c)."""

@@ -21,7 +21,7 @@ import numpy as np
 
 from robofdi.decision import Signature
 from robofdi.errors import RobofdiError
-from robofdi.models.auv import AXES, AuvModel, rotation_from_euler
+from robofdi.models.auv import AXES, AuvModel, clip, rotation_from_euler
 from robofdi.observers.residual import Residual, check_measurement
 
 __all__ = ["VoltageResidual", "CurrentMap", "ForceObserver", "DepthVote", "DepthSwitchingControl",
@@ -58,11 +58,11 @@ class _Telemetry:
     def _inputs(self, y, u):
         y = check_measurement(y, len(self.measurements), "y")
         u = check_measurement(u, len(self.thrusters), "u")
-        return y, np.clip(u, -self.thrust_limit, self.thrust_limit)
+        return y, clip(u, -self.thrust_limit, self.thrust_limit)
 
     def commanded_voltage(self, u: np.ndarray) -> np.ndarray:
         """The driver's voltage [V] for the thrust demands u [N] (the nominal steady-state map)."""
-        return self.model.thruster.voltage_for_thrust(np.clip(u, -self.thrust_limit, self.thrust_limit))
+        return self.model.thruster.voltage_for_thrust(clip(u, -self.thrust_limit, self.thrust_limit))
 
 
 class VoltageResidual(_Telemetry):

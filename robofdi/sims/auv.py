@@ -38,8 +38,8 @@ from robofdi.checks import check_fields, is_number, is_positive
 from robofdi.config import part
 from robofdi.errors import RobofdiError, all_finite
 from robofdi.models.auv import (
-    ODIN_LIKE, ODIN_THRUSTER, AuvModel, AuvModelMismatch, FossenParameters, ThrusterParameters, euler_from_rotation,
-    thruster_layout,
+    ODIN_LIKE, ODIN_THRUSTER, AuvModel, AuvModelMismatch, FossenParameters, ThrusterParameters, clip,
+    euler_from_rotation, thruster_layout,
 )
 from robofdi.mjcf import resolve_asset
 from robofdi.seeding import stream
@@ -213,7 +213,7 @@ class AuvSimulator:
 
     def saturate(self, u: np.ndarray) -> np.ndarray:
         """What the drivers accept of the thrust demand: clipped to ±thrust_limit [N]."""
-        return np.clip(u, -self.thrust_limit, self.thrust_limit)
+        return clip(u, -self.thrust_limit, self.thrust_limit)
 
     def apply_component_fault(self, kind: str, target: str, value: float) -> None:
         """``component_thruster_blocking``: rotor stalled while value > 0; ``component_thruster_flooding``: κ = value."""
@@ -260,11 +260,17 @@ class AuvSimulator:
         # the supply drop uses the last current (the driver's regulation is slower than this step)
         v_term = v_drive - self.supply_resistance * self.motor_current
         v_motor = v_term * (1.0 + self._flood)
-        i = np.clip((v_motor - th.motor_constant * self.speed) / th.resistance, -th.max_current, th.max_current)
-        i = np.where(self._blocked, np.clip(v_term / th.resistance, -th.max_current, th.max_current), i)
+        i = clip((v_motor - th.motor_constant * self.speed) / th.resistance, -th.max_current, th.max_current)
+        blocked = self._blocked.any()                 # (the masks below change nothing when no rotor is blocked)
+        if blocked:
+            i = np.where(self._blocked, clip(v_term / th.resistance, -th.max_current, th.max_current), i)
         w = self.speed + dt * (th.motor_constant * i - th.torque_coefficient * np.abs(self.speed) * self.speed) / th.inertia
-        self.speed = np.where(self._blocked, 0.0, w)
-        axial = np.einsum("ij,ij->i", self._dir, v_rel + np.cross(w_body, self._pos))
+        self.speed = np.where(self._blocked, 0.0, w) if blocked else w
+        w0, w1, w2 = w_body.tolist()
+        P0, P1, P2 = self._pos.T                      # ω × r per thruster, written out as np.cross computes it
+        swirl = np.empty_like(self._pos)
+        swirl[:, 0], swirl[:, 1], swirl[:, 2] = w1 * P2 - w2 * P1, w2 * P0 - w0 * P2, w0 * P1 - w1 * P0
+        axial = np.einsum("ij,ij->i", self._dir, v_rel + swirl)
         self.thrust = th.thrust(self.speed) - self.inflow_loss * np.abs(self.speed) * axial
         leak = np.where(self._flood > 0, self._flood * v_term / self.leak_resistance, 0.0)
         self.motor_current, self.terminal_voltage = i + leak, v_term
