@@ -102,7 +102,7 @@ def run(name: str = "edwards-auv-ftc", out: str | Path = "runs", seed: int = 0, 
     ch4 = _scenario(seed)
     smc = replace(ch4, name=name, allocation="smc_ca")
     check_scenario(smc)
-    model = AuvModel.from_mjcf(smc.mjcf, smc.mismatch)
+    model = AuvModel.from_mjcf(smc.plant.mjcf, smc.mismatch)
     design = auv_smc_ca_check(model, SmcAuvSettings(), samples=2000)
     records, summaries, rms = {}, {}, {}
     since = max(f.onset for f in ch4.faults)
@@ -170,7 +170,7 @@ def run(name: str = "edwards-auv-ftc", out: str | Path = "runs", seed: int = 0, 
                         variants={k: summaries[k]["diagnosers"] for k in summaries if k != main_label},
                         design=design, settings=SmcAuvSettings().__dict__,
                         calibration_cached={"smc_ca": cached_smc, "ch4": cached_ch4},
-                        scenario={"duration": ch4.duration, "current": list(ch4.current),
+                        scenario={"duration": ch4.duration, "current": list(ch4.plant.current),
                                   "onsets": [f.onset for f in ch4.faults]})
     summary["recovery"] = recovery_section(
         labels.values(), [{"quantity": f"position tracking RMS for t >= {since:g} s (last fault)", "unit": "m",
