@@ -339,7 +339,7 @@ def test_every_shipped_system_conforms(name):
 #: diagnosers are checked on their own above (check_diagnoser) and by their systems' tests. The arm without its
 #: consistency scheme (its design and held-out calibration motions, ~1.5 min: tests/test_consistency.py); the AUV
 #: without its EKF bank (the process-noise search, ~2 min: tests/test_auv_ekf_bank.py); the hydraulic rig without
-#: mlp_ar (its network training, ~35 s: tests/test_hydraulic.py).
+#: mlp_ar (its network training on the calibration runs: tests/test_hydraulic.py).
 SYSTEM_DIAGNOSERS = {"arm": ("simple", "momentum"),
                      "auv": tuple(n for n in AUV_DIAGNOSERS if n != "ekf_bank"),
                      "hydraulic": ("nlar", "linear_ar", "plar", "nnar", "nlar_better")}
