@@ -222,9 +222,7 @@ class EkfBank:
 def nominal_nis(bank: EkfBank, y: np.ndarray, u: np.ndarray) -> np.ndarray:
     """The nominal filter's windowed NIS over one run's (y, u) pairs (rows as :func:`robofdi.loop.diagnoser_inputs`).
     ``bank`` is used up: only its nominal filter is kept (the fault filters play no part in calibration)."""
-    bank._mask = bank._mask[:1]
-    bank.reset()
-    return np.array([bank.update(yk, uk).r[0] for yk, uk in zip(y, u)])
+    return _nominal_nis_of(bank, _drives(bank, y, u))
 
 
 def _drives(bank: EkfBank, y: np.ndarray, u: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -238,7 +236,8 @@ def _drives(bank: EkfBank, y: np.ndarray, u: np.ndarray) -> list[tuple[np.ndarra
 
 
 def _nominal_nis_of(bank: EkfBank, drives) -> np.ndarray:
-    """:func:`nominal_nis` from the run's precomputed (z, thrust) pairs: the same numbers without the thruster model."""
+    """The nominal filter's windowed NIS from one run's (z, thrust) pairs (:func:`_drives`, computed once for every
+    process-noise level); ``bank`` keeps only its nominal filter."""
     bank._mask = bank._mask[:1]
     bank.reset()
     return np.array([bank._filter(z, thrust).r[0] for z, thrust in drives])
