@@ -176,9 +176,10 @@ def evaluate_diagnoser(record: Record, name: str, faults: Sequence[Mapping]) -> 
         isolation_correct[w.name] = correct
         time_to_isolation[w.name] = None if k_iso is None else float(t[k_iso] - w.onset)
         estimate_rmse[w.name] = _estimate_rmse(record, trace, w, inside, k_iso) if correct else None
-        right = [k for k in np.flatnonzero(inside) if k >= k_det and w.target in isolated_sets[k]]
-        time_to_correct[w.name] = float(t[right[0]] - w.onset) if right else None
-        final_correct[w.name] = w.target in isolated_sets[int(np.flatnonzero(inside)[-1])]
+        window = np.flatnonzero(inside)
+        k_right = next((k for k in window if k >= k_det and w.target in isolated_sets[k]), None)
+        time_to_correct[w.name] = None if k_right is None else float(t[k_right] - w.onset)
+        final_correct[w.name] = w.target in isolated_sets[int(window[-1])]
 
     return {
         "false_alarms": int(false_rises.size),
