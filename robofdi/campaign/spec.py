@@ -171,7 +171,7 @@ class FaultDistribution:
         if len(given) != 1:
             raise RobofdiError(f"{where}: give exactly one of 'magnitude' (in the kind's unit) or 'magnitude_fraction' "
                                f"(of the target's limit), got {given or 'neither'}")
-        low = -1.0 if (kind in SIGNED_KINDS and not signed) or (kind in SCALE_KINDS and not signed) else 0.0
+        low = -1.0 if not signed and kind in SIGNED_KINDS + SCALE_KINDS else 0.0
         if "magnitude_fraction" in table:
             magnitude, fraction = None, _range(f"{where}.magnitude_fraction", table["magnitude_fraction"], low, 1.0)
         else:
