@@ -30,6 +30,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from robofdi.config import compose
 from robofdi.control import MotionLimits, random_point_to_point
 from robofdi.observers.arm_schemes import SCHEMES
 from robofdi.sims import ArmSimulator
@@ -47,8 +48,8 @@ def soak_scenario(minutes: float, seed: int) -> ArmScenario:
     probe = random_point_to_point(model, limits, seed, 20)
     segments = int(math.ceil(1.1 * duration / (probe.end / 20))) + 5
     motion = random_point_to_point(model, limits, seed, segments)
-    return ArmScenario(f"soak-{minutes:g}min", motion=motion, duration=duration, faults=(), mjcf="arm6.xml",
-                       joints=tuple(sim.joint_names), seed=seed, schemes=SCHEMES)
+    return compose(ArmScenario, name=f"soak-{minutes:g}min", motion=motion, duration=duration, faults=(),
+                   robot="arm6.xml", joints=tuple(sim.joint_names), seed=seed, schemes=SCHEMES)
 
 
 def alarm_report(path: Path, name: str, diagnosis_hz: float) -> dict:
