@@ -135,7 +135,7 @@ def test_spr_output_form_converges_on_a_non_square_C_with_the_designed_lyapunov_
     N = np.linalg.svd(model.C)[2][-1]                                 # ker C
     assert np.abs(N @ bank.P @ bank._Tb).max() < 1e-9 * np.abs(bank.P @ bank._Tb).max()
     est = lock_estimates(bank, model, 0, duration=3.0, onset=1.0, gust_onset=0.5)
-    assert abs(est[0, 0]) < 1e-12 and abs(est[-1, 0] - 1.0) < 1e-3
+    assert abs(est[0, 0]) < 1e-12 and abs(est[-1, 0] - 1.0) < 0.02                 # 2 s after the lock
     with pytest.raises(RobofdiError, match="range of Cᵀ"):
         LockInPlaceBank(model, NONSQUARE_POLES, output_form="spr")              # Q_lyap = I misses the condition
     full = discretize(aircraft_lateral(), 1e-3)
