@@ -15,8 +15,8 @@ import numpy as np
 
 from robofdi.models.linear import LinearModel
 
-__all__ = ["helicopter", "HELICOPTER_NOISE", "aircraft_lateral", "aircraft_three_surfaces", "AIRCRAFT_DISTURBANCE", "chip_refiner",
-           "CHIP_REFINER", "f16_vertical"]
+__all__ = ["helicopter", "HELICOPTER_NOISE", "aircraft_lateral", "aircraft_three_surfaces", "AIRCRAFT_DISTURBANCE",
+           "chip_refiner", "CHIP_REFINER", "f16_vertical"]
 
 #: Paper's noise covariances for the helicopter: process S (per sample, on x) and sensor Q (on y) — note the
 #: paper's naming: S is the process covariance, Q the sensor one (Jiang & Chowdhury eq. (1)–(4), Sec. V).

@@ -66,12 +66,12 @@ def first_step_estimate_lipschitz(A, B, C, E, ys, us, g: Callable[[np.ndarray], 
                            "fixed point is not guaranteed (a longer window or a smaller γ)")
     rhs = (ys - c @ C.T).ravel()
     theta = O_pinv @ rhs                                        # the linear estimate: g ignored
-    for it in range(1, max_iterations + 1):
+    iterations = 0
+    while iterations < max_iterations:
+        iterations += 1
         G = np.concatenate([np.asarray(g(M[j] @ theta + c[j]), dtype=float).reshape(p) for j in range(N)])
         step = O_pinv @ (rhs - G) - theta
         theta = theta + step
         if np.linalg.norm(step) <= tol * max(1.0, np.linalg.norm(theta)):
-            break
-    else:
-        raise RobofdiError(f"{where}: no convergence in {max_iterations} iterations (κ = {kappa:.3g})")
-    return M[-1] @ theta + c[-1], theta[n:], it
+            return M[-1] @ theta + c[-1], theta[n:], iterations
+    raise RobofdiError(f"{where}: no convergence in {max_iterations} iterations (κ = {kappa:.3g})")
