@@ -35,8 +35,9 @@ class AugmentedErrorEstimator:
     """Diagnoser protocol: state, multiplicative parameters θ and loss of effectiveness r by the augmented error
     (module docstring). ``parameter_directions``: the Aⱼ (n×n each, acting on measured states only);
     ``poles``: n discrete poles of A − LC (scipy's place_poles; default 0.5, 0.55, …) or ``observer_gain`` L
-    (n×p); ``forgetting`` λ in (0, 1]; ``R0``: the initial least-squares covariance (a number: R0·I). Residual and estimate: r̂ per actuator
-    (unit 1, named like the inputs); θ̂ is ``parameter_estimate``. ``update(y(k), u(k−1))``."""
+    (n×p); ``forgetting`` λ in (0, 1]; ``R0``: the initial least-squares covariance (a number: R0·I; its prior
+    pulls the estimate towards 0 by about 1/(R0 Σ‖Ψ‖²)). Residual and estimate: r̂ per actuator (unit 1, named like
+    the inputs); θ̂ is ``parameter_estimate``. ``update(y(k), u(k−1))``."""
 
     def __init__(self, model: LinearModel, parameter_directions, poles: Sequence[float] | None = None,
                  observer_gain=None, forgetting: float = 0.999, R0: float = 1e4):
