@@ -608,55 +608,88 @@ class _CrashingController:
         return self._held
 
 
-def supervision_reproduction(sc: AuvScenario, duration: float = 8.0, crash: float = 5.0,
-                             timeout: float = 0.05) -> list[dict]:
-    """The HW/SW watchdog on the vehicle (a short fault-free run of ``sc``'s plant, controller and allocation, the
-    controller task crashing at ``crash`` s; no diagnoser, no calibration) and the Theseus phase manager (§3.4) on
-    the same run's measured depth: descend, then home on an acoustic fix that never comes ('poor acoustic
-    conditions')."""
-    from robofdi.control.supervision import MissionPhase, PhaseFaultManager, Watchdog
+def _supervised_run(sc: AuvScenario, duration: float, run_key: str, **supervision):
+    """A short fault-free run of ``sc``'s plant and allocation under a :class:`SupervisedController` (no diagnoser,
+    no calibration); returns (record, controller)."""
+    from robofdi.control.supervision import SupervisedController
     from robofdi.loop import ClosedLoop
     from robofdi.systems.auv import _allocation, _controller, _reference_columns
 
     sim = sc.simulator()
     model = sc.nominal_model(sim)
     cols, units = _reference_columns()
-    controller = _CrashingController(_controller(model, sc.allocation), crash, sim.control_dt)
+    crash = supervision.pop("crash", None)
+    primary = _controller(model, sc.allocation)
+    if crash is not None:
+        primary = _CrashingController(primary, crash, sim.control_dt)
+    controller = SupervisedController(primary, sim.control_dt, **supervision)
     loop = ClosedLoop(sim, controller, sc.reference(), accommodation=_allocation(sc, model), reference_columns=cols,
                       reference_units=units)
-    rec = loop.run(duration, sc.start_pose, seed=sc.seed, run_key="watchdog", scenario="watchdog")
-    dog = Watchdog(timeout)
-    alarms = np.array([dog.update(t, u) for t, u in zip(rec.time, rec.signals["u_cmd"])])
-    first = float(rec.time[np.argmax(alarms)]) if alarms.any() else None
+    return loop.run(duration, sc.start_pose, seed=sc.seed, run_key=run_key, scenario=run_key), controller
+
+
+def supervision_reproduction(sc: AuvScenario, crash: float = 5.0, timeout: float = 0.05) -> list[dict]:
+    """The supervision alarms and the safe manoeuvres they trigger, on short fault-free runs of ``sc``'s vehicle:
+    the HW/SW watchdog (§3) on the controller task crashing at ``crash`` s, the redundant backup task then
+    surfacing; the Theseus phase manager (§3.4): descend, then home on an acoustic fix that never comes ('poor
+    acoustic conditions'), the vehicle then stopping where it is and waiting."""
+    from robofdi.control.supervision import MissionPhase, PhaseFaultManager, Watchdog
+    from robofdi.systems.auv import _controller
+
+    dt = sc.plant.control_dt
+    surface_depth, ascent = 1.0, 0.25
+    model = sc.nominal_model(sc.simulator())
+    rec, ctl = _supervised_run(sc, 25.0, "watchdog", crash=crash, backup=_controller(model, sc.allocation),
+                               watchdog=Watchdog(timeout), on_watchdog="surface", surface_depth=surface_depth,
+                               ascent_speed=ascent)
+    first = next((t for t, e in ctl.log if e.startswith("watchdog")), None)
     watchdog = check("HW/SW failure (§3): watchdog on the controller's output, task crashed at 5 s",
                      f"alarm after the {timeout:g} s timeout, none before the crash",
-                     {"first_alarm_s": first, "alarms_before_crash": int(alarms[rec.time < crash].sum())},
-                     2 * sim.control_dt, first is not None and crash + timeout <= first <= crash + timeout
-                     + 2 * sim.control_dt and not alarms[rec.time < crash].any(),
-                     note="outputs held (the digest's emulation); a healthy feedback task's output changes every "
-                          "tick with the sensor noise")
-    depth_col = rec.columns["signals/y_meas"].index("depth") if "depth" in rec.columns["signals/y_meas"] else None
-    if depth_col is None:
-        return [watchdog]
-    depth = rec.signals["y_meas"][:, depth_col]
-    target = float(depth[0])
+                     {"first_alarm_s": first, "log": ctl.log}, 2 * dt,
+                     first is not None and crash - dt + timeout <= first <= crash + timeout + 2 * dt,
+                     note="outputs held (the digest's emulation: the last output is the tick's before the crash); a "
+                          "healthy feedback task's output changes every tick with the sensor noise")
+    pos = rec.truth_state[:, :3]
+    at = int(np.argmin(np.abs(rec.time - (first if first is not None else crash))))
+    depth_end = float(-pos[-1, 2])
+    drift = float(np.linalg.norm(pos[at:, :2] - pos[at, :2], axis=1).max())
+    held, _ = _supervised_run(sc, 25.0, "watchdog_unsupervised", crash=crash)
+    held_move = float(np.linalg.norm(held.truth_state[-1, :3] - held.truth_state[at, :3]))
+    surfaced = check("safe manoeuvre on the watchdog alarm: the redundant backup task surfaces (depth at 25 s [m], "
+                     "horizontal drift [m])", f"depth {surface_depth:g} m, no drift",
+                     {"depth_at_alarm_m": float(-pos[at, 2]), "depth_at_25s_m": depth_end, "horizontal_drift_m": drift,
+                      "without supervision: displacement alarm → 25 s [m]": held_move}, {"depth": 0.2, "drift": 0.3},
+                     abs(depth_end - surface_depth) < 0.2 and drift < 0.3 and held_move > 1.0,
+                     note=f"robofdi's manoeuvre (the survey names redundancy [6], not the manoeuvre): ascent at "
+                          f"{ascent:g} m/s keeping x, y, yaw, by a second controller on the same nominal model; "
+                          "without supervision the held thrust keeps the vehicle moving")
+    start_depth = float(sc.start_depth)
+
+    def complete(phase, t, y):          # the vehicle's events: depth reached (measured); the acoustic fix never comes
+        return phase == "hold_depth" and t >= 1.0 and abs(float(y[2]) - start_depth) < 0.2
+
     manager = PhaseFaultManager([MissionPhase("hold_depth", 2.0), MissionPhase("homing", 3.0)])
-    behaviour = []
-    for t, d in zip(rec.time, depth):
-        phase = manager.behaviour
-        done = phase == "hold_depth" and t >= 1.0 and abs(d - target) < 0.2   # homing: the fix never comes
-        behaviour.append(manager.update(float(t), done))
+    rec, ctl = _supervised_run(sc, 15.0, "theseus", phases=manager, phase_complete=complete)
     homing_start = next((t for t, b in manager.log if b == "homing"), None)
     theseus = check("Theseus fault manager (§3.4): homing without an acoustic fix → 'stop and wait' at phase start "
                     "+ T_phase", "safe behaviour after T_phase = 3 s",
                     {"homing_started_s": homing_start, "safe_behaviour_at_s": manager.failed_at,
-                     "behaviour_at_end": behaviour[-1], "log": manager.log}, 2 * sim.control_dt,
+                     "mode_at_end": ctl.mode, "log": manager.log}, 2 * dt,
                     homing_start is not None and manager.failed_at is not None
-                    and abs(manager.failed_at - homing_start - 3.0) <= 2 * sim.control_dt
-                    and behaviour[-1] == "stop_and_wait",
-                    note="phases on the run's measured depth; the 'stop under the ice and wait' behaviour is the "
-                         "phase's safe behaviour (the safe manoeuvre itself is not flown)")
-    return [watchdog, theseus]
+                    and abs(manager.failed_at - homing_start - 3.0) <= 2 * dt and ctl.mode == "stop_and_wait",
+                    note="phases on the run's measured depth (the vehicle's own completion event)")
+    settle = (manager.failed_at or 0.0) + 3.0
+    late = rec.time >= settle
+    hold = ctl._hold[:3] if ctl._hold is not None else np.full(3, np.nan)
+    wander = float(np.linalg.norm(rec.truth_state[late, :3] - hold, axis=1).max())
+    mission_move = float(np.linalg.norm(rec.signals["reference"][late, :3][-1] - rec.signals["reference"][late, :3][0]))
+    stopped = check("safe manoeuvre on the phase failure: 'stop under the ice and wait' flown (max distance from the "
+                    "hold pose, 3 s after the switch to 15 s [m])", "the vehicle stays; the mission would move on",
+                    {"max_distance_m": wander, "mission reference moved_m": mission_move}, 0.1,
+                    wander < 0.1 and mission_move > 0.5,
+                    note="the hold pose is the navigation pose measured at the switch (roll = pitch = 0); flown by the "
+                         "mission controller on the held reference")
+    return [watchdog, surfaced, theseus, stopped]
 
 
 def _fault_free_window(sc: AuvScenario) -> tuple[float, float]:

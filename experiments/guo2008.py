@@ -18,9 +18,10 @@ from robofdi.evaluate import summarize
 from robofdi.evaluate.reproduction import reproduction_check as check
 from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, write_run_folder
 from robofdi.progress import Progress
-from robofdi.models.linear_examples import aircraft_lateral
+from robofdi.models.linear_examples import aircraft_lateral, aircraft_three_surfaces
 from robofdi.models.linear import discretize
-from robofdi.observers.uio import uio_design
+from robofdi.observers.spr import spr_lyapunov_weight
+from robofdi.observers.uio import LockInPlaceBank, uio_design
 from robofdi.systems.aircraft import (
     SIGMA, AircraftScenario, build_loop, calibrate, residual_vectors, switching_index,
 )
@@ -41,6 +42,59 @@ def switch_time(J: np.ndarray, t: np.ndarray, model: int, onset: float) -> float
     if wrong.size == 0:
         return float(t[0])
     return None if wrong[-1] == len(t) - 1 else float(t[wrong[-1] + 1])
+
+
+#: s-plane poles of the non-square example's UIOs (rank C < n: distinct poles for place_poles)
+NONSQUARE_POLES = (-3.0, -3.5, -4.0, -4.5, -5.0, -5.5)
+
+
+def lock_estimates(bank: LockInPlaceBank, model, lock: int, duration: float = 30.0, onset: float = 15.0,
+                   command: float = 0.5, value: float = 1.0, gust_onset: float = 10.0) -> np.ndarray:
+    """û of ``bank`` on the noise-free ZOH plant ``model`` under the guo2008 harness (u = ``command`` on every
+    surface, ξ = sin t from ``gust_onset``, surface ``lock`` locked at ``value`` from ``onset``): (samples, m)."""
+    bank.reset()
+    x, u_prev, out = np.zeros(model.n), np.zeros(model.m), []
+    for k in range(int(round(duration / model.dt)) + 1):
+        t = k * model.dt
+        out.append(bank.update(model.C @ x, u_prev).estimate)
+        u = np.full(model.m, command)
+        if t >= onset:
+            u[lock] = value
+        x = model.A @ x + model.B @ u + model.E[:, 0] * (np.sin(t) if t >= gust_onset else 0.0)
+        u_prev = u
+    return np.array(out)
+
+
+def nonsquare_check(dt: float = 1e-3) -> dict:
+    """The adaptive law (16) in its SPR output form on a non-square C (spec B.2 [ERRATUM]): the reduced aircraft
+    :func:`aircraft_three_surfaces`, Q_lyap from :func:`spr_lyapunov_weight`, each surface locked in turn."""
+    model = discretize(aircraft_three_surfaces(), dt)
+    Q = spr_lyapunov_weight(model, NONSQUARE_POLES)
+    bank = LockInPlaceBank(model, NONSQUARE_POLES, Q_lyap=Q, output_form="spr")
+    after = {}
+    for i, name in enumerate(model.input_names):
+        est = lock_estimates(bank, model, i)
+        after[name] = float(np.abs(est[int(round(25.0 / dt)):, i] - 1.0).max())
+    try:
+        LockInPlaceBank(model, NONSQUARE_POLES, output_form="spr")
+        default = "accepted"
+    except Exception as exc:                         # the default Q_lyap = I misses the condition
+        default = f"refused: {exc}"[:120]
+    full = discretize(aircraft_lateral(), dt)
+    short = type(full)(full.A, full.B, full.C[1:], E=full.E, dt=full.dt)
+    try:
+        spr_lyapunov_weight(short, NONSQUARE_POLES)
+        five = "found"
+    except Exception as exc:
+        five = f"refused: {exc}"[:120]
+    return check("non-square C (5×6, reduced aircraft, 3 surfaces): SPR-form law, max |ûᵢ − 1| for t ≥ 25 s, each "
+                 "surface locked at 1 from 15 s", 1.0, {"max_error": after, "default Q_lyap = I": default,
+                 "all five surfaces": five}, 0.01, max(after.values()) < 0.01 and default.startswith("refused")
+                 and five.startswith("refused"),
+                 note="robofdi's example (the paper's C is square): q_deg output dropped, left elevator, left "
+                      "aileron and rudder kept; Q_lyap found so that P T bᵢ = Cᵀ Gᵢ (then Gᵢᵀ rᵢ = (T bᵢ)ᵀ P eᵢ "
+                      "exactly); with all five surfaces rank(C T B) = 4 < 5 and no such P exists; noise-free, "
+                      "gust from 10 s")
 
 
 def _figures(run_dir: Path, rec, J, names):
@@ -123,6 +177,7 @@ def run(name: str = "guo2008", out: str | Path = "runs", seed: int = 0, progress
           for k, (ts, ref) in enumerate(zip(J_TIMES, J_DIGEST))],
         check("matched ‖r₂‖ max for t ≥ 20 s vs mismatched min", "matched → 0", {"matched": matched,
                "mismatched": mismatched}, None, matched < 1e-2 and mismatched > 1.0),
+        nonsquare_check(dt),
     ]
     summary = summarize(rec, name, [f.to_dict() for f in sc.faults])
     summary["switching_index"] = {"t": list(J_TIMES), "J": Js, "paper_harness_digest": [list(j) for j in J_DIGEST]}

@@ -108,3 +108,31 @@ def test_remark2_first_step_estimate_is_exact_and_validates():
     model = LinearModel(A, B, C, dt=0.1)
     with pytest.raises(RobofdiError, match="first_step"):
         AdaptiveFaultEstimator(model, np.zeros((2, 1)), G=np.zeros((1, 1)), first_step=1)
+
+
+def test_remark2_lipschitz_output_variant_is_exact_and_refuses_without_contraction():
+    # y = C x + δ sin(x₁) (Lipschitz δ): x and a constant fault from 6 stacked outputs by the contraction
+    from robofdi.observers.first_step import first_step_estimate_lipschitz
+
+    A = np.array([[0.9, 0.1], [0.0, 0.8]])
+    B = np.array([[0.0], [1.0]])
+    C = np.array([[1.0, 0.0]])
+    delta = 0.02
+    g = lambda v: np.array([delta * np.sin(v[0])])                        # noqa: E731
+    x, f = np.array([0.3, -0.2]), np.array([0.5])
+    us = np.array([[0.1], [-0.2], [0.05], [0.3], [-0.1]])
+    ys = []
+    for k in range(6):
+        ys.append(C @ x + g(x))
+        if k < 5:
+            x = A @ x + B @ (us[k] + f)
+    x_last, f_hat, iterations = first_step_estimate_lipschitz(A, B, C, B, np.array(ys), us, g, delta)
+    np.testing.assert_allclose(f_hat, f, atol=1e-10)
+    np.testing.assert_allclose(x_last, x, atol=1e-10)
+    assert 2 <= iterations < 50
+    f_lin = first_step_estimate(A, B, C, B, np.array(ys), us)[1]
+    assert abs(f_lin[0] - f[0]) > 1e-3                                   # the linear remark is biased here
+    with pytest.raises(RobofdiError, match="contraction factor"):
+        first_step_estimate_lipschitz(A, B, C, B, np.array(ys), us, g, 10.0)
+    with pytest.raises(RobofdiError, match="lipschitz"):
+        first_step_estimate_lipschitz(A, B, C, B, np.array(ys), us, g, -1.0)

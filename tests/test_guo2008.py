@@ -9,7 +9,9 @@ import pytest
 
 from robofdi import RobofdiError
 from robofdi.decision import SwitchingIndexDecision
-from robofdi.models.linear_examples import aircraft_lateral
+from robofdi.experiments.guo2008 import NONSQUARE_POLES, lock_estimates
+from robofdi.models.linear_examples import aircraft_lateral, aircraft_three_surfaces
+from robofdi.observers.spr import spr_lyapunov_weight
 from robofdi.models.linear import LinearModel, discretize
 from robofdi.observers.uio import LockInPlaceBank, UnknownInputObserver, uio_design
 from robofdi.systems.aircraft import (
@@ -119,3 +121,21 @@ def test_spr_output_form_equals_pinv_for_square_C_and_refuses_when_the_condition
         LockInPlaceBank(short, [-3, -3.5, -4, -4.5, -5, -5.5], output_form="spr")
     with pytest.raises(RobofdiError, match="output_form"):
         LockInPlaceBank(m, [-3] * 6, output_form="other")
+
+
+def test_spr_output_form_converges_on_a_non_square_C_with_the_designed_lyapunov_weight():
+    # the reduced aircraft (5×6 C, three surfaces): Q_lyap from spr_lyapunov_weight meets P T bᵢ = Cᵀ Gᵢ; the
+    # SPR-form law then drives û of the locked elevator to the lock value; all five surfaces: refused by rank
+    model = discretize(aircraft_three_surfaces(), 1e-3)
+    assert model.C.shape == (5, 6)
+    Q = spr_lyapunov_weight(model, NONSQUARE_POLES)
+    bank = LockInPlaceBank(model, NONSQUARE_POLES, Q_lyap=Q, output_form="spr")
+    N = np.linalg.svd(model.C)[2][-1]                                 # ker C
+    assert np.abs(N @ bank.P @ bank._Tb).max() < 1e-9 * np.abs(bank.P @ bank._Tb).max()
+    est = lock_estimates(bank, model, 0, duration=2.5, onset=0.5, gust_onset=0.25)
+    assert abs(est[0, 0]) < 1e-12 and abs(est[-1, 0] - 1.0) < 0.02                 # 2 s after the lock
+    with pytest.raises(RobofdiError, match="range of Cᵀ"):
+        LockInPlaceBank(model, NONSQUARE_POLES, output_form="spr")              # Q_lyap = I misses the condition
+    full = discretize(aircraft_lateral(), 1e-3)
+    with pytest.raises(RobofdiError, match=r"rank\(C T B\) = 4 < rank\(T B\) = 5"):
+        spr_lyapunov_weight(LinearModel(full.A, full.B, full.C[1:], E=full.E, dt=full.dt), NONSQUARE_POLES)

@@ -234,3 +234,29 @@ def test_parameter_fault_ekf_is_exact_noise_free_on_a_scalar_plant_and_validates
         ParameterFaultEKF(model, [[[0.1, 0.2]]], [[1.0]], [[1.0]])
     with pytest.raises(RobofdiError, match="fault_drift"):
         ParameterFaultEKF(model, [], [[1.0]], [[1.0]], fault_drift=-1.0)
+
+
+def test_augmented_error_estimator_is_exact_noise_free_and_refuses_unmeasured_directions():
+    # Remark 5's alternative: x⁺ = (A + θ A_θ) x + B (1 − r) u with y = x₁ (x₂ unmeasured), noise-free; θ acts on
+    # the measured x₁, so the regressor is measurable and the least squares on the augmented error is exact
+    from robofdi.observers.augmented_error import AugmentedErrorEstimator
+
+    A = np.array([[0.9, 0.1], [-0.05, 0.8]])
+    B = np.array([[0.0], [1.0]])
+    C = np.array([[1.0, 0.0]])
+    model = LinearModel(A, B, C, dt=0.1)
+    A_th = np.array([[0.0, 0.0], [0.1, 0.0]])
+    theta, r = 0.5, 0.3
+    est = AugmentedErrorEstimator(model, [A_th], poles=(0.3, 0.4), forgetting=1.0, R0=1e8)
+    x, u_prev = np.array([1.0, 0.0]), np.zeros(1)
+    gen = np.random.default_rng(0)
+    for _ in range(300):
+        est.update(C @ x, u_prev)
+        u_prev = gen.normal(size=1)
+        x = (A + theta * A_th) @ x + B @ ((1 - r) * u_prev)
+    assert est.parameter_estimate[0] == pytest.approx(theta, abs=1e-6)
+    assert est.fault_estimate[0] == pytest.approx(r, abs=1e-6)
+    with pytest.raises(RobofdiError, match="unmeasured state"):
+        AugmentedErrorEstimator(model, [np.array([[0.0, 0.1], [0.0, 0.0]])])
+    with pytest.raises(RobofdiError, match="forgetting"):
+        AugmentedErrorEstimator(model, [A_th], forgetting=0.0)

@@ -1,12 +1,14 @@
-"""Mission supervision (book ch. 4, §3 and §3.4): the Theseus phase manager and the HW/SW watchdog, on scripted
-event streams (their run on the AUV is a `reproduction` entry of ch4-auv)."""
+"""Mission supervision (book ch. 4, §3 and §3.4): the Theseus phase manager and the HW/SW watchdog on scripted
+event streams, and the safe manoeuvre on a short AUV run (the longer runs are `reproduction` entries of ch4-auv)."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
 from robofdi import RobofdiError
-from robofdi.control.supervision import MissionPhase, PhaseFaultManager, Watchdog
+from robofdi.control.supervision import MissionPhase, PhaseFaultManager, SupervisedController, Watchdog
+from robofdi.experiments.ch4_auv import _supervised_run
+from robofdi.systems.auv import AuvScenario, _controller
 
 
 def test_a_phase_that_does_not_complete_in_time_switches_to_its_safe_behaviour():
@@ -43,3 +45,18 @@ def test_watchdog_flags_a_held_output_after_its_timeout_and_not_a_changing_one()
     assert first == pytest.approx(2.0 - 0.01 + 0.06, abs=1e-9)     # last change at 1.99 s, > 0.05 s later
     with pytest.raises(RobofdiError, match="timeout"):
         Watchdog(-1.0)
+
+
+def test_supervised_controller_flies_the_safe_manoeuvres_on_the_auv():
+    # a real AUV run: the controller task crashes at 0.5 s (outputs held), the watchdog alarms one timeout later and
+    # the backup task surfaces (depth falls)
+    sc = AuvScenario(duration=3.0)
+    model = sc.nominal_model(sc.simulator())
+    rec, ctl = _supervised_run(sc, 3.0, "watchdog", crash=0.5, backup=_controller(model, sc.allocation),
+                               watchdog=Watchdog(0.05), on_watchdog="surface", ascent_speed=0.25)
+    assert ctl.log[0][0] == pytest.approx(0.48 + 0.06) and ctl.mode == "surface"   # last change at the 0.48 s tick
+    depth = -rec.truth_state[:, 2]
+    k1, k3 = np.argmin(np.abs(rec.time - 1.0)), len(rec.time) - 1
+    assert depth[k1] - depth[k3] > 0.2                                        # rising: ≈ 0.25 m/s after the lag
+    with pytest.raises(RobofdiError, match="backup"):
+        SupervisedController(_controller(model), 0.02, watchdog=Watchdog(0.05))

@@ -2,6 +2,7 @@
 
     helicopter()       Jiang & Chowdhury, IEEE TCST 2005, eqs. (42)–(43): helicopter in the vertical plane, T = 0.01 s
     aircraft_lateral() Guo, Jiang, Zhang & Wang, J. Syst. Eng. Electron. 2008, Sec. 4 (A reconstructed, labels repaired)
+    aircraft_three_surfaces()  the same aircraft reduced: no pitch-rate output (a 5×6 C), one surface per axis
     chip_refiner()     Wang, book ch. 2 (Caccavale & Villani eds., 2003), Sec. 10.2: TMP chip-refiner motor load
     f16_vertical()     the seed-004 example class: a documented F-16-class vertical-plane model (see its docstring)
 
@@ -14,8 +15,8 @@ import numpy as np
 
 from robofdi.models.linear import LinearModel
 
-__all__ = ["helicopter", "HELICOPTER_NOISE", "aircraft_lateral", "AIRCRAFT_DISTURBANCE", "chip_refiner",
-           "CHIP_REFINER", "f16_vertical"]
+__all__ = ["helicopter", "HELICOPTER_NOISE", "aircraft_lateral", "aircraft_three_surfaces", "AIRCRAFT_DISTURBANCE",
+           "chip_refiner", "CHIP_REFINER", "f16_vertical"]
 
 #: Paper's noise covariances for the helicopter: process S (per sample, on x) and sensor Q (on y) — note the
 #: paper's naming: S is the process covariance, Q the sensor one (Jiang & Chowdhury eq. (1)–(4), Sec. V).
@@ -81,6 +82,20 @@ def aircraft_lateral() -> LinearModel:
                        output_names=["q_deg", "p_stab", "r_stab", "alpha", "beta", "w_meas"],
                        units={"state": ["ft/s", "ft/s", "rad/s", "ft/s", "rad/s", "rad/s"], "u": ["deg"] * 5,
                               "y": ["deg/s", "deg/s", "deg/s", "deg", "deg", "ft/s"]})
+
+
+def aircraft_three_surfaces() -> LinearModel:
+    """:func:`aircraft_lateral` reduced (robofdi's example, not the paper's): the pitch-rate output q_deg removed
+    (C is 5×6, so C⁺C ≠ I) and one surface per axis kept — left elevator, left aileron, rudder. For these the SPR
+    output condition of the adaptive law can be met (:func:`robofdi.observers.spr.spr_lyapunov_weight`); with all
+    five surfaces it cannot (rank(C T B) = 4 < 5 on every 5-output variant)."""
+    full = aircraft_lateral()
+    keep_y, keep_u = [1, 2, 3, 4, 5], [0, 2, 4]
+    return LinearModel(full.A, full.B[:, keep_u], full.C[keep_y], E=full.E, state_names=full.state_names,
+                       input_names=[full.input_names[i] for i in keep_u],
+                       output_names=[full.output_names[i] for i in keep_y],
+                       units={"state": list(full.units["state"]), "u": ["deg"] * 3,
+                              "y": [full.units["y"][i] for i in keep_y]})
 
 
 #: Controller and observer data of the TMP example (Wang, ch. 2, Sec. 10.2): healthy gain f_H, state feedback K
