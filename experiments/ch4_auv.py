@@ -38,7 +38,7 @@ from robofdi.evaluate.figures import save_figure
 from robofdi.evaluate import summarize
 from robofdi.evaluate.headline import recovery_section
 from robofdi.evaluate.reproduction import reproduction_check as check
-from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, write_run_folder
+from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, replay_writer, write_run_folder
 from robofdi.faults import Fault
 from robofdi.ftc.allocation import capability
 from robofdi.progress import Progress, run_ticks
@@ -260,10 +260,9 @@ def _run_ch4_auv(name, run_dir, seed, progress, replay):
         variants = {k: records[k] for k in ("no_ftc", "oracle", "diagnosed")}
         plot_thrusters(variants, sc.faults, run_dir / "figures" / "fig10_thrusters.png")
         plot_task_space(variants, sc.faults, run_dir / "figures" / "fig11_task_space.png")
-        if replay:
-            from robofdi.viz import write_replay_html
-
-            write_replay_html(main, run_dir / "replay.html", diagnoser=summary.get("lead", {}).get("diagnoser"))
+        write = replay_writer() if replay else None
+        if write is not None:
+            write(main, run_dir / "replay.html", diagnoser=summary.get("lead", {}).get("diagnoser"))
     return summary
 
 

@@ -27,7 +27,7 @@ from robofdi.errors import RobofdiError
 from robofdi.evaluate.figures import save_figure
 from robofdi.evaluate import summarize
 from robofdi.evaluate.headline import lead_diagnoser
-from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir
+from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, replay_writer
 from robofdi.evaluate.summary import write_summary
 from robofdi.evaluate.reproduction import reproduction_check as check
 from robofdi.control.speed import RPM
@@ -174,10 +174,9 @@ def run(name: str = "ch6-hydraulic", out: str | Path = "runs", seed: int = 0, pr
             folder.mkdir(exist_ok=True)
             rec.save(folder / "record.h5")
             write_summary(summaries[sc_name], folder / "summary.json")
-            if replay:
-                from robofdi.viz.hydraulic import write_hydraulic_replay
-
-                write_hydraulic_replay(rec, folder / "replay.html")
+            write = replay_writer("write_hydraulic_replay", "robofdi.viz.hydraulic") if replay else None
+            if write is not None:
+                write(rec, folder / "replay.html")
         figures = run_dir / "figures"
         figures.mkdir(exist_ok=True)
         plot_fault_figures(records, figures)

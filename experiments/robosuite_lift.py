@@ -30,7 +30,7 @@ import numpy as np
 from robofdi.evaluate import summarize
 from robofdi.evaluate.headline import recovery_section
 from robofdi.evaluate.figures import save_figure
-from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, write_run_folder
+from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, replay_writer, write_run_folder
 from robofdi.progress import Progress
 
 EXPERIMENTS = {"robosuite-lift": "robosuite Panda Lift (OSC_POSE, scripted grasp): joint-2 loss of effectiveness mid-task, "
@@ -114,10 +114,9 @@ def run(name: str = "robosuite-lift", out: str | Path = "runs", seed: int = 0, p
         write_run_folder(run_dir, record, summary, {"compensated": compensated, "fault_free": records["fault-free"]},
                          replay=replay)
         plot_cube_heights(episodes, faults, run_dir / "figures" / "cube_height.png")
-        if replay:
-            from robofdi.viz import write_replay_html
-
-            write_replay_html(run_dir / "compensated.h5", run_dir / "replay_compensated.html")
+        write = replay_writer() if replay else None
+        if write is not None:
+            write(run_dir / "compensated.h5", run_dir / "replay_compensated.html")
     return summary, run_dir
 
 
