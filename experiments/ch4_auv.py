@@ -145,10 +145,22 @@ def _save(fig, bottom_axes, path: Path) -> Path:
 VARIANT_COLORS = {"fault_free": "0.55", "no_ftc": "C3", "oracle": "C2", "diagnosed": "C0"}
 
 
+#: Window [s] of the mean drawn over the raw (chattering) thrust in Fig. 10.
+MEAN_WINDOW = 1.0
+
+
+def _moving_mean(time: np.ndarray, x: np.ndarray, window: float) -> np.ndarray:
+    """Centred moving mean of ``x`` over ``window`` seconds (uniform sampling assumed; shorter at the ends)."""
+    n = max(1, int(round(window / float(np.median(np.diff(time)))))) if time.size > 1 else 1
+    kernel = np.ones(n)
+    return np.convolve(x, kernel, "same") / np.convolve(np.ones_like(x), kernel, "same")
+
+
 def thruster_figure(records: dict[str, Record], faults):
     """Fig. 10 of the survey as small multiples: one panel per thruster (vertical 5–8 left, horizontal 1–4 right),
-    each run variant one line in it; a faulty thruster's panel is shaded from its onset, and every onset is a
-    labelled line. ``faults``: the scenario's faults (or bare onset times)."""
+    each run variant in it as its raw thrust (faint) and its 1 s mean (the oracle dashed, on top); a faulty
+    thruster's panel is shaded from its onset, and every onset is a labelled line. ``faults``: the scenario's
+    faults (or bare onset times)."""
     import matplotlib.pyplot as plt
 
     ref = next(iter(records.values()))
@@ -158,8 +170,11 @@ def thruster_figure(records: dict[str, Record], faults):
     for col, group in ((0, range(4, 8)), (1, range(0, 4))):
         for row, i in enumerate(group):
             ax = axes[row, col]
-            for name, rec in records.items():
-                ax.plot(rec.time, rec.u_applied[:, i], lw=0.8, color=VARIANT_COLORS.get(name), label=name)
+            for name, rec in records.items():          # raw (the chattering) faint, its 1 s mean on top
+                color = VARIANT_COLORS.get(name)
+                ax.plot(rec.time, rec.u_applied[:, i], lw=0.4, color=color, alpha=0.3, gid=f"raw:{name}")
+                ax.plot(rec.time, _moving_mean(rec.time, rec.u_applied[:, i], MEAN_WINDOW), lw=1.3, color=color,
+                        ls="--" if name == "oracle" else "-", label=f"{name} (1 s mean)", zorder=3 if name == "oracle" else 2)
             if cols[i] in faulty:
                 ax.axvspan(faulty[cols[i]], float(ref.time[-1]), color="C3", alpha=0.08, lw=0)
             event_lines(ax, faults, label=row == 0 or cols[i] in faulty)

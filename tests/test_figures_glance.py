@@ -72,10 +72,12 @@ def test_fig10_is_one_panel_per_thruster_with_the_faulty_ones_marked():
     by_name = {ax.get_ylabel().split("\n")[0]: ax for ax in axes}
     assert sorted(by_name) == sorted(THRUSTERS)
     for name, ax in by_name.items():
-        # each panel: this thruster only, one line per variant (the onset lines are the only other lines)
-        data = [ln for ln in ax.get_lines() if len(ln.get_xdata()) > 2]
-        assert len(data) == 3 and all(np.allclose(ln.get_ydata(), records[ln.get_label()].u_applied[:, THRUSTERS.index(name)])
-                                      for ln in data)
+        # each panel: this thruster only, each variant's raw thrust and its 1 s mean (legend entries)
+        raw = {ln.get_gid()[4:]: ln for ln in ax.get_lines() if (ln.get_gid() or "").startswith("raw:")}
+        assert sorted(raw) == sorted(records)
+        assert all(np.allclose(ln.get_ydata(), records[k].u_applied[:, THRUSTERS.index(name)]) for k, ln in raw.items())
+        means = [ln for ln in ax.get_lines() if ln.get_label().endswith("(1 s mean)")]
+        assert len(means) == 3 and all(np.ptp(m.get_ydata()) < np.ptp(raw["oracle"].get_ydata()) for m in means)
     drop = by_name["thruster2"]
     assert "faulty from 7.8 s" in drop.get_title("left") and any("thruster2_off" in s and "7.8 s" in s for s in _texts(drop))
     assert "faulty" not in by_name["thruster3"].get_title("left")
