@@ -24,6 +24,7 @@ import numpy as np
 import sympy as sp
 
 from robofdi.errors import RobofdiError
+from robofdi.evaluate.annotate import event_lines
 from robofdi.evaluate.figures import save_figure
 from robofdi.evaluate import summarize
 from robofdi.evaluate.headline import lead_diagnoser
@@ -262,9 +263,8 @@ def plot_fault_figures(records: dict, folder: Path) -> None:
         axes[4].set_ylabel("motor speed [rpm]")
         axes[5].set_ylabel("load pump ΔP [psi]")
         axes[5].set_xlabel("time [s]")
-        for f in rec.meta.get("faults", []):
-            for ax in axes:
-                ax.axvline(f["onset"], color="b", lw=0.6, ls="--")
+        for ax in axes:
+            event_lines(ax, rec.meta.get("faults", []), label=ax is axes[0], color="b", ls="--")
         fig.suptitle(f"Fig. {6 + k} analogue: {sc} (black) vs fault-free (grey), NLAR tests")
         save_figure(fig, folder / f"fig{6 + k}_{sc}.png")
 

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from robofdi.evaluate.annotate import event_lines
 from robofdi.evaluate import summarize
 from robofdi.evaluate.headline import recovery_section
 from robofdi.evaluate.figures import save_figure
@@ -48,8 +49,7 @@ def plot_cube_heights(episodes: dict, faults, path: Path) -> Path:
     for label, ep in episodes.items():
         ax.plot(ep.step_times, ep.cube_height, label=f"{label} ({'success' if ep.success else 'failure'})")
     ax.axhline(0.04, color="0.4", ls="--", lw=0.8, label="success height")
-    for f in faults:
-        ax.axvline(f.onset, color="0.5", ls=":", lw=0.8)
+    event_lines(ax, faults)
     ax.set_xlabel("time [s]")
     ax.set_ylabel("cube height above table [m]")
     ax.legend(fontsize=8)
