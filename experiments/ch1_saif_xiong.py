@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from robofdi.errors import RobofdiError
+from robofdi.evaluate.annotate import event_lines
 from robofdi.evaluate import summarize
 from robofdi.evaluate.figures import save_figure
 from robofdi.evaluate.reproduction import reproduction_check as check
@@ -116,8 +117,7 @@ def _fig_flexible(run_dir: Path, rec, smo):
         ax.plot(t, X[:, i], "k", lw=1.2, label="MuJoCo (truth)")
         ax.plot(t, H[:, i], "r--", lw=0.9, label="SMO estimate")
         ax.set_ylabel(f"{labels[i][0]} [{labels[i][1]}]")
-        for ta in (0.2, 0.8, 1.8):
-            ax.axvline(ta, color="0.7", lw=0.6, ls=":")
+        event_lines(ax, [(ta, f"stage {k} on") for k, ta in enumerate((0.2, 0.8, 1.8), 1)], label=i == 0, color="0.5")
     axes[0].legend(fontsize=7)
     axes[-1].set_xlabel("t [s]")
     fig.suptitle("Fig. 9 (like): SMO for a flexible-joint robot, motor encoder only (stages on at 0.2/0.8/1.8 s)",

@@ -33,11 +33,12 @@ from pathlib import Path
 import numpy as np
 
 from robofdi.errors import RobofdiError
+from robofdi.evaluate.annotate import event_lines
 from robofdi.evaluate.figures import save_figure
 from robofdi.evaluate import summarize
 from robofdi.evaluate.headline import recovery_section
 from robofdi.evaluate.reproduction import reproduction_check as check
-from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, write_run_folder
+from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, replay_writer, write_run_folder
 from robofdi.faults import Fault
 from robofdi.ftc.allocation import capability
 from robofdi.progress import Progress, run_ticks
@@ -140,28 +141,64 @@ def _save(fig, bottom_axes, path: Path) -> Path:
     return save_figure(fig, path)
 
 
-def plot_thrusters(records: dict[str, Record], onsets, path: Path) -> Path:
-    """Fig. 10 of the survey: thruster demands per group (vertical left, horizontal right), one row per variant."""
+#: One colour per run variant, the same in every ch4 figure.
+VARIANT_COLORS = {"fault_free": "0.55", "no_ftc": "C3", "oracle": "C2", "diagnosed": "C0"}
+
+
+#: Window [s] of the mean drawn over the raw (chattering) thrust in Fig. 10.
+MEAN_WINDOW = 1.0
+
+
+def _moving_mean(time: np.ndarray, x: np.ndarray, window: float) -> np.ndarray:
+    """Centred moving mean of ``x`` over ``window`` seconds (uniform sampling assumed; shorter at the ends)."""
+    n = max(1, int(round(window / float(np.median(np.diff(time)))))) if time.size > 1 else 1
+    kernel = np.ones(n)
+    return np.convolve(x, kernel, "same") / np.convolve(np.ones_like(x), kernel, "same")
+
+
+def thruster_figure(records: dict[str, Record], faults):
+    """Fig. 10 of the survey as small multiples: one panel per thruster (vertical 5–8 left, horizontal 1–4 right),
+    each run variant in it as its raw thrust (faint) and its 1 s mean (the oracle dashed, on top); a faulty
+    thruster's panel is shaded from its onset, and every onset is a labelled line. ``faults``: the scenario's
+    faults (or bare onset times)."""
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(len(records), 2, figsize=(11, 2.3 * len(records)), sharex=True, squeeze=False)
-    for row, (name, rec) in enumerate(records.items()):
-        u, cols = rec.u_applied, rec.columns["truth/u_applied"]
-        for col, group in ((0, range(4, 8)), (1, range(0, 4))):
+    ref = next(iter(records.values()))
+    cols = ref.columns["truth/u_applied"]
+    fig, axes = plt.subplots(4, 2, figsize=(11, 7.5), sharex=True, squeeze=False)
+    faulty = {getattr(f, "target", None): f.onset for f in faults if hasattr(f, "onset")}
+    for col, group in ((0, range(4, 8)), (1, range(0, 4))):
+        for row, i in enumerate(group):
             ax = axes[row, col]
-            for i in group:
-                ax.plot(rec.time, u[:, i], lw=0.7, label=cols[i])
-            for t in onsets:
-                ax.axvline(t, color="0.4", ls=":", lw=0.8)
-            ax.set_ylabel(f"{name}\nthrust [N]", fontsize=8)
-            ax.legend(fontsize=6, ncol=4, loc="upper left")
-    axes[0, 0].set_title("vertical thrusters 5-8", fontsize=9)
-    axes[0, 1].set_title("horizontal thrusters 1-4", fontsize=9)
-    return _save(fig, axes[-1], path)
+            for name, rec in records.items():          # raw (the chattering) faint, its 1 s mean on top
+                color = VARIANT_COLORS.get(name)
+                ax.plot(rec.time, rec.u_applied[:, i], lw=0.4, color=color, alpha=0.3, gid=f"raw:{name}")
+                ax.plot(rec.time, _moving_mean(rec.time, rec.u_applied[:, i], MEAN_WINDOW), lw=1.3, color=color,
+                        ls="--" if name == "oracle" else "-", label=f"{name} (1 s mean)", zorder=3 if name == "oracle" else 2)
+            if cols[i] in faulty:
+                ax.axvspan(faulty[cols[i]], float(ref.time[-1]), color="C3", alpha=0.08, lw=0)
+            event_lines(ax, faults, label=row == 0 or cols[i] in faulty)
+            ax.set_ylabel(f"{cols[i]}\nthrust [N]", fontsize=8)
+            ax.tick_params(labelsize=7)
+            ax.grid(alpha=0.25)
+            ax.set_title(f"{cols[i]}" + (f": faulty from {faulty[cols[i]]:g} s" if cols[i] in faulty else ""),
+                         fontsize=8, color="C3" if cols[i] in faulty else "k", loc="left")
+    fig.legend(*axes[0, 0].get_legend_handles_labels(), fontsize=7, ncol=len(records), loc="upper right")
+    fig.suptitle("applied thrust per thruster (vertical 5–8 left, horizontal 1–4 right); faulty span shaded",
+                 fontsize=9, x=0.02, ha="left")
+    for ax in axes[-1]:
+        ax.set_xlabel("time [s]")
+    return fig
 
 
-def plot_task_space(records: dict[str, Record], onsets, path: Path) -> Path:
-    """Fig. 11 of the survey: task-space trajectories (left, with the reference dashed) and errors (right)."""
+def plot_thrusters(records: dict[str, Record], faults, path: Path) -> Path:
+    """:func:`thruster_figure`, saved."""
+    return save_figure(thruster_figure(records, faults), path)
+
+
+def plot_task_space(records: dict[str, Record], faults, path: Path) -> Path:
+    """Fig. 11 of the survey: task-space trajectories (left, with the reference dashed) and errors (right), the
+    fault onsets labelled."""
     import matplotlib.pyplot as plt
 
     labels, units = ("x", "y", "z"), ("m", "m", "m")
@@ -170,14 +207,15 @@ def plot_task_space(records: dict[str, Record], onsets, path: Path) -> Path:
     for j in range(3):
         axes[j, 0].plot(ref.time, ref.signals["reference"][:, j], "k--", lw=0.8, label="reference")
         for name, rec in records.items():
-            axes[j, 0].plot(rec.time, rec.truth_state[:, j], lw=0.8, label=name)
-            axes[j, 1].plot(rec.time, rec.signals["reference"][:, j] - rec.truth_state[:, j], lw=0.8, label=name)
+            color = VARIANT_COLORS.get(name)
+            axes[j, 0].plot(rec.time, rec.truth_state[:, j], lw=0.8, color=color, label=name)
+            axes[j, 1].plot(rec.time, rec.signals["reference"][:, j] - rec.truth_state[:, j], lw=0.8, color=color,
+                            label=name)
         axes[j, 0].set_ylabel(f"{labels[j]} [{units[j]}]")
         axes[j, 1].set_ylabel(f"{labels[j]} error [{units[j]}]")
         for ax in axes[j]:
-            for t in onsets:
-                ax.axvline(t, color="0.4", ls=":", lw=0.8)
-    axes[0, 0].legend(fontsize=7, ncol=2)
+            event_lines(ax, faults, label=j == 0)
+    axes[0, 0].legend(fontsize=7, ncol=2, loc="lower left")
     return _save(fig, axes[-1], path)
 
 
@@ -234,14 +272,12 @@ def _run_ch4_auv(name, run_dir, seed, progress, replay):
     with progress.stage("run folder: records, figures" + (", replay" if replay else "")):
         write_run_folder(run_dir, main, summary, {k: records[k] for k in ("fault_free", "no_ftc", "oracle")},
                          replay=False)
-        onsets = [f.onset for f in sc.faults]
         variants = {k: records[k] for k in ("no_ftc", "oracle", "diagnosed")}
-        plot_thrusters(variants, onsets, run_dir / "figures" / "fig10_thrusters.png")
-        plot_task_space(variants, onsets, run_dir / "figures" / "fig11_task_space.png")
-        if replay:
-            from robofdi.viz import write_replay_html
-
-            write_replay_html(main, run_dir / "replay.html", diagnoser=summary.get("lead", {}).get("diagnoser"))
+        plot_thrusters(variants, sc.faults, run_dir / "figures" / "fig10_thrusters.png")
+        plot_task_space(variants, sc.faults, run_dir / "figures" / "fig11_task_space.png")
+        write = replay_writer() if replay else None
+        if write is not None:
+            write(main, run_dir / "replay.html", diagnoser=summary.get("lead", {}).get("diagnoser"))
     return summary
 
 
@@ -399,9 +435,8 @@ def _plot_nis(record: Record, sc: AuvScenario, path: Path) -> Path:
     for j, c in enumerate(tr.components):
         ax.semilogy(tr.time, tr.residual[:, j], lw=0.9, label=c.replace("nis_", "H: "))
     ax.axhline(tr.threshold[0], color="k", ls="--", lw=0.8, label="χ² 99 % bound")
-    for f in sc.faults:
-        ax.axvline(f.onset, color="0.4", ls=":", label=f"{f.name} onset")
     ax.set_ylim(bottom=0.5)                       # the first samples, before the window fills, are tiny
+    event_lines(ax, sc.faults)
     ax.set_ylabel(f"windowed NIS (W = {sc.ekf_window:g} s) [1]")
     ax.legend(fontsize=7, ncol=3)
     return _save(fig, ax, path)
@@ -451,34 +486,56 @@ def _plot_depth(record: Record, sc: AuvScenario, switch, path: Path) -> Path:
     ax.plot(record.time, -record.truth_state[:, 2], lw=1.0, label="true depth")
     ax.plot(record.time, y[:, 2], lw=0.6, label="pressure sensor")
     ax.plot(record.time, sc.plant.floor_depth - y[:, 3], lw=0.6, label="sonar (H − altitude)")
-    ax.axvline(sc.faults[0].onset, color="0.4", ls=":", label="onset")
+    event_lines(ax, sc.faults)
     if switch is not None:
-        ax.axvline(switch, color="C3", ls="--", lw=0.8, label="switch")
+        event_lines(ax, [(switch, "switched to the sonar")], color="C3", ls="--")
     ax.set_ylabel("depth [m]")
     ax.legend(fontsize=7, ncol=3)
     return _save(fig, ax, path)
 
 
-def _plot_currents(record: Record, sc: AuvScenario, path: Path) -> Path:
-    """Fig. 8 of the survey: expected (identified characteristic) vs measured motor current of the faulty thrusters."""
+def current_figure(record: Record, faults):
+    """Fig. 8 of the survey, per faulty thruster two panels on one time axis: the measured motor current [A] (its
+    ±20 A range), and below it, on its own scale, the current map's detection trace — measured − expected
+    (filtered) [A] against its ±threshold band, alarm samples red, isolated span shaded — the onset labelled."""
     import matplotlib.pyplot as plt
 
     names = record.columns["signals/u"]
     p = len(names)
     tr = record.diagnosers["current_map"]
-    fig, axes = plt.subplots(len(sc.faults), 1, figsize=(9, 2.6 * len(sc.faults)), sharex=True, squeeze=False)
-    for ax, f in zip(axes[:, 0], sc.faults):
+    n = len(faults)
+    fig, axes = plt.subplots(2 * n, 1, figsize=(9, 3.6 * n), sharex=True, squeeze=False,
+                             gridspec_kw={"height_ratios": [1, 1.3] * n})
+    for k, f in enumerate(faults):
+        top, bottom = axes[2 * k, 0], axes[2 * k + 1, 0]
         i = names.index(f.target)
-        measured = record.signals["y_meas"][:, 13 + p + i]
-        ax.plot(record.time, measured, lw=0.6, color="0.6", label="measured current")
-        ax.plot(tr.time, tr.residual[:, i], lw=0.8, color="C3", label="measured − expected (filtered)")
-        ax.axhline(tr.threshold[i], color="k", ls="--", lw=0.7)
-        ax.axhline(-tr.threshold[i], color="k", ls="--", lw=0.7)
-        ax.axvline(f.onset, color="0.3", ls=":")
-        ax.set_ylabel(f"{f.target} [A]")
-        ax.set_title(f"{f.name} ({f.kind})", fontsize=9)
-        ax.legend(fontsize=7)
-    return _save(fig, axes[-1], path)
+        top.plot(record.time, record.signals["y_meas"][:, 13 + p + i], lw=0.6, color="0.4")
+        top.set_ylabel(f"{f.target}\ncurrent [A]", fontsize=8)
+        top.set_title(f"{f.name} ({f.kind} on {f.target}): measured motor current", fontsize=9, loc="left")
+        r, thr = tr.residual[:, i], float(tr.threshold[i])
+        bottom.axhspan(-thr, thr, color="0.9", lw=0, label=f"±threshold ({thr:.3g} A)")
+        bottom.plot(tr.time, r, lw=0.8, color="C0", label="measured − expected (filtered)")
+        hit = tr.alarm[:, i]
+        if hit.any():
+            bottom.plot(tr.time[hit], r[hit], ".", ms=2, color="C3", label="alarm")
+        named = [f.target in str(s).split("+") for s in tr.isolated]
+        if any(named):
+            bottom.fill_between(tr.time, 0, 1, where=named, transform=bottom.get_xaxis_transform(), color="C3",
+                                alpha=0.08, lw=0, label=f"{f.target} isolated")
+        bottom.set_ylabel("residual [A]", fontsize=8)
+        bottom.set_title("current map detection trace", fontsize=8, loc="left")
+        bottom.legend(fontsize=6.5, loc="lower left", ncol=2)
+        for ax in (top, bottom):
+            ax.tick_params(labelsize=7)
+            ax.grid(alpha=0.25)
+            event_lines(ax, faults, label=ax is top)
+    axes[-1, 0].set_xlabel("time [s]")
+    return fig
+
+
+def _plot_currents(record: Record, sc: AuvScenario, path: Path) -> Path:
+    """:func:`current_figure` of the scenario's faults, saved."""
+    return save_figure(current_figure(record, sc.faults), path)
 
 
 # ---- reproduction lists (the digest's checkable numbers; the survey itself has almost none) -------------------

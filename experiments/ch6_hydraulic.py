@@ -24,10 +24,11 @@ import numpy as np
 import sympy as sp
 
 from robofdi.errors import RobofdiError
+from robofdi.evaluate.annotate import event_lines
 from robofdi.evaluate.figures import save_figure
 from robofdi.evaluate import summarize
 from robofdi.evaluate.headline import lead_diagnoser
-from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir
+from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, replay_writer
 from robofdi.evaluate.summary import write_summary
 from robofdi.evaluate.reproduction import reproduction_check as check
 from robofdi.control.speed import RPM
@@ -174,10 +175,9 @@ def run(name: str = "ch6-hydraulic", out: str | Path = "runs", seed: int = 0, pr
             folder.mkdir(exist_ok=True)
             rec.save(folder / "record.h5")
             write_summary(summaries[sc_name], folder / "summary.json")
-            if replay:
-                from robofdi.viz.hydraulic import write_hydraulic_replay
-
-                write_hydraulic_replay(rec, folder / "replay.html")
+            write = replay_writer("write_hydraulic_replay", "robofdi.viz.hydraulic") if replay else None
+            if write is not None:
+                write(rec, folder / "replay.html")
         figures = run_dir / "figures"
         figures.mkdir(exist_ok=True)
         plot_fault_figures(records, figures)
@@ -263,9 +263,8 @@ def plot_fault_figures(records: dict, folder: Path) -> None:
         axes[4].set_ylabel("motor speed [rpm]")
         axes[5].set_ylabel("load pump ΔP [psi]")
         axes[5].set_xlabel("time [s]")
-        for f in rec.meta.get("faults", []):
-            for ax in axes:
-                ax.axvline(f["onset"], color="b", lw=0.6, ls="--")
+        for ax in axes:
+            event_lines(ax, rec.meta.get("faults", []), label=ax is axes[0], color="b", ls="--")
         fig.suptitle(f"Fig. {6 + k} analogue: {sc} (black) vs fault-free (grey), NLAR tests")
         save_figure(fig, folder / f"fig{6 + k}_{sc}.png")
 

@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from robofdi.errors import RobofdiError
+from robofdi.evaluate.annotate import event_lines
 from robofdi.evaluate.figures import save_figure
 from robofdi.evaluate.reproduction import reproduction_check as check
 from robofdi.evaluate.run_folder import prepare_run_dir
@@ -164,7 +165,7 @@ def _pendulum(run_dir: Path, progress: Progress) -> dict:
     plt = _plt()
     fig, axes = plt.subplots(3, 1, figsize=(7, 7), sharex=True)
     axes[0].plot(t, main["ey"], lw=0.8)
-    axes[0].axvline(ts, color="0.5", ls=":")
+    event_lines(axes[0], [(ts, "sliding")])
     axes[0].set_ylabel("e_y [rad]")
     axes[0].set_title(f"Fig. 2 (like): output error; sliding from {ts:.3f} s", fontsize=9)
     axes[1].plot(t, main["e"][:, 0], lw=0.8, label="e_1 (φ)")

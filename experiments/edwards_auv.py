@@ -32,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from robofdi.evaluate.annotate import event_lines
 from robofdi.evaluate import summarize
 from robofdi.evaluate.headline import recovery_section
 from robofdi.evaluate.reproduction import reproduction_check as check
@@ -78,8 +79,7 @@ def _figure(records: dict, onsets, path: Path):
         axes[1].set_ylabel("thrust [N] (SMC-CA, diagnosed)")
         axes[1].legend(fontsize=6, ncol=4)
     for ax in axes:
-        for t in onsets:
-            ax.axvline(t, color="0.4", ls=":", lw=0.8)
+        event_lines(ax, onsets, label=ax is axes[0])
     axes[1].set_xlabel("time [s]")
     save_figure(fig, path)
 
@@ -187,5 +187,5 @@ def run(name: str = "edwards-auv-ftc", out: str | Path = "runs", seed: int = 0, 
         write_run_folder(run_dir, main, summary, others, replay=replay)
         shown = {k: records[k] for k in ("smc_ca fault-free", "smc_ca no FTC", main_label, "ch4 no FTC",
                                          "ch4 constrained diagnosed", "ch4 pseudo_inverse diagnosed") if k in records}
-        _figure(shown, [f.onset for f in ch4.faults], run_dir / "figures" / "smc_ca_vs_ch4.png")
+        _figure(shown, ch4.faults, run_dir / "figures" / "smc_ca_vs_ch4.png")
     return summary, run_dir

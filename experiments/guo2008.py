@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from robofdi.evaluate.annotate import event_lines
 from robofdi.evaluate.figures import save_figure
 from robofdi.evaluate import summarize
 from robofdi.evaluate.reproduction import reproduction_check as check
@@ -107,8 +108,7 @@ def _figures(run_dir: Path, rec, J, names):
     fig, ax = plt.subplots(figsize=(7, 3.5))
     for j, c in enumerate(rec.columns["signals/y_meas"]):
         ax.plot(rec.time, rec.signals["y_meas"][:, j], lw=0.8, label=f"{c} [{rec.units['signals/y_meas'][j]}]")
-    ax.axvline(10, color="0.5", ls=":")
-    ax.axvline(15, color="0.5", ls=":")
+    event_lines(ax, [(10.0, "gust"), (15.0, "elevator lock")])
     ax.set_xlabel("time [s]")
     ax.legend(fontsize=6, ncol=3)
     ax.set_title("Fig. 2 (like): outputs under the gust (10 s) and the elevator lock (15 s)", fontsize=9)

@@ -27,10 +27,11 @@ from pathlib import Path
 
 import numpy as np
 
+from robofdi.evaluate.annotate import event_lines
 from robofdi.evaluate import summarize
 from robofdi.evaluate.headline import recovery_section
 from robofdi.evaluate.figures import save_figure
-from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, write_run_folder
+from robofdi.evaluate.run_folder import keep_partial, prepare_run_dir, replay_writer, write_run_folder
 from robofdi.progress import Progress
 
 EXPERIMENTS = {"robosuite-lift": "robosuite Panda Lift (OSC_POSE, scripted grasp): joint-2 loss of effectiveness mid-task, "
@@ -48,8 +49,7 @@ def plot_cube_heights(episodes: dict, faults, path: Path) -> Path:
     for label, ep in episodes.items():
         ax.plot(ep.step_times, ep.cube_height, label=f"{label} ({'success' if ep.success else 'failure'})")
     ax.axhline(0.04, color="0.4", ls="--", lw=0.8, label="success height")
-    for f in faults:
-        ax.axvline(f.onset, color="0.5", ls=":", lw=0.8)
+    event_lines(ax, faults)
     ax.set_xlabel("time [s]")
     ax.set_ylabel("cube height above table [m]")
     ax.legend(fontsize=8)
@@ -114,10 +114,9 @@ def run(name: str = "robosuite-lift", out: str | Path = "runs", seed: int = 0, p
         write_run_folder(run_dir, record, summary, {"compensated": compensated, "fault_free": records["fault-free"]},
                          replay=replay)
         plot_cube_heights(episodes, faults, run_dir / "figures" / "cube_height.png")
-        if replay:
-            from robofdi.viz import write_replay_html
-
-            write_replay_html(run_dir / "compensated.h5", run_dir / "replay_compensated.html")
+        write = replay_writer() if replay else None
+        if write is not None:
+            write(run_dir / "compensated.h5", run_dir / "replay_compensated.html")
     return summary, run_dir
 
 

@@ -125,9 +125,9 @@ def _cmd_view(args) -> int:
             path, args.rerun or path.parent / "run.rrd", diagnoser=args.diagnoser)
         print(f"rerun recording: {rrd} (open it with: rerun {rrd})")
         return 0
-    from robofdi.viz import view
+    from robofdi.adapters import adapter
 
-    view(path, diagnoser=args.diagnoser, open_browser=not args.no_browser)
+    adapter("robofdi.viz", "viz").view(path, diagnoser=args.diagnoser, open_browser=not args.no_browser)
     return 0
 
 

@@ -38,19 +38,53 @@ def test_viz_and_experiments_import_from_another_folder_only_inside_robofdi(tmp_
     assert out.stdout.strip() == "True"
 
 
-def test_pyproject_lists_every_package():
-    """The packages are explicit in pyproject.toml: a new subpackage that is not listed would be missing from the wheel."""
+def _setuptools_config() -> dict:
     tomllib = pytest.importorskip("tomllib")
-    setuptools_cfg = tomllib.loads((REPO / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["setuptools"]
-    listed = set(setuptools_cfg["packages"])
-    roots = {"robofdi": REPO / "robofdi", **{k: REPO / v for k, v in setuptools_cfg["package-dir"].items()}}
-    found = set()
+    return tomllib.loads((REPO / "pyproject.toml").read_text(encoding="utf-8"))
+
+
+def _shipped_folders() -> dict[str, Path]:
+    """Every folder of the package roots that holds a file, as its dotted package name (code and data folders)."""
+    cfg = _setuptools_config()["tool"]["setuptools"]
+    roots = {"robofdi": REPO / "robofdi", **{k: REPO / v for k, v in cfg["package-dir"].items()}}
+    found = {}
     for name, root in roots.items():
-        for init in root.rglob("__init__.py"):
-            rel = init.parent.relative_to(root).parts
-            if "__pycache__" not in rel:
-                found.add(".".join((name, *rel)))
-    assert found == listed
+        for path in root.rglob("*"):
+            rel = path.parent.relative_to(root).parts
+            if path.is_file() and "__pycache__" not in rel and not path.name.endswith(".pyc") \
+                    and not any(p.endswith(".egg-info") for p in rel):
+                found[".".join((name, *rel))] = path.parent
+    return found
+
+
+def test_pyproject_lists_every_package():
+    """The packages are explicit in pyproject.toml: a new subpackage that is not listed would be missing from the
+    wheel, and a data folder (assets/logs, the URDF package, the campaign specs) that is not listed makes setuptools
+    warn "Package ... is absent from the `packages` configuration" on every install."""
+    listed = set(_setuptools_config()["tool"]["setuptools"]["packages"])
+    assert set(_shipped_folders()) == listed
+
+
+def test_every_asset_and_campaign_spec_matches_a_package_data_pattern():
+    """Each non-Python file of a listed folder is matched by a package-data pattern of the nearest package that
+    declares one, so the wheel ships it (.ci/run lists the built wheel and checks the same files)."""
+    import fnmatch
+
+    cfg = _setuptools_config()["tool"]["setuptools"]
+    data = cfg["package-data"]
+    uncovered = []
+    for name, folder in _shipped_folders().items():
+        for path in folder.iterdir():
+            if not path.is_file() or path.suffix in (".py", ".pyc"):
+                continue
+            owner = max((p for p in data if name == p or name.startswith(p + ".")), key=len, default=None)
+            root = _shipped_folders()[owner] if owner else None
+            rel = path.relative_to(root).as_posix() if root else path.name
+            if owner is None or not any(fnmatch.fnmatch(rel, pat) or fnmatch.fnmatch(rel, pat.replace("**/", ""))
+                                        for pat in data[owner]):
+                uncovered.append(f"{name}:{path.name}")
+    assert uncovered == []
+    assert isinstance(_setuptools_config()["project"]["license"], str)      # an SPDX expression, not the deprecated table
 
 
 def test_every_example_campaign_spec_is_package_data():

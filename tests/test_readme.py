@@ -37,7 +37,7 @@ def test_readme_python_example_runs_from_an_empty_folder(tmp_path):
 def test_readme_quick_start_is_two_lines_in_a_venv():
     block = re.search(r"## Quick start\n.*?```bash\n(.*?)```", README, re.S).group(1).strip().splitlines()
     assert len(block) == 2
-    assert block[0].startswith("python3 -m venv .venv && . .venv/bin/activate && pip install -e . ")
+    assert block[0].startswith("python3 -m venv .venv && . .venv/bin/activate && pip install -e '.[viz]' ")
     # .ci/run greps this line and runs it in its own fresh venv
     assert block[1] == ". .venv/bin/activate && pip install -e '.[test]' && pytest -n auto --dist loadfile"
     assert len(README.splitlines()) <= 200

@@ -63,7 +63,6 @@ def _figures(result: CampaignResult, metrics: dict) -> list[str]:
     written = []
     if table.empty:
         return written
-    kinds = sorted(set(table["kind"]))
     diagnosers = list(metrics)
     # confusion matrices: one panel per diagnoser, all kinds pooled (true target × isolated)
     for name in diagnosers:
@@ -85,38 +84,65 @@ def _figures(result: CampaignResult, metrics: dict) -> list[str]:
         ax.set_title(f"{name}: confusion over {len(rows)} faults", fontsize=9)
         path = save_figure(fig, folder / f"confusion_{name}.png")
         written.append(path.name)
-    # delay CDFs and detection probability against size, one panel per fault kind
+    # delay CDFs and detection probability against size: small multiples, one panel per fault kind × diagnoser
     for what in ("delay_cdf", "detection_vs_size"):
-        cols = min(3, len(kinds))
-        rows_n = int(np.ceil(len(kinds) / cols))
-        fig, axes = plt.subplots(rows_n, cols, figsize=(4.2 * cols, 3.2 * rows_n), squeeze=False)
-        for ax, kind in zip(axes.flat, kinds):
-            sub = table[table["kind"] == kind]
-            for name in diagnosers:
-                rows = sub[sub["diagnoser"] == name]
-                det = rows["detected"].fillna(False).astype(bool).to_numpy()
-                if what == "delay_cdf":
-                    d = np.sort(rows.loc[det, "delay"].to_numpy(float))
-                    ax.step(np.concatenate([[0], d]), np.arange(d.size + 1) / max(len(rows), 1), where="post", label=name)
-                    ax.set_xlabel("detection delay [s]")
-                    ax.set_ylabel("fraction of faults detected")
-                else:
-                    s, p = detection_curve(rows["size"].to_numpy(float), det)
-                    ax.plot(s, p, drawstyle="steps-post", marker=".", ms=3, label=name)
-                    ax.set_xlabel("fault size [fraction of the target's limit]")
-                    ax.set_ylabel("detection probability")
-            if what == "detection_vs_size":
-                level = result.spec_dict["detection_level"]
-                ax.axhline(level, color="k", lw=0.6, ls=":")
-            ax.set_title(f"{kind} ({len(sub) // max(len(diagnosers), 1)} faults)", fontsize=9)
-            ax.set_ylim(-0.02, 1.02)
-            ax.grid(alpha=0.3)
-        for ax in list(axes.flat)[len(kinds):]:
-            ax.axis("off")
-        axes.flat[0].legend(fontsize=7)
+        fig = outcome_grid(table, diagnosers, what, level=result.spec_dict["detection_level"])
         path = save_figure(fig, folder / f"{what}.png")
         written.append(path.name)
     return written
+
+
+def _curve(rows: pd.DataFrame, what: str) -> tuple[np.ndarray, np.ndarray]:
+    """One diagnoser's curve over one kind's faults: the delay CDF (fraction of all its faults detected within a
+    delay [s]) or the detection probability against size (isotonic, :func:`detection_curve`)."""
+    det = rows["detected"].fillna(False).astype(bool).to_numpy()
+    if what == "delay_cdf":
+        d = np.sort(rows.loc[det, "delay"].to_numpy(float))
+        return np.concatenate([[0], d]), np.arange(d.size + 1) / max(len(rows), 1)
+    return detection_curve(rows["size"].to_numpy(float), det)
+
+
+def outcome_grid(table: pd.DataFrame, diagnosers, what: str, level: float):
+    """Small multiples of a campaign's outcomes: one row per fault kind, one column per diagnoser, shared axes;
+    each panel draws its diagnoser's curve (the other diagnosers faint behind it, for comparison) and its n.
+    ``what``: ``"delay_cdf"`` or ``"detection_vs_size"`` (with the detection level dotted and labelled)."""
+    import matplotlib.pyplot as plt
+
+    kinds = sorted(set(table["kind"]))
+    names = list(diagnosers)
+    fig, axes = plt.subplots(len(kinds), len(names), figsize=(1.2 + 2.1 * len(names), 0.9 + 1.75 * len(kinds)),
+                             sharex=True, sharey=True, squeeze=False)
+    for r, kind in enumerate(kinds):
+        sub = table[table["kind"] == kind]
+        curves = {n: _curve(sub[sub["diagnoser"] == n], what) for n in names}
+        for c, name in enumerate(names):
+            ax = axes[r, c]
+            for other, (x, y) in curves.items():
+                if other != name:
+                    ax.step(x, y, where="post", color="0.85", lw=0.7)
+            x, y = curves[name]
+            ax.step(x, y, where="post", color=f"C{c}", lw=1.6)
+            if what == "detection_vs_size":
+                ax.plot(x, y, ".", ms=3, color=f"C{c}")
+                ax.axhline(level, color="k", lw=0.6, ls=":")
+                ax.text(0.98, level, f"P = {level:g}", transform=ax.get_yaxis_transform(), fontsize=6, ha="right",
+                        va="bottom", color="0.3")
+            n = int((sub["diagnoser"] == name).sum())
+            ax.text(0.02, 0.97, f"n = {n}", transform=ax.transAxes, fontsize=6.5, va="top", color="0.3")
+            ax.set_ylim(-0.03, 1.03)
+            ax.grid(alpha=0.3)
+            ax.tick_params(labelsize=7)
+            if r == 0:
+                ax.set_title(name, fontsize=8, color=f"C{c}")
+            if c == 0:
+                ax.set_ylabel(f"{kind}\n" + ("detected [fraction]" if what == "delay_cdf" else "P(detect)"), fontsize=7)
+            if r == len(kinds) - 1:
+                ax.set_xlabel("detection delay [s]" if what == "delay_cdf" else "fault size [fraction of limit]",
+                              fontsize=7)
+    fig.suptitle(("fraction of faults detected within a delay" if what == "delay_cdf" else
+                  "detection probability against fault size (isotonic fit)")
+                 + ": one panel per fault kind (rows) and diagnoser (columns); other diagnosers faint", fontsize=9)
+    return fig
 
 
 def _pct(rate: dict) -> str:

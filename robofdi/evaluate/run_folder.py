@@ -11,10 +11,33 @@ from robofdi.evaluate.headline import settle_lead
 from robofdi.evaluate.summary import write_summary
 from robofdi.record import Record
 
-__all__ = ["prepare_run_dir", "write_run_folder", "keep_partial", "PARTIAL"]
+__all__ = ["prepare_run_dir", "write_run_folder", "keep_partial", "replay_writer", "PARTIAL"]
 
 #: what an interrupted or failed run recorded, in its run folder
 PARTIAL = "partial.h5"
+
+
+#: what a run prints (once) when it writes no replay because the optional viz extra is not installed
+NO_REPLAY_NOTE = ("robofdi: no replay.html: the Meshcat replay needs the viz extra (pip install 'robofdi[viz]'; "
+                  "then `robofdi view RUN` replays the saved record)")
+_noted = False
+
+
+def replay_writer(name: str = "write_replay_html", module: str = "robofdi.viz"):
+    """The replay writer ``module.name`` (``robofdi.viz.write_replay_html``, or ``robofdi.viz.hydraulic.
+    write_hydraulic_replay``), or ``None`` when meshcat (the optional ``viz`` extra) is not installed — then the
+    run goes on without its replay and says so once, on stderr."""
+    global _noted
+    import importlib
+    import importlib.util
+    import sys
+
+    if importlib.util.find_spec("meshcat") is None:
+        if not _noted:
+            print(NO_REPLAY_NOTE, file=sys.stderr)
+            _noted = True
+        return None
+    return getattr(importlib.import_module(module), name)
 
 
 @contextmanager
@@ -70,8 +93,7 @@ def write_run_folder(run_dir: Path, record: Record, summary: Mapping, others: Ma
     for d in record.diagnosers:
         plot_residuals(record, d, figures / f"residuals_{d}.png")
     plot_estimates(record, figures / "estimates.png")
-    if replay:
-        from robofdi.viz import write_replay_html
-
-        write_replay_html(record, run_dir / "replay.html")
+    write = replay_writer() if replay else None
+    if write is not None:
+        write(record, run_dir / "replay.html")
     return run_dir

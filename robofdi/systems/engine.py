@@ -244,7 +244,10 @@ def run_engine_experiment(name, out, seed, progress):
         axes[0].legend(fontsize=7)
         axes[1].plot(t, r_ol / 1e3, "b", lw=0.8, label="open-loop residual")
         axes[1].plot(t, r_smo / 1e3, "r", lw=0.8, label="SMO residual")
-        axes[1].axvline(20.0, color="0.6", ls=":")
+        from robofdi.evaluate.annotate import event_lines
+
+        for ax in axes:
+            event_lines(ax, [fault], label=ax is axes[0], color="0.5")
         axes[1].set_ylabel("y − x̂ [kPa]")
         axes[1].set_xlabel("t [s]")
         axes[1].legend(fontsize=7)
