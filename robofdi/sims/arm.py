@@ -42,7 +42,7 @@ import numpy as np
 
 from robofdi.checks import check_fields, is_number
 from robofdi.config import part
-from robofdi.errors import RobofdiError
+from robofdi.errors import RobofdiError, all_finite
 from robofdi.mjcf import CompiledArm, compile_arm
 from robofdi.models.manipulator import ManipulatorModel, ModelMismatch, sensor_channel_names
 from robofdi.seeding import stream
@@ -582,10 +582,9 @@ class ArmSimulator:
                 kernels.disturbance(qvel, dofs, tau, s, self._r_split, self._r_load, dot, ripple_on, self._stribeck,
                                     self._stribeck_inv_v, t, stribeck_on, self._qfrc)
             step(m, d)
-        y, finite = self._read()
-        if not finite:
+        if not (all_finite(qpos) and all_finite(qvel)):
             raise RobofdiError(f"simulation diverged at t={d.time:.4f} s: non-finite joint state")
-        return y
+        return self.measure()
 
     def disturbance(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """δ(q, q̇, τ) [N·m] of eq. (3): torque ripple plus the Stribeck term (the friction torque opposes motion,
@@ -603,16 +602,12 @@ class ArmSimulator:
 
     def measure(self) -> np.ndarray:
         """Sensor reading [q; q̇] (quantised positions, noisy velocities; :class:`SensorModel`)."""
-        return self._read()[0]
-
-    def _read(self) -> tuple[np.ndarray, bool]:
-        """(the sensor reading, True when the whole model's qpos and qvel are finite)."""
         zq = self._pos_draws.draw() if self._pos_draws is not None else self._empty
         zv = self._vel_draws.draw() if self._vel_draws is not None else self._empty
         y = np.empty(2 * self.n)
-        finite = kernels.measure(self._qpos, self._qvel, self._qadr, self._dofs, self._resolution,
-                                 self._inv_resolution, self._pos_noise, zq, self._vel_noise, zv, y)
-        return y, finite
+        kernels.measure(self._qpos, self._qvel, self._qadr, self._dofs, self._resolution, self._inv_resolution,
+                        self._pos_noise, zq, self._vel_noise, zv, y)
+        return y
 
     # ----------------------------------------------------------------------------------------- components
     @property

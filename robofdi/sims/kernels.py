@@ -78,8 +78,7 @@ def disturbance(qvel, dofs, tau, s, split, load, ripple, ripple_on, excess, inv_
 @compiled
 def measure(qpos, qvel, qadr, dofs, resolution, inv_resolution, pos_noise, zq, vel_noise, zv, out):  # pragma: no cover
     """out = [q; q̇] as the sensors read them: q quantised to ``resolution`` where it is > 0 (round half to even),
-    plus pos_noise · zq and vel_noise · zv (each only when its draws ``zq`` / ``zv`` are not empty). Returns False
-    when any entry of qpos or qvel (the whole model, not only the arm) is not finite."""
+    plus pos_noise · zq and vel_noise · zv (each only when its draws ``zq`` / ``zv`` are not empty)."""
     n = qadr.size
     for i in range(n):
         q = qpos[qadr[i]]
@@ -92,10 +91,3 @@ def measure(qpos, qvel, qadr, dofs, resolution, inv_resolution, pos_noise, zq, v
         if zv.size:
             v = v + vel_noise[i] * zv[i]
         out[n + i] = v
-    for i in range(qpos.size):
-        if not math.isfinite(qpos[i]):
-            return False
-    for i in range(qvel.size):
-        if not math.isfinite(qvel[i]):
-            return False
-    return True
