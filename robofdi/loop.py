@@ -598,11 +598,21 @@ class ClosedLoop:
             writer.append(out, columns, units, {k: (a, v, label_units[k]) for k, (a, v) in labels.items()},
                           bank.take(), traces)
 
+        # a reference that can be read ahead (``sample(times)``: Quintic, Sequence) is sampled a block of ticks at a
+        # time, the same numbers as calling it every tick; any other reference is called every tick
+        sample = getattr(self.reference, "sample", None)
         try:
             y = sim.reset(initial_state, seed=stream(seed, run_key, "sensors"))
             u_prev_diag = np.zeros(len(sim.actuators))
             for j in range(steps + 1):
                 t = j * dt
+                if sample is not None:
+                    k = j % chunk
+                    if k == 0:
+                        ahead_q, ahead_v, ahead_a = sample([i * dt for i in range(j, min(j + chunk, steps + 1))])
+                    ref = (ahead_q[k], ahead_v[k], ahead_a[k])
+                else:
+                    ref = self.reference(t)
                 y_faulty = inj.sense(t, y)
                 bank.push(j, t, y_faulty, u_prev_diag)
                 if oracle:
@@ -610,7 +620,6 @@ class ClosedLoop:
                                     {fault_by_name[n].target: v for n, (a, v) in inj.labels.items() if a}, ORACLE)
                 else:
                     health = bank.health
-                ref = self.reference(t)
                 u_cmd = self.controller.update(y_faulty if online else y, ref)
                 u = accommodation.update(u_cmd, health) if accommodation is not None else u_cmd
                 if online:

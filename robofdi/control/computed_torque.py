@@ -25,6 +25,7 @@ class ComputedTorque:
         qd, vd, ad = reference
         a = ad + self.kd * (vd - v) + self.kp * (qd - q)
         tau = self.model.inverse_dynamics(q, v, a)
-        if self.torque_limit is not None:
-            tau = np.clip(tau, -self.torque_limit, self.torque_limit)
+        limit = self.torque_limit
+        if limit is not None:             # np.clip(tau, -limit, limit) without its Python wrapper (same numbers)
+            tau = np.minimum(np.maximum(tau, -limit), limit)
         return tau

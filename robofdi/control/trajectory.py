@@ -46,15 +46,25 @@ class Quintic:
         """q at the start [rad] (the pose to reset the arm to)."""
         return np.array(self.q0)
 
-    def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(q_d, q̇_d, q̈_d) at time t."""
+    def _profile(self, t: float) -> tuple[float, float, float]:
+        """(p, ṗ, p̈) of the normalised quintic at time t (scalars: the one formula of __call__ and sample)."""
         s = min(max((t - self.start) / self.duration, 0.0), 1.0)
         d = self.duration
         p = 10 * s**3 - 15 * s**4 + 6 * s**5
         dp = (30 * s**2 - 60 * s**3 + 30 * s**4) / d
         ddp = (60 * s - 180 * s**2 + 120 * s**3) / d**2
+        return p, dp, ddp
+
+    def __call__(self, t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(q_d, q̇_d, q̈_d) at time t."""
+        p, dp, ddp = self._profile(t)
         dq = self._dq
         return self._q0 + p * dq, dp * dq, ddp * dq
+
+    def sample(self, times) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(q_d, q̇_d, q̈_d) at every time of ``times``, each (len(times), n): row k equals ``self(times[k])`` bit
+        for bit (the same scalar profile, the same elementwise products) — a loop reads its reference ahead."""
+        return _sample([self] * len(times), times)
 
 
 @dataclass(frozen=True)
@@ -102,7 +112,24 @@ class Sequence:
         """Duration [s] of every segment."""
         return tuple(seg.duration for seg in self.segments)
 
-    def __call__(self, t: float):
+    def _segment(self, t: float) -> Quintic:
         # the first segment with t < its end (a bisection: a motion of thousands of segments costs no more a tick)
         k = bisect.bisect_right(self._ends, t)
-        return self.segments[min(k, len(self.segments) - 1)](t)
+        return self.segments[min(k, len(self.segments) - 1)]
+
+    def __call__(self, t: float):
+        return self._segment(t)(t)
+
+    def sample(self, times) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(q_d, q̇_d, q̈_d) at every time of ``times`` (:meth:`Quintic.sample`; row k equals ``self(times[k])``)."""
+        return _sample([self._segment(t) for t in times], times)
+
+
+def _sample(segments, times) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rows q0 + p Δq, ṗ Δq, p̈ Δq of each time's segment: the scalar profile per time, the products vectorised
+    (elementwise, so each row is what the segment's __call__ returns)."""
+    times = [float(t) for t in times]
+    profile = np.array([seg._profile(t) for seg, t in zip(segments, times)], dtype=float).reshape(len(times), 3)
+    q0 = np.array([seg._q0 for seg in segments], dtype=float).reshape(len(times), -1)
+    dq = np.array([seg._dq for seg in segments], dtype=float).reshape(len(times), -1)
+    return q0 + profile[:, :1] * dq, profile[:, 1:2] * dq, profile[:, 2:] * dq

@@ -9,19 +9,37 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.ticker import LogLocator, MaxNLocator, NullLocator  # noqa: E402
 
 from robofdi.record import Record  # noqa: E402
 
 __all__ = ["plot_residuals", "plot_estimates"]
 
 
-def save_figure(fig, path: str | Path, dpi: int = 110) -> Path:
-    """Lay out, write and close a figure (every robofdi figure goes through here); returns the path."""
+def save_figure(fig, path: str | Path, dpi: int = 110, tight: bool = True) -> Path:
+    """Lay out (``tight``: ``tight_layout``; False for a figure made with a fixed layout, :func:`fixed_grid`),
+    write and close a figure (every robofdi figure goes through here); returns the path."""
     path = Path(path)
-    fig.tight_layout()
+    if tight:
+        fig.tight_layout()
     fig.savefig(path, dpi=dpi)
     plt.close(fig)
     return path
+
+
+def fixed_grid(rows: int, cols: int, axes_size: tuple[float, float], margins=(0.85, 0.15, 0.5, 0.45),
+               gaps: tuple[float, float] = (0.95, 0.28), **subplots):
+    """A figure of rows × cols axes of ``axes_size`` (width, height) [in] with fixed ``margins`` (left, right,
+    bottom, top) [in] and ``gaps`` (between columns, between rows) [in]: a layout set once, so saving needs no
+    ``tight_layout`` (which measures every tick label of every axis, the most of a figure's cost). Returns (fig,
+    axes) as ``plt.subplots(..., squeeze=False)``."""
+    (w, h), (left, right, bottom, top), (gx, gy) = axes_size, margins, gaps
+    width, height = left + right + cols * w + (cols - 1) * gx, bottom + top + rows * h + (rows - 1) * gy
+    fig = plt.figure(figsize=(width, height))
+    axes = fig.subplots(rows, cols, squeeze=False, gridspec_kw=dict(
+        left=left / width, right=1 - right / width, bottom=bottom / height, top=1 - top / height,
+        wspace=gx / w, hspace=gy / h), **subplots)
+    return fig, axes
 
 
 def _onsets(ax, faults, label: bool = False):
@@ -39,7 +57,7 @@ def plot_residuals(record: Record, diagnoser: str, path: str | Path) -> Path:
     m = len(tr.components)
     cols = 2 if m > 6 else 1
     rows = int(np.ceil(m / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(5.5 * cols, 1.25 * rows + 0.8), sharex=True, squeeze=False)
+    fig, axes = fixed_grid(rows, cols, (4.5, 0.95), sharex=True)
     faults = record.meta.get("faults", [])
     for j, comp in enumerate(tr.components):
         ax = axes[j % rows, j // rows]
@@ -56,12 +74,15 @@ def plot_residuals(record: Record, diagnoser: str, path: str | Path) -> Path:
         ax.set_ylabel(f"|{comp}| [{unit}]" if unit else comp, fontsize=7)
         ax.tick_params(labelsize=7)
         ax.set_yscale("log")
+        ax.yaxis.set_major_locator(LogLocator(numticks=3))    # a few decades labelled, no minor ticks: cheap to draw
+        ax.yaxis.set_minor_locator(NullLocator())
         ax.set_ylim(floor, max(r.max(), thr) * 2)
     for ax in axes[-1]:
         ax.set_xlabel("time [s]")
+    axes[0, 0].xaxis.set_major_locator(MaxNLocator(5))       # shared by every panel (sharex)
     fig.suptitle(f"{record.scenario}: {diagnoser} residuals |r_i| vs thresholds (dashed); alarms in red; true fault "
                  "onsets dotted", fontsize=9)
-    return save_figure(fig, path)
+    return save_figure(fig, path, tight=False)
 
 
 def plot_estimates(record: Record, path: str | Path, diagnosers=None) -> Path:

@@ -46,6 +46,7 @@ from robofdi.errors import RobofdiError, all_finite
 from robofdi.mjcf import CompiledArm, compile_arm
 from robofdi.models.manipulator import ManipulatorModel, ModelMismatch, sensor_channel_names
 from robofdi.seeding import stream
+from robofdi.sims import kernels
 from robofdi.sims.noise import ChannelNoise
 
 __all__ = ["TorqueRipple", "StribeckFriction", "SensorModel", "ArmSettings", "ArmSimulator", "ArmPlant", "add_point_mass",
@@ -398,6 +399,11 @@ class ArmSimulator:
         self._other_act = np.array([a for a in range(m.nu) if a not in arm_acts], dtype=int)
         self.data = mujoco.MjData(m)
         self._scratch = mujoco.MjData(m)
+        # the hot path's views of the data (valid as long as self.data lives) and its preallocated buffers
+        d = self.data
+        self._qpos, self._qvel, self._qfrc, self._ctrl = d.qpos, d.qvel, d.qfrc_applied, d.ctrl
+        self._inv_gain_k = np.zeros(0) if self._inv_gain is None else np.ascontiguousarray(self._inv_gain)
+        self._empty = np.zeros(0)
 
         # components: friction per joint, mass per link body and the payload point
         self._frictionloss0 = m.dof_frictionloss[self._dofs].copy()
@@ -432,6 +438,8 @@ class ArmSimulator:
         self._r_A = np.zeros((n, k * n))
         self._r_A[np.tile(np.arange(n), k), np.arange(k * n)] = amp.ravel()
         self._r_split = k * n
+        self._r_s, self._r_t, self._r_dot = np.empty(self._r_F.size), np.empty(n), np.zeros(n)
+        self._r_s_fixed = self._r_s[:k * n]               # the sines of the position-dependent terms (A's columns)
         d = self._scratch
         mujoco.mj_resetData(m, d)
         mujoco.mj_forward(m, d)
@@ -479,12 +487,13 @@ class ArmSimulator:
         self._stribeck_eps = self.friction.smoothing_velocity(self._stribeck, self._inertia_ref, self.physics_dt)
         self._stribeck_on = bool(np.any(self._stribeck > 0))
         self._stribeck_inv_v, self._stribeck_inv_eps = 1.0 / self.friction.velocity, 1.0 / self._stribeck_eps
+        self._stribeck_inv_eps = np.ascontiguousarray(self._stribeck_inv_eps, dtype=float)
 
     # ----------------------------------------------------------------------------------------- protocol
     @property
     def state(self) -> np.ndarray:
         """True state [q; q̇] of the arm joints [rad, rad/s (m, m/s for slide joints)]."""
-        return np.concatenate([self.data.qpos[self._qadr], self.data.qvel[self._dofs]])
+        return np.concatenate((self._qpos[self._q_at], self._qvel[self._v_at]))
 
     @property
     def true_output(self) -> np.ndarray:
@@ -544,24 +553,36 @@ class ArmSimulator:
         return np.minimum(np.maximum(u, self._torque_lo), self._torque_hi)
 
     def step(self, u: np.ndarray) -> np.ndarray:
-        """Apply torques u (n, [N·m or N], saturated) for one control period; return the measurement."""
+        """Apply torques u (n, [N·m or N], saturated) for one control period; return the measurement.
+
+        The hot path runs the compiled kernels of :mod:`robofdi.sims.kernels` on preallocated arrays (the same
+        numbers as :meth:`disturbance` and :meth:`measure`'s NumPy expressions, bit for bit)."""
         u = np.asarray(u, dtype=float)
-        if u.shape != (self.n,) or not all_finite(u):
+        tau = np.empty(self.n)
+        if u.shape != (self.n,) or not kernels.apply_torque(u, self._torque_lo, self._torque_hi, self._inv_gain_k,
+                                                            self._act, self._ctrl, tau):
             raise RobofdiError(f"step: u must be {self.n} finite joint torques for {self.joint_names}, got shape "
                                f"{u.shape}: {u.tolist()}")
         m, d = self.model, self.data
-        tau = self.saturate(u)
         self.u_applied = tau
-        d.ctrl[self._ctrl_at] = tau if self._inv_gain is None else tau * self._inv_gain
         if self._other_act.size:
             d.ctrl[self._other_act] = self._other_ctrl
-        qadr, dofs = self._q_at, self._v_at
-        disturb = self._ripple_on or self._stribeck_on
+        ripple_on, stribeck_on = self._ripple_on, self._stribeck_on
+        qpos, qvel, qadr, dofs = self._qpos, self._qvel, self._qadr, self._dofs
+        s, t, dot, A, s_fixed = self._r_s, self._r_t, self._r_dot, self._r_A, self._r_s_fixed
+        step = mujoco.mj_step
         for _ in range(self.substeps):
-            if disturb:
-                d.qfrc_applied[dofs] = -self.disturbance(d.qpos[qadr], d.qvel[dofs], tau)
-            mujoco.mj_step(m, d)
-        if not (all_finite(d.qpos) and all_finite(d.qvel)):
+            if ripple_on or stribeck_on:
+                kernels.ripple_arguments(qpos, qvel, qadr, dofs, self._r_index, self._r_F, self._r_P,
+                                         self._stribeck_inv_eps, s, t)
+                if ripple_on:
+                    np.matmul(A, s_fixed, out=dot)          # NumPy's product: the same sums as A @ s
+                if stribeck_on:
+                    np.tanh(t, out=t)                        # NumPy's tanh (not the C library's: last-bit equal)
+                kernels.disturbance(qvel, dofs, tau, s, self._r_split, self._r_load, dot, ripple_on, self._stribeck,
+                                    self._stribeck_inv_v, t, stribeck_on, self._qfrc)
+            step(m, d)
+        if not (all_finite(qpos) and all_finite(qvel)):
             raise RobofdiError(f"simulation diverged at t={d.time:.4f} s: non-finite joint state")
         return self.measure()
 
@@ -581,17 +602,12 @@ class ArmSimulator:
 
     def measure(self) -> np.ndarray:
         """Sensor reading [q; q̇] (quantised positions, noisy velocities; :class:`SensorModel`)."""
-        q, v = self.data.qpos[self._q_at], self.data.qvel[self._v_at]
-        res = self._resolution
-        if self._quantised:
-            q = np.round(q * self._inv_resolution) * res
-        elif self._any_quantised:
-            q = np.where(res > 0, np.round(q * self._inv_resolution) * res, q)
-        if self._pos_draws is not None:
-            q = q + self._pos_noise * self._pos_draws.draw()
-        if self._vel_draws is not None:
-            v = v + self._vel_noise * self._vel_draws.draw()
-        return np.concatenate([q, v])
+        zq = self._pos_draws.draw() if self._pos_draws is not None else self._empty
+        zv = self._vel_draws.draw() if self._vel_draws is not None else self._empty
+        y = np.empty(2 * self.n)
+        kernels.measure(self._qpos, self._qvel, self._qadr, self._dofs, self._resolution, self._inv_resolution,
+                        self._pos_noise, zq, self._vel_noise, zv, y)
+        return y
 
     # ----------------------------------------------------------------------------------------- components
     @property
