@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from robofdi import RobofdiError
+from robofdi.jit import kernel
 
 __all__ = ["Signature", "Alarms", "ThresholdDecision", "STARTUP_BLANKING", "startup_samples"]
 
@@ -21,6 +22,18 @@ def startup_samples(sample_time: float, blanking: float = STARTUP_BLANKING) -> i
     if not (np.isfinite(blanking) and blanking >= 0):
         raise RobofdiError(f"blanking: expected a duration >= 0 s, got {blanking}")
     return int(np.ceil(blanking / sample_time - 1e-9))
+
+
+@kernel
+def _peak_ratio(r, threshold):
+    """max_j |r_j| / threshold_j, NaN when an entry of r is NaN: the one test of a sample (the values of
+    ``(np.abs(r) / threshold).max()``, without its three array operations)."""
+    peak = abs(r[0]) / threshold[0]
+    for j in range(1, r.shape[0]):
+        x = abs(r[j]) / threshold[j]
+        if x > peak or x != x:
+            peak = x
+    return peak
 
 
 def _component_set(value: Iterable[str], name: str) -> frozenset[str]:
@@ -190,16 +203,15 @@ class ThresholdDecision:
     def update(self, residual: np.ndarray) -> Alarms:
         """One residual sample (m,) in, alarms and isolation out.
 
-        Array first: one vectorised test |r| / threshold per sample; a sample without alarm (and no confirmation
-        window open) returns at once (:meth:`_quiet`, exactly what the isolation logic gives there: nothing new),
-        the isolation logic runs only on samples that alarm."""
+        Array first: one test max |r| / threshold per sample (a compiled kernel, :mod:`robofdi.jit`); a sample
+        without alarm (and no confirmation window open) returns at once (:meth:`_quiet`, exactly what the
+        isolation logic gives there: nothing new), the ratios and the isolation logic are computed only on samples
+        that alarm."""
         r = residual if type(residual) is np.ndarray and residual.dtype == np.float64 else np.asarray(residual, dtype=float)
         m = len(self.components)
         if r.shape != self._shape:
             raise RobofdiError(f"residual: expected shape ({m},), got {r.shape}")
-        ratio = np.abs(r)
-        ratio /= self.threshold
-        peak = ratio.max()
+        peak = _peak_ratio(r, self.threshold)
         if not peak < np.inf:       # NaN or ±inf somewhere (the thresholds are finite and > 0)
             j = int(np.flatnonzero(~np.isfinite(r))[0])
             raise RobofdiError(f"residual: expected finite values, got {r[j]} at component {j} ({self.components[j]!r})")
@@ -215,6 +227,8 @@ class ThresholdDecision:
                     and self._since_alarm >= self.release):
                 self._revising = True       # a new alarm episode: decide again over every hypothesis
             self._since_alarm = 0
+        ratio = np.abs(r)
+        ratio /= self.threshold
         alarm = ratio > 1.0
         if self.confirm and (not self._isolated or self._revising):
             evident = ratio > self._evidence_ratio
