@@ -25,7 +25,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from robofdi import RobofdiError
+from robofdi.jit import kernel
 from robofdi.models.manipulator import ManipulatorModel
+from robofdi.observers.evaluations import evaluations
 from robofdi.observers.residual import Residual, check_measurement
 
 __all__ = [
@@ -230,6 +232,28 @@ class Adaptive(_Estimating):
         self.theta = self.theta + np.concatenate([w[:n], (G * w[n:, None]).ravel()])
 
 
+@kernel
+def _observer_step(x, x_prev, x_hat, e_prev, acc, acc_hat, measured, eta_prev, T, K1, K2, F, r_model, x_hat_out,
+                   e, r):
+    """Eqs. (20), (23)–(26) for one sample, entry by entry in the order of operations of their array form, given
+    the forward dynamics q̈ at x̄(k−1) (``acc``) and at x̂(k−1) (``acc_hat``, used when not ``measured``):
+    r₂₀(k), x̂(k), e(k) and r(k) into ``r_model``, ``x_hat_out``, ``e``, ``r``."""
+    n = acc.shape[0]
+    for i in range(n):
+        j = n + i
+        q_model, v_model = x_prev[i] + T * x_prev[j], x_prev[j] + T * acc[i]        # predict(x̄(k−1), ū)
+        r_model[i], r_model[j] = x[i] - q_model, x[j] - v_model                     # eq. (20)
+        if measured:        # A (x̂ − x̄) + predict(x̄)
+            dq, dv = x_hat[i] - x_prev[i], x_hat[j] - x_prev[j]
+            q_base, v_base = dq + T * dv + q_model, dv + v_model
+        else:               # predict(x̂)
+            q_base, v_base = x_hat[i] + T * x_hat[j], x_hat[j] + T * acc_hat[i]
+        ko_q, ko_v = K1[i] * e_prev[i] + T * e_prev[j], K2[i] * e_prev[j]           # K_o e, eq. (24)
+        x_hat_out[i], x_hat_out[j] = q_base + ko_q + eta_prev[i], v_base + ko_v + eta_prev[j]   # eq. (23)
+        e[i], e[j] = x[i] - x_hat_out[i], x[j] - x_hat_out[j]
+        r[i], r[j] = e[i] - F[i] * e_prev[i], e[j] - F[j] * e_prev[j]              # eq. (26)
+
+
 # ----------------------------------------------------------------------------------------------------------
 class DiagnosticObserver:
     """x̂(k+1) = A x̂ + h(x̄) + B(x̄) ū + K_o e + η̂ with K_o = [[K1, T I], [0, K2]] — eqs. (23)–(27).
@@ -288,6 +312,7 @@ class DiagnosticObserver:
                                                   or not np.all(self.freeze_threshold > 0)):
             raise RobofdiError(f"DiagnosticObserver: field 'freeze_threshold' must be None or {2 * n} thresholds > 0")
         self.velocity, self.eval_at, self.residual_space = velocity, eval_at, residual_space
+        self._evaluations = evaluations(model)     # M̂ and the forward dynamics, shared with the other diagnosers
         names = model.joint_names
         self.inputs = list(names)
         self.measurements = [f"{j}_pos" for j in names] + [f"{j}_vel" for j in names]
@@ -333,19 +358,15 @@ class DiagnosticObserver:
             return Residual(np.zeros(2 * n), np.zeros(2 * n), state_residual=np.zeros(2 * n))
         est = self.estimator
         est.prepare(self._x_prev, u)           # η̂(k−1) with x̄(k−1), ū(k−1)
-        eta_prev = est.eta_hat
-        x_model = self.euler.predict(self._x_prev, u)
-        r_model = x - x_model                   # eq. (20)
-        if self.eval_at == "measured":          # A x̂ + h(x̄) + B(x̄)ū = A(x̂ − x̄) + predict(x̄)
-            base = self.euler.apply_A(self.x_hat - self._x_prev) + x_model
-        else:
-            base = self.euler.predict(self.x_hat, u)
-        e_prev = self._e_prev                   # K_o e = [K1 e1 + T e2; K2 e2], eq. (24)
-        Ko_e = np.concatenate([self.K1 * e_prev[:n] + self.T * e_prev[n:], self.K2 * e_prev[n:]])
-        self.x_hat = base + Ko_e + eta_prev    # eq. (23)
-        e = x - self.x_hat
-        r = e - self.F * self._e_prev          # eq. (26)
-        est.update(r, r_model, self._x_prev, u)
+        x_prev, m = self._x_prev, 2 * n
+        acc = self._evaluations.acceleration(x_prev[:n], x_prev[n:], u)      # the model term of eq. (20)
+        # eval_at "measured": A x̂ + h(x̄) + B(x̄)ū = A(x̂ − x̄) + predict(x̄); "estimate": predict(x̂), eq. (23)
+        acc_hat = acc if self.eval_at == "measured" else self.model.acceleration(self.x_hat[:n], self.x_hat[n:], u)
+        r_model, x_hat, e, r = np.empty(m), np.empty(m), np.empty(m), np.empty(m)
+        _observer_step(x, x_prev, self.x_hat, self._e_prev, acc, acc_hat, self.eval_at == "measured", est.eta_hat,
+                       self.T, self.K1, self.K2, self.F, r_model, x_hat, e, r)
+        self.x_hat = x_hat
+        est.update(r, r_model, x_prev, u)
         self._x_prev, self._e_prev = x, e
         res = self._output(x, r, est.fault_estimate(r_model), r_model)
         if self.freeze_threshold is not None and hasattr(est, "freeze") and np.any(np.abs(res.r) > self.freeze_threshold):
@@ -354,15 +375,19 @@ class DiagnosticObserver:
 
     def _output(self, x: np.ndarray, r: np.ndarray, f_hat: np.ndarray, r_model: np.ndarray) -> Residual:
         n, T = self.n, self.T
-        M = self.model.mass_matrix(x[:n])
-        tau_hat = M @ f_hat[n:] / T            # δτ̂ = (M̂/T) f̂₂ (Sec. 6, with M̂ for the unknown M)
+        M = self._evaluations.mass_matrix(x[:n])
+        estimate = np.empty(2 * n)
+        estimate[:n] = r_model[:n]
+        estimate[n:] = M.dot(f_hat[n:]) / T     # δτ̂ = (M̂/T) f̂₂ (Sec. 6, with M̂ for the unknown M)
         if self.residual_space == "torque":
-            out = np.concatenate([r[:n], M @ r[n:] / T])
+            out = np.empty(2 * n)
+            out[:n] = r[:n]
+            out[n:] = M.dot(r[n:]) / T
         else:
             out = r
         # Position faults: f_s1(k) = δx1(k+1) − δx1(k) (eq. (19)), so the position rows of r₂₀ summed from the
         # isolation sample estimate δx1 (instead of x̄1 − x1d, which needs the reference; spec erratum 2–4).
-        return Residual(out, np.concatenate([r_model[:n], tau_hat]), state_residual=r)
+        return Residual(out, estimate, state_residual=r)
 
     def signatures(self):
         """Fault signatures of the residual: sensor i raises its position component and may raise the
