@@ -114,6 +114,50 @@ class Recursive(_Estimating):
         self.eta_hat = self.eta_hat + self.gamma * r
 
 
+@kernel
+def _ripple_arguments(theta, x1, args):
+    """The sine arguments θ_c x₁ + θ_d and θ_f x₁ + θ_g of eq. (50) per joint, into ``args`` (2, n)."""
+    n = x1.shape[0]
+    for i in range(n):
+        k = n + 7 * i
+        args[0, i] = theta[k + 2] * x1[i] + theta[k + 3]
+        args[1, i] = theta[k + 5] * x1[i] + theta[k + 6]
+
+
+@kernel
+def _ripple_terms(theta, x1, tau, inv_scale, s1, c1, s2, c2, G, eta):
+    """η(θ) of eq. (50) and the non-zero part G of Z, given the sines and cosines of :func:`_ripple_arguments`,
+    entry by entry in the order of operations of :meth:`RippleModel.evaluate`'s array form."""
+    n = x1.shape[0]
+    for i in range(n):
+        k = n + 7 * i
+        a, b, e = theta[k], theta[k + 1], theta[k + 4]
+        t = tau[i] * inv_scale[i]
+        G[i, 0] = 1.0
+        G[i, 1] = s1[i]
+        G[i, 3] = b * c1[i]
+        G[i, 2] = G[i, 3] * x1[i]
+        G[i, 4] = t * s2[i]
+        G[i, 6] = t * e * c2[i]
+        G[i, 5] = G[i, 6] * x1[i]
+        eta[i] = theta[i]
+        eta[n + i] = a + b * s1[i] + e * G[i, 4]
+
+
+@kernel
+def _adaptive_step(theta, G, gg, r, q, step, out):
+    """θ̂(k+1) of eqs. (37)–(39) with Q diagonal (``gg`` = the row sums of G², NumPy's), entry by entry in the
+    order of operations of :meth:`Adaptive.update`'s array form, into ``out``."""
+    n = G.shape[0]
+    for i in range(n):
+        out[i] = theta[i] + step * r[i] / (1.0 + q[i])
+    for i in range(n):
+        w = step * r[n + i] / (gg[i] + q[n + i])
+        for c in range(7):
+            k = n + 7 * i + c
+            out[k] = theta[k] + G[i, c] * w
+
+
 @dataclass
 class RippleModel:
     """Parametric uncertainty of eq. (50), one block of 7 parameters per joint (p = n + 7n):
@@ -150,19 +194,15 @@ class RippleModel:
     def evaluate(self, theta: np.ndarray, x1: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """η(θ) and the non-zero part of Z: row n+i of Z is ∂η_{n+i}/∂(θ_a … θ_g of joint i), an (n × 7)
         array (position row i of Z is the unit vector on θ_i)."""
-        tau = tau * self._inv_scale
-        pos, (a, b, c, d, e, f, g) = self.split(theta)
-        arg1, arg2 = c * x1 + d, f * x1 + g
-        s1, c1, s2, c2 = np.sin(arg1), np.cos(arg1), np.sin(arg2), np.cos(arg2)
-        G = np.empty((self.n, 7))
-        G[:, 0] = 1.0
-        G[:, 1] = s1
-        G[:, 3] = b * c1
-        G[:, 2] = G[:, 3] * x1
-        G[:, 4] = tau * s2
-        G[:, 6] = tau * e * c2
-        G[:, 5] = G[:, 6] * x1
-        return np.concatenate([pos, a + b * s1 + e * G[:, 4]]), G
+        n = self.n
+        x1 = np.asarray(x1, dtype=float)
+        args = np.empty((2, n))
+        _ripple_arguments(theta, x1, args)
+        G, eta = np.empty((n, 7)), np.empty(2 * n)
+        # the sines and cosines stay NumPy's (the same calls on the same vectors as the array form)
+        _ripple_terms(theta, x1, np.asarray(tau, dtype=float), self._inv_scale, np.sin(args[0]), np.cos(args[0]),
+                      np.sin(args[1]), np.cos(args[1]), G, eta)
+        return eta, G
 
     def eta(self, theta: np.ndarray, x1: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """η(k, x, u, θ) of eq. (50)."""
@@ -227,9 +267,9 @@ class Adaptive(_Estimating):
             self.theta = self.theta + self._Z.T @ (self.gain(self._Z) @ r)
             return
         # Same update with Q diagonal: Z Zᵀ + Q is diagonal (|z_j|² + q_j), so Γ_θ acts row by row.
-        n, G, q = self.ripple.n, self._Z, self._q
-        w = self.step * r / (np.concatenate([np.ones(n), np.einsum("ij,ij->i", G, G)]) + q)
-        self.theta = self.theta + np.concatenate([w[:n], (G * w[n:, None]).ravel()])
+        G, theta = self._Z, np.empty(self.theta.shape[0])
+        _adaptive_step(self.theta, G, np.einsum("ij,ij->i", G, G), r, self._q, self.step, theta)
+        self.theta = theta
 
 
 @kernel
