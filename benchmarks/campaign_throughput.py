@@ -7,6 +7,12 @@ with an empty cache and with the cache; and whether the three result tables are 
 
 Runs per minute count the run phase only (after calibration; the pool's workers are started by then). The numbers
 depend on the machine and on what else runs on it: on shared cores the scaling ratio says little.
+
+The last line, ``campaign/floor ratio: R``, is the CPU time (this process's, ``time.process_time``) per run·tick of a
+one-worker campaign of ``--ratio-runs`` runs (the calibration already cached, so the run phase only; ticks = each
+run's duration × the robot's control rate) over the raw floor of one control tick measured in the same process:
+2 × mujoco.mj_step + Pinocchio rnea + aba on the robot (as benchmarks/arm_loop.py). ``--ratio-only`` measures only
+that (the cache of the folder is filled first).
 """
 from __future__ import annotations
 
@@ -31,11 +37,75 @@ def _campaign(spec, out: Path, runs: int, **backend) -> tuple[dict, object]:
     return execution, result
 
 
+def floor_us(robot: str = "arm6.xml", number: int = 2000, repeats: int = 7) -> float:
+    """CPU µs of 2 × mj_step + rnea + aba on ``robot`` (the median of ``repeats``), from states of a resting arm
+    with random torques (mj_step) and random configurations (Pinocchio)."""
+    import statistics
+
+    import mujoco
+    import numpy as np
+    import pinocchio as pin
+
+    import robofdi
+    from robofdi.models.manipulator import ManipulatorModel
+
+    m = mujoco.MjModel.from_xml_path(str(robofdi.ASSETS / robot))
+    d = mujoco.MjData(m)
+    nominal = ManipulatorModel(robofdi.ASSETS / robot)
+    pm, pd = nominal.model, nominal.data
+    rng = np.random.default_rng(0)
+    qs = [pin.randomConfiguration(pm) for _ in range(64)]
+    vs = [rng.standard_normal(pm.nv) for _ in range(64)]
+    ts = [rng.standard_normal(pm.nv) * 20 for _ in range(64)]
+
+    def per_call(fn) -> float:
+        samples = []
+        for rep in range(repeats + 1):
+            t0 = time.process_time()
+            for i in range(number):
+                fn(i)
+            if rep:
+                samples.append((time.process_time() - t0) / number * 1e6)
+        return statistics.median(samples)
+
+    def step(i):
+        if i % 200 == 0:
+            mujoco.mj_resetData(m, d)
+            d.ctrl[:] = rng.uniform(-1, 1, m.nu) * 10
+        mujoco.mj_step(m, d)
+
+    return (2 * per_call(step) + per_call(lambda i: pin.rnea(pm, pd, qs[i % 64], vs[i % 64], ts[i % 64]))
+            + per_call(lambda i: pin.aba(pm, pd, qs[i % 64], vs[i % 64], ts[i % 64])))
+
+
+def campaign_floor_ratio(spec, root: Path, runs: int) -> tuple[float, float, float]:
+    """(CPU µs per run·tick of a one-worker campaign of ``runs`` runs, the floor [µs], their ratio); the
+    calibration must be cached already (ROBOFDI_CACHE)."""
+    from robofdi.sims import ArmSimulator
+
+    plant = getattr(spec.options, "plant", None)
+    robot = str(getattr(plant, "robot", "arm6.xml"))
+    control_hz = 1.0 / (plant.simulator(0).control_dt if plant is not None else ArmSimulator(robot).control_dt)
+    out = root / "ratio"
+    shutil.rmtree(out, ignore_errors=True)
+    from robofdi.campaign import run_campaign
+
+    start = time.process_time()
+    result = run_campaign(spec, out, runs=runs, workers=1, progress=False)
+    cpu = time.process_time() - start
+    ticks = float((result.table.groupby("index")["duration"].first() * control_hz).round().sum())
+    per_tick = cpu / ticks * 1e6
+    floor = floor_us(robot)
+    return per_tick, floor, per_tick / floor
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--runs", type=int, default=200)
     p.add_argument("--spec", default="arm", help="a spec file or shipped spec name (default: arm)")
     p.add_argument("--out", default=None, help="folder for the campaign folders (default: a temporary one)")
+    p.add_argument("--ratio-runs", type=int, default=20, help="runs of the campaign/floor measurement (default 20)")
+    p.add_argument("--ratio-only", action="store_true", help="measure only the campaign/floor ratio")
     args = p.parse_args(argv)
 
     from dask.distributed import LocalCluster
@@ -47,6 +117,16 @@ def main(argv=None) -> int:
     cache = root / "cache"
     shutil.rmtree(cache, ignore_errors=True)
     os.environ["ROBOFDI_CACHE"] = str(cache)          # an empty cache: the first campaign calibrates
+
+    if args.ratio_only:
+        from robofdi.campaign import run_campaign
+
+        run_campaign(spec, root / "fill-cache", runs=1, workers=1, progress=False)     # calibrates into the cache
+        per_tick, floor, ratio = campaign_floor_ratio(spec, root, args.ratio_runs)
+        print(f"campaign {spec.source or spec.system}: {args.ratio_runs} runs, one worker: {per_tick:.1f} µs CPU per "
+              f"run·tick, floor {floor:.2f} µs; load average {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
+        print(f"campaign/floor ratio: {ratio:.2f}")
+        return 0
 
     rows, tables = [], {}
     cold, tables["workers=1"] = _campaign(spec, root / "w1", args.runs, workers=1)
@@ -72,6 +152,10 @@ def main(argv=None) -> int:
     same = {k: ref.equals(v.table.drop(columns="wall_time")) for k, v in tables.items()}
     print(f"identical result tables (wall time aside): {same}")
     print(f"campaign folders: {root}")
+    per_tick, floor, ratio = campaign_floor_ratio(spec, root, args.ratio_runs)
+    print(f"one worker, {args.ratio_runs} runs: {per_tick:.1f} µs CPU per run·tick, floor {floor:.2f} µs; load average "
+          f"{' '.join(f'{v:.2f}' for v in os.getloadavg())}")
+    print(f"campaign/floor ratio: {ratio:.2f}")
     return 0 if all(same.values()) else 1
 
 

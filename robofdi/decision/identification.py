@@ -7,8 +7,26 @@ from collections.abc import Sequence
 import numpy as np
 
 from robofdi import RobofdiError
+from robofdi.jit import kernel
 
 __all__ = ["Identification"]
+
+
+@kernel
+def _gate(on, increment, total, candidates, out):
+    """One sample of :meth:`Identification.update` for the entries that are on: ``total`` (the running sums of
+    the increment entries, 0 elsewhere) in place, the gated estimate into ``out``."""
+    for i in range(out.shape[0]):
+        if on[i] and increment[i]:
+            total[i] = total[i] + candidates[i]
+        else:
+            total[i] = 0.0
+        if not on[i]:
+            out[i] = 0.0
+        elif increment[i]:
+            out[i] = total[i]
+        else:
+            out[i] = candidates[i]
 
 
 class Identification:
@@ -33,16 +51,23 @@ class Identification:
     def reset(self) -> None:
         self._sum = np.zeros(len(self.components))
         self._on = np.zeros(len(self.components), dtype=bool)
+        self._any = False           # some entry is on (a Python flag: no array reduction per sample)
 
     def update(self, candidates: np.ndarray, isolated: Sequence[str]) -> np.ndarray:
         for name in isolated:
             i = self._index.get(name)
             if i is not None:
                 self._on[i] = True
-        if not self._on.any():
+                self._any = True
+        if not self._any:
             return np.zeros(len(self.components))
-        self._sum = np.where(self._on & self._increment, self._sum + candidates, 0.0)
-        return np.where(self._on, np.where(self._increment, self._sum, candidates), 0.0)
+        candidates = np.asarray(candidates, dtype=float)
+        if candidates.shape != self._sum.shape:
+            raise RobofdiError(f"Identification: field 'candidates' must be {self._sum.size} values, got shape "
+                               f"{candidates.shape}")
+        out = np.empty(self._sum.size)
+        _gate(self._on, self._increment, self._sum, candidates, out)
+        return out
 
     def magnitudes(self, estimate: np.ndarray, isolated: Sequence[str]) -> dict[str, float]:
         """The identified magnitude of every isolated target (what a :class:`~robofdi.protocols.Health` carries)."""

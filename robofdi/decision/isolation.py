@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from robofdi import RobofdiError
+from robofdi.jit import kernel
 
 __all__ = ["Signature", "Alarms", "ThresholdDecision", "STARTUP_BLANKING", "startup_samples"]
 
@@ -21,6 +22,18 @@ def startup_samples(sample_time: float, blanking: float = STARTUP_BLANKING) -> i
     if not (np.isfinite(blanking) and blanking >= 0):
         raise RobofdiError(f"blanking: expected a duration >= 0 s, got {blanking}")
     return int(np.ceil(blanking / sample_time - 1e-9))
+
+
+@kernel
+def _peak_ratio(r, threshold):
+    """max_j |r_j| / threshold_j, NaN when an entry of r is NaN: the one test of a sample (the values of
+    ``(np.abs(r) / threshold).max()``, without its three array operations)."""
+    peak = abs(r[0]) / threshold[0]
+    for j in range(1, r.shape[0]):
+        x = abs(r[j]) / threshold[j]
+        if x > peak or x != x:
+            peak = x
+    return peak
 
 
 def _component_set(value: Iterable[str], name: str) -> frozenset[str]:
@@ -163,6 +176,7 @@ class ThresholdDecision:
                 raise RobofdiError(f"{name}: expected an integer number of samples >= 0, got {value!r}")
         self._index = {c: j for j, c in enumerate(self.components)}
         self._by_fault = {s.fault: s for s in self.signatures}
+        self._tables_of, self._explained_masks = None, {}
         self.reset()
 
     def reset(self) -> None:
@@ -190,16 +204,15 @@ class ThresholdDecision:
     def update(self, residual: np.ndarray) -> Alarms:
         """One residual sample (m,) in, alarms and isolation out.
 
-        Array first: one vectorised test |r| / threshold per sample; a sample without alarm (and no confirmation
-        window open) returns at once (:meth:`_quiet`, exactly what the isolation logic gives there: nothing new),
-        the isolation logic runs only on samples that alarm."""
+        Array first: one test max |r| / threshold per sample (a compiled kernel, :mod:`robofdi.jit`); a sample
+        without alarm (and no confirmation window open) returns at once (:meth:`_quiet`, exactly what the
+        isolation logic gives there: nothing new), the ratios and the isolation logic are computed only on samples
+        that alarm."""
         r = residual if type(residual) is np.ndarray and residual.dtype == np.float64 else np.asarray(residual, dtype=float)
         m = len(self.components)
         if r.shape != self._shape:
             raise RobofdiError(f"residual: expected shape ({m},), got {r.shape}")
-        ratio = np.abs(r)
-        ratio /= self.threshold
-        peak = ratio.max()
+        peak = _peak_ratio(r, self.threshold)
         if not peak < np.inf:       # NaN or ±inf somewhere (the thresholds are finite and > 0)
             j = int(np.flatnonzero(~np.isfinite(r))[0])
             raise RobofdiError(f"residual: expected finite values, got {r[j]} at component {j} ({self.components[j]!r})")
@@ -215,6 +228,8 @@ class ThresholdDecision:
                     and self._since_alarm >= self.release):
                 self._revising = True       # a new alarm episode: decide again over every hypothesis
             self._since_alarm = 0
+        ratio = np.abs(r)
+        ratio /= self.threshold
         alarm = ratio > 1.0
         if self.confirm and (not self._isolated or self._revising):
             evident = ratio > self._evidence_ratio
@@ -241,7 +256,7 @@ class ThresholdDecision:
             new = tuple(f for f in self._isolated if f not in previous)
             return Alarms(alarm=alarm, isolated=tuple(self._isolated), new=new)
         if self.confirm and self.latch and self._isolated:      # a confirmed fault keeps explaining its components
-            alarm_new = alarm & ~np.isin(self.components, list(self._explained()))
+            alarm_new = alarm & ~self._explained_mask()
             picks = self._isolate(ratio, alarm_new)
         else:
             picks = self._isolate(ratio, alarm)
@@ -257,23 +272,58 @@ class ThresholdDecision:
         """Every component the faults isolated so far can account for."""
         return frozenset().union(*(self._by_fault[f].explains for f in self._isolated))
 
+    def _explained_mask(self) -> np.ndarray:
+        """(m,) bool: the components of :meth:`_explained` (made once per isolated set)."""
+        key = tuple(self._isolated)
+        mask = self._explained_masks.get(key)
+        if mask is None:
+            mask = self._explained_masks[key] = np.isin(self.components, list(self._explained()))
+        return mask
+
+    def _tables(self) -> tuple:
+        """The signatures as bit masks over the components (required, required ∪ allowed) and required indices."""
+        if self._tables_of is not self.signatures:
+            bit = {c: 1 << j for j, c in enumerate(self.components)}
+            self._signature_tables = [(sum(bit[c] for c in sig.required), sum(bit[c] for c in sig.explains),
+                                       tuple(self._index[c] for c in sig.required), len(sig.required))
+                                      for sig in self.signatures]
+            self._tables_of, self._picks_of = self.signatures, {}
+        return self._signature_tables
+
     def _isolate(self, ratio: np.ndarray, alarm: np.ndarray) -> list[str]:
-        alarmed = {c for c, a in zip(self.components, alarm) if a}
-        unexplained = set(alarmed)
-        picks: list[Signature] = []
+        """The greedy explanation of the alarmed components (class docstring), on bit masks. When no step of it had
+        to choose between candidates the picks depend on the alarm pattern alone: they are kept for that pattern."""
+        tables = self._tables()
+        alarmed = 0
+        for j in np.flatnonzero(alarm).tolist():
+            alarmed |= 1 << j
+        known = self._picks_of.get(alarmed)
+        if known is not None:
+            return list(known)
+        values = ratio.tolist()
+        unexplained, picked, chose = alarmed, [], False
         while unexplained:
-            candidates = [
-                s for s in self.signatures
-                if s not in picks and s.required <= alarmed and s.explains & unexplained
-            ]
-            if not candidates:
+            best, best_key, count = -1, None, 0
+            for i, (required, explains, indices, size) in enumerate(tables):
+                if i in picked or required & ~alarmed or not explains & unexplained:
+                    continue
+                count += 1
+                key = (max(values[j] for j in indices), size)
+                if best_key is None or key > best_key:      # the first of equal keys, as max() picks
+                    best, best_key = i, key
+            if count == 0:
                 break
-            # strongest evidence first; on a tie the more specific signature (more required components) wins
-            best = max(candidates, key=lambda s: (max(ratio[self._index[c]] for c in s.required), len(s.required)))
-            picks.append(best)
-            unexplained -= best.explains
-        for s in list(picks):
-            others = set().union(*(o.explains for o in picks if o is not s))
-            if s.required <= others:
-                picks.remove(s)
-        return [s.fault for s in picks]
+            chose |= count > 1
+            picked.append(best)
+            unexplained &= ~tables[best][1]
+        for i in list(picked):      # parsimony: drop a pick the other picks explain
+            others = 0
+            for o in picked:
+                if o != i:
+                    others |= tables[o][1]
+            if not tables[i][0] & ~others:
+                picked.remove(i)
+        faults = [self.signatures[i].fault for i in picked]
+        if not chose:
+            self._picks_of[alarmed] = tuple(faults)
+        return faults

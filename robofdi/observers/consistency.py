@@ -57,7 +57,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from robofdi.decision.envelope import design_envelope, envelope_features
-from robofdi.errors import RobofdiError
+from robofdi.errors import RobofdiError, all_finite
+from robofdi.jit import kernel
 from robofdi.models.friction import JointFriction
 from robofdi.models.manipulator import ManipulatorModel
 from robofdi.observers.kinematic import (
@@ -65,6 +66,11 @@ from robofdi.observers.kinematic import (
 )
 from robofdi.observers.momentum import MomentumObserver, identify_friction
 from robofdi.observers.residual import Residual, check_measurement
+
+try:        # LAPACK's gesv as numpy.linalg.solve calls it, without its per-call checks (the same result bits)
+    from numpy.linalg._umath_linalg import solve1 as _solve
+except ImportError:         # pragma: no cover - a NumPy without the private module
+    _solve = np.linalg.solve
 
 __all__ = ["ConsistencyDesign", "ConsistencyResidual", "design_consistency", "DEFAULT_GAIN", "STEP_HOLD",
            "FROZEN_CHANGE", "FROZEN_SAMPLES"]
@@ -174,16 +180,10 @@ class ConsistencyResidual:
         previous, self._r_prev = self._r_prev, r.copy()
         if previous is None:
             return np.zeros(self.n)
-        return np.linalg.solve(mass, r - previous) / self.design.gain
-
-    def _position_steps(self, e: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(mask, |e_k| / single-sample scale) per joint; the mask marks a position step: an increment more than
-        a velocity step of ν can make. A step b in q̇_k adds −(T/2 + τ_s) b to e_k
-        (:mod:`~robofdi.observers.kinematic`), so |e_k| > 2 (T/2 + |τ_s|) |ν| + the single-sample scale (a
-        factor 2 for ν's own error) is a position step."""
-        scale = self._kinematic.scale[:, self._single]
-        velocity_step_increment = 2 * (self.T / 2 + np.abs(self.design.skew)) * np.abs(self.innovation)
-        return np.abs(e) > velocity_step_increment + scale, np.abs(e) / scale
+        nu = _solve(mass, r - previous)
+        if not all_finite(nu):         # singular: numpy's own solve names the error
+            nu = np.linalg.solve(mass, r - previous)
+        return nu / self.design.gain
 
     def update(self, y: np.ndarray, u: np.ndarray) -> Residual:
         """y = [q; q̇](k), u = ū(k−1)."""
@@ -200,22 +200,11 @@ class ConsistencyResidual:
             self._repeats = np.where(np.abs(v - self._v_prev) <= FROZEN_CHANGE, self._repeats + 1, 0.0)
         self._v_prev = v
         kin, e = self._kinematic.update(q, v)
-        position_step, single = self._position_steps(e)
-        # a position step moved M(q) q̇ and so ν, and the observer and the controller answer it for a while: no
-        # evidence of a velocity-sensor fault until it has left the hold; the step itself is held instead. Nor is
-        # any ν held from before the step, but the previous sample's: the change is at this sample or, for a
-        # velocity step flagged one sample late (e = −T b against ν = −K_O T b), at the previous one
-        if position_step.any():
-            previous = self._steps[(self._k - 1) % self._hold, position_step].copy()
-            self._steps[:, position_step] = 0.0
-            self._steps[(self._k - 1) % self._hold, position_step] = previous
-        self._jumps[self._k % self._hold] = np.where(position_step, single, 0.0)
-        jumps = self._jumps.max(axis=0)
-        self._steps[self._k % self._hold] = np.where(jumps > 0, 0.0, np.abs(self.innovation) / self.design.step_scale)
+        z, estimate = np.empty(3 * n), np.empty(3 * n)
+        _step_rows(r, self.innovation, kin, e, self.bound(), self._kinematic.scale, self._single, self.design.skew,
+                   self.design.step_scale, self._repeats, FROZEN_SAMPLES, self._steps, self._jumps,
+                   self._k % self._hold, (self._k - 1) % self._hold, self.T, z, estimate)
         self._k += 1
-        held = self._repeats / FROZEN_SAMPLES
-        z = np.concatenate([r / self.bound(), np.maximum(kin, jumps), np.maximum(self._steps.max(axis=0), held)])
-        estimate = np.concatenate([r, e, -e / self.T])
         return Residual(z, estimate)
 
     def signatures(self):
@@ -227,6 +216,43 @@ class ConsistencyResidual:
         sigs += [Signature(f"{j}_pos", frozenset([f"{j}_kin"]), dynamic) for j in names]
         sigs += [Signature(f"{j}_vel", frozenset([f"{j}_kin", f"{j}_step"]), dynamic) for j in names]
         return sigs
+
+
+@kernel
+def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_scale, repeats, frozen_samples, steps, jumps,
+               row, previous_row, T, z, estimate):
+    """The rows of :meth:`ConsistencyResidual.update` after its momentum and kinematic parts, joint by joint in
+    the order of operations of their array form: the residual ``z`` and the ``estimate``; the step and jump ring
+    buffers ``steps``/``jumps`` held at ``row``.
+
+    A position step is an increment more than a velocity step of ν can make: a step b in q̇_k adds −(T/2 + τ_s) b
+    to e_k (:mod:`~robofdi.observers.kinematic`), so |e_k| > 2 (T/2 + |τ_s|) |ν| + the single-sample scale (a
+    factor 2 for ν's own error) is a position step, held as |e_k| / scale."""
+    n, hold = r.shape[0], steps.shape[0]
+    for i in range(n):
+        single_scale = scale[i, single]
+        increment = abs(e[i])
+        position_step = increment > 2 * (T / 2 + abs(skew[i])) * abs(innovation[i]) + single_scale
+        if position_step:       # no ν held from before the step but the previous sample's (see update)
+            keep = steps[previous_row, i]
+            for h in range(hold):
+                steps[h, i] = 0.0
+            steps[previous_row, i] = keep
+        jumps[row, i] = increment / single_scale if position_step else 0.0
+        jump = jumps[0, i]
+        for h in range(1, hold):
+            if jumps[h, i] > jump or jumps[h, i] != jumps[h, i]:
+                jump = jumps[h, i]
+        steps[row, i] = 0.0 if jump > 0 else abs(innovation[i]) / step_scale[i]
+        step = steps[0, i]
+        for h in range(1, hold):
+            if steps[h, i] > step or steps[h, i] != steps[h, i]:
+                step = steps[h, i]
+        held = repeats[i] / frozen_samples
+        z[i] = r[i] / bound[i]
+        z[n + i] = jump if jump > kin[i] or jump != jump else kin[i]
+        z[2 * n + i] = held if held > step or held != held else step
+        estimate[i], estimate[n + i], estimate[2 * n + i] = r[i], e[i], -e[i] / T
 
 
 def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray, np.ndarray]], T: float,

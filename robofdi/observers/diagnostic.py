@@ -25,7 +25,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from robofdi import RobofdiError
+from robofdi.jit import kernel
 from robofdi.models.manipulator import ManipulatorModel
+from robofdi.observers.evaluations import evaluations
 from robofdi.observers.residual import Residual, check_measurement
 
 __all__ = [
@@ -112,6 +114,50 @@ class Recursive(_Estimating):
         self.eta_hat = self.eta_hat + self.gamma * r
 
 
+@kernel
+def _ripple_arguments(theta, x1, args):
+    """The sine arguments θ_c x₁ + θ_d and θ_f x₁ + θ_g of eq. (50) per joint, into ``args`` (2, n)."""
+    n = x1.shape[0]
+    for i in range(n):
+        k = n + 7 * i
+        args[0, i] = theta[k + 2] * x1[i] + theta[k + 3]
+        args[1, i] = theta[k + 5] * x1[i] + theta[k + 6]
+
+
+@kernel
+def _ripple_terms(theta, x1, tau, inv_scale, s1, c1, s2, c2, G, eta):
+    """η(θ) of eq. (50) and the non-zero part G of Z, given the sines and cosines of :func:`_ripple_arguments`,
+    entry by entry in the order of operations of :meth:`RippleModel.evaluate`'s array form."""
+    n = x1.shape[0]
+    for i in range(n):
+        k = n + 7 * i
+        a, b, e = theta[k], theta[k + 1], theta[k + 4]
+        t = tau[i] * inv_scale[i]
+        G[i, 0] = 1.0
+        G[i, 1] = s1[i]
+        G[i, 3] = b * c1[i]
+        G[i, 2] = G[i, 3] * x1[i]
+        G[i, 4] = t * s2[i]
+        G[i, 6] = t * e * c2[i]
+        G[i, 5] = G[i, 6] * x1[i]
+        eta[i] = theta[i]
+        eta[n + i] = a + b * s1[i] + e * G[i, 4]
+
+
+@kernel
+def _adaptive_step(theta, G, gg, r, q, step, out):
+    """θ̂(k+1) of eqs. (37)–(39) with Q diagonal (``gg`` = the row sums of G², NumPy's), entry by entry in the
+    order of operations of :meth:`Adaptive.update`'s array form, into ``out``."""
+    n = G.shape[0]
+    for i in range(n):
+        out[i] = theta[i] + step * r[i] / (1.0 + q[i])
+    for i in range(n):
+        w = step * r[n + i] / (gg[i] + q[n + i])
+        for c in range(7):
+            k = n + 7 * i + c
+            out[k] = theta[k] + G[i, c] * w
+
+
 @dataclass
 class RippleModel:
     """Parametric uncertainty of eq. (50), one block of 7 parameters per joint (p = n + 7n):
@@ -148,19 +194,15 @@ class RippleModel:
     def evaluate(self, theta: np.ndarray, x1: np.ndarray, tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """η(θ) and the non-zero part of Z: row n+i of Z is ∂η_{n+i}/∂(θ_a … θ_g of joint i), an (n × 7)
         array (position row i of Z is the unit vector on θ_i)."""
-        tau = tau * self._inv_scale
-        pos, (a, b, c, d, e, f, g) = self.split(theta)
-        arg1, arg2 = c * x1 + d, f * x1 + g
-        s1, c1, s2, c2 = np.sin(arg1), np.cos(arg1), np.sin(arg2), np.cos(arg2)
-        G = np.empty((self.n, 7))
-        G[:, 0] = 1.0
-        G[:, 1] = s1
-        G[:, 3] = b * c1
-        G[:, 2] = G[:, 3] * x1
-        G[:, 4] = tau * s2
-        G[:, 6] = tau * e * c2
-        G[:, 5] = G[:, 6] * x1
-        return np.concatenate([pos, a + b * s1 + e * G[:, 4]]), G
+        n = self.n
+        x1 = np.asarray(x1, dtype=float)
+        args = np.empty((2, n))
+        _ripple_arguments(theta, x1, args)
+        G, eta = np.empty((n, 7)), np.empty(2 * n)
+        # the sines and cosines stay NumPy's (the same calls on the same vectors as the array form)
+        _ripple_terms(theta, x1, np.asarray(tau, dtype=float), self._inv_scale, np.sin(args[0]), np.cos(args[0]),
+                      np.sin(args[1]), np.cos(args[1]), G, eta)
+        return eta, G
 
     def eta(self, theta: np.ndarray, x1: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """η(k, x, u, θ) of eq. (50)."""
@@ -225,9 +267,31 @@ class Adaptive(_Estimating):
             self.theta = self.theta + self._Z.T @ (self.gain(self._Z) @ r)
             return
         # Same update with Q diagonal: Z Zᵀ + Q is diagonal (|z_j|² + q_j), so Γ_θ acts row by row.
-        n, G, q = self.ripple.n, self._Z, self._q
-        w = self.step * r / (np.concatenate([np.ones(n), np.einsum("ij,ij->i", G, G)]) + q)
-        self.theta = self.theta + np.concatenate([w[:n], (G * w[n:, None]).ravel()])
+        G, theta = self._Z, np.empty(self.theta.shape[0])
+        _adaptive_step(self.theta, G, np.einsum("ij,ij->i", G, G), r, self._q, self.step, theta)
+        self.theta = theta
+
+
+@kernel
+def _observer_step(x, x_prev, x_hat, e_prev, acc, acc_hat, measured, eta_prev, T, K1, K2, F, r_model, x_hat_out,
+                   e, r):
+    """Eqs. (20), (23)–(26) for one sample, entry by entry in the order of operations of their array form, given
+    the forward dynamics q̈ at x̄(k−1) (``acc``) and at x̂(k−1) (``acc_hat``, used when not ``measured``):
+    r₂₀(k), x̂(k), e(k) and r(k) into ``r_model``, ``x_hat_out``, ``e``, ``r``."""
+    n = acc.shape[0]
+    for i in range(n):
+        j = n + i
+        q_model, v_model = x_prev[i] + T * x_prev[j], x_prev[j] + T * acc[i]        # predict(x̄(k−1), ū)
+        r_model[i], r_model[j] = x[i] - q_model, x[j] - v_model                     # eq. (20)
+        if measured:        # A (x̂ − x̄) + predict(x̄)
+            dq, dv = x_hat[i] - x_prev[i], x_hat[j] - x_prev[j]
+            q_base, v_base = dq + T * dv + q_model, dv + v_model
+        else:               # predict(x̂)
+            q_base, v_base = x_hat[i] + T * x_hat[j], x_hat[j] + T * acc_hat[i]
+        ko_q, ko_v = K1[i] * e_prev[i] + T * e_prev[j], K2[i] * e_prev[j]           # K_o e, eq. (24)
+        x_hat_out[i], x_hat_out[j] = q_base + ko_q + eta_prev[i], v_base + ko_v + eta_prev[j]   # eq. (23)
+        e[i], e[j] = x[i] - x_hat_out[i], x[j] - x_hat_out[j]
+        r[i], r[j] = e[i] - F[i] * e_prev[i], e[j] - F[j] * e_prev[j]              # eq. (26)
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -288,6 +352,7 @@ class DiagnosticObserver:
                                                   or not np.all(self.freeze_threshold > 0)):
             raise RobofdiError(f"DiagnosticObserver: field 'freeze_threshold' must be None or {2 * n} thresholds > 0")
         self.velocity, self.eval_at, self.residual_space = velocity, eval_at, residual_space
+        self._evaluations = evaluations(model)     # M̂ and the forward dynamics, shared with the other diagnosers
         names = model.joint_names
         self.inputs = list(names)
         self.measurements = [f"{j}_pos" for j in names] + [f"{j}_vel" for j in names]
@@ -333,19 +398,15 @@ class DiagnosticObserver:
             return Residual(np.zeros(2 * n), np.zeros(2 * n), state_residual=np.zeros(2 * n))
         est = self.estimator
         est.prepare(self._x_prev, u)           # η̂(k−1) with x̄(k−1), ū(k−1)
-        eta_prev = est.eta_hat
-        x_model = self.euler.predict(self._x_prev, u)
-        r_model = x - x_model                   # eq. (20)
-        if self.eval_at == "measured":          # A x̂ + h(x̄) + B(x̄)ū = A(x̂ − x̄) + predict(x̄)
-            base = self.euler.apply_A(self.x_hat - self._x_prev) + x_model
-        else:
-            base = self.euler.predict(self.x_hat, u)
-        e_prev = self._e_prev                   # K_o e = [K1 e1 + T e2; K2 e2], eq. (24)
-        Ko_e = np.concatenate([self.K1 * e_prev[:n] + self.T * e_prev[n:], self.K2 * e_prev[n:]])
-        self.x_hat = base + Ko_e + eta_prev    # eq. (23)
-        e = x - self.x_hat
-        r = e - self.F * self._e_prev          # eq. (26)
-        est.update(r, r_model, self._x_prev, u)
+        x_prev, m = self._x_prev, 2 * n
+        acc = self._evaluations.acceleration(x_prev[:n], x_prev[n:], u)      # the model term of eq. (20)
+        # eval_at "measured": A x̂ + h(x̄) + B(x̄)ū = A(x̂ − x̄) + predict(x̄); "estimate": predict(x̂), eq. (23)
+        acc_hat = acc if self.eval_at == "measured" else self.model.acceleration(self.x_hat[:n], self.x_hat[n:], u)
+        r_model, x_hat, e, r = np.empty(m), np.empty(m), np.empty(m), np.empty(m)
+        _observer_step(x, x_prev, self.x_hat, self._e_prev, acc, acc_hat, self.eval_at == "measured", est.eta_hat,
+                       self.T, self.K1, self.K2, self.F, r_model, x_hat, e, r)
+        self.x_hat = x_hat
+        est.update(r, r_model, x_prev, u)
         self._x_prev, self._e_prev = x, e
         res = self._output(x, r, est.fault_estimate(r_model), r_model)
         if self.freeze_threshold is not None and hasattr(est, "freeze") and np.any(np.abs(res.r) > self.freeze_threshold):
@@ -354,15 +415,19 @@ class DiagnosticObserver:
 
     def _output(self, x: np.ndarray, r: np.ndarray, f_hat: np.ndarray, r_model: np.ndarray) -> Residual:
         n, T = self.n, self.T
-        M = self.model.mass_matrix(x[:n])
-        tau_hat = M @ f_hat[n:] / T            # δτ̂ = (M̂/T) f̂₂ (Sec. 6, with M̂ for the unknown M)
+        M = self._evaluations.mass_matrix(x[:n])
+        estimate = np.empty(2 * n)
+        estimate[:n] = r_model[:n]
+        estimate[n:] = M.dot(f_hat[n:]) / T     # δτ̂ = (M̂/T) f̂₂ (Sec. 6, with M̂ for the unknown M)
         if self.residual_space == "torque":
-            out = np.concatenate([r[:n], M @ r[n:] / T])
+            out = np.empty(2 * n)
+            out[:n] = r[:n]
+            out[n:] = M.dot(r[n:]) / T
         else:
             out = r
         # Position faults: f_s1(k) = δx1(k+1) − δx1(k) (eq. (19)), so the position rows of r₂₀ summed from the
         # isolation sample estimate δx1 (instead of x̄1 − x1d, which needs the reference; spec erratum 2–4).
-        return Residual(out, np.concatenate([r_model[:n], tau_hat]), state_residual=r)
+        return Residual(out, estimate, state_residual=r)
 
     def signatures(self):
         """Fault signatures of the residual: sensor i raises its position component and may raise the

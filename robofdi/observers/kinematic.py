@@ -31,6 +31,7 @@ import numpy as np
 
 from robofdi.decision.envelope import design_envelope
 from robofdi.errors import RobofdiError
+from robofdi.jit import kernel
 
 __all__ = ["KinematicConsistency", "kinematic_increments", "identify_skew", "design_window_scales", "WINDOWS",
            "SKEW_INSTRUMENT", "window_reach"]
@@ -174,6 +175,10 @@ class KinematicConsistency:
             raise RobofdiError(f"KinematicConsistency: field 'reach' must be None or an ({n}, {len(windows)}, 2) "
                                f"array > 0, got shape {self.reach.shape}")
         self.sizes = _window_samples(self.T, windows)
+        self._sizes = np.array(self.sizes, dtype=np.int64)
+        self._reach = np.ones((n, len(windows), 2)) if self.reach is None else np.ascontiguousarray(self.reach)
+        self.scales = np.ascontiguousarray(self.scales)
+        self.skew = np.ascontiguousarray(self.skew)
         self.reset()
 
     def reset(self) -> None:
@@ -185,31 +190,64 @@ class KinematicConsistency:
         self.outside_samples = np.zeros(n, dtype=int)
 
     def update(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        if self._prev is None:
-            e, dv = np.zeros_like(q), np.zeros_like(q)
-        else:
-            qp, vp = self._prev
-            dv = v - vp
-            e = q - qp - self.T * (v + vp) / 2 - self.skew * dv
+        n, windows = self.skew.shape[0], len(self.sizes)
+        q, v = np.asarray(q, dtype=float), np.asarray(v, dtype=float)
+        ratio, e = np.empty(n), np.empty(n)
+        outside, scales = np.empty(n, dtype=bool), np.empty((n, windows))
+        qp, vp = self._prev if self._prev is not None else (q, v)
+        _kinematic_step(q, v, qp, vp, self._prev is None, self.T, self.skew, self._history, self._k, self._sizes,
+                        self.scales, self._reach, self.reach is not None, ratio, e, outside, scales,
+                        self.outside_samples)
         self._prev = (q, v)
-        size = self._history.shape[0]
-        now = np.stack([e, np.abs(v), dv])
-        cum = self._history[(self._k - 1) % size] + now if self._k else now
-        self._history[self._k % size] = cum
-        ratio = np.zeros_like(q)
-        outside = np.zeros(q.shape, dtype=bool)
-        scales = np.empty((q.shape[0], len(self.sizes)))
-        for j, w in enumerate(self.sizes):
-            window = cum - self._history[(self._k - w) % size] if self._k >= w else cum
-            speed, change = window[1] / w, np.abs(window[2])
-            scale = self.scales[:, j, 0] + self.scales[:, j, 1] * speed + self.scales[:, j, 2] * change
-            if self.reach is not None:      # outside the designed envelope: widen, never extrapolate linearly
-                excess = np.maximum(speed / self.reach[:, j, 0], 1.0) * np.maximum(change / self.reach[:, j, 1], 1.0)
-                outside |= excess > 1.0
-                scale = scale * excess
-            scales[:, j] = scale
-            ratio = np.maximum(ratio, np.abs(window[0]) / scale)
         self._k += 1
         self.outside, self.scale = outside, scales
-        self.outside_samples += outside
         return ratio, e
+
+
+@kernel
+def _kinematic_step(q, v, qp, vp, first, T, skew, history, k, sizes, scales, reach, bounded, ratio, e, outside,
+                    scale, outside_samples):
+    """One sample of :meth:`KinematicConsistency.update`, joint by joint in the order of operations of its array
+    form: e_k, the cumulative sums in the ring buffer ``history`` at sample ``k``, each window's sum over its
+    scale σ_W (widened outside ``reach`` when ``bounded``); writes ``ratio``, ``e``, ``outside``, ``scale``
+    and counts ``outside_samples``."""
+    size = history.shape[0]
+    now, before = k % size, (k - 1) % size
+    for i in range(q.shape[0]):
+        if first:
+            ei, dvi = 0.0, 0.0
+        else:
+            dvi = v[i] - vp[i]
+            ei = q[i] - qp[i] - T * (v[i] + vp[i]) / 2 - skew[i] * dvi
+        e[i] = ei
+        if k:
+            c0, c1, c2 = history[before, 0, i] + ei, history[before, 1, i] + abs(v[i]), history[before, 2, i] + dvi
+        else:
+            c0, c1, c2 = ei, abs(v[i]), dvi
+        history[now, 0, i], history[now, 1, i], history[now, 2, i] = c0, c1, c2
+        peak, out = 0.0, False
+        for j in range(sizes.shape[0]):
+            w = sizes[j]
+            if k >= w:
+                back = (k - w) % size
+                w0, w1, w2 = c0 - history[back, 0, i], c1 - history[back, 1, i], c2 - history[back, 2, i]
+            else:
+                w0, w1, w2 = c0, c1, c2
+            speed, change = w1 / w, abs(w2)
+            sigma = scales[i, j, 0] + scales[i, j, 1] * speed + scales[i, j, 2] * change
+            if bounded:     # outside the designed envelope: widen, never extrapolate linearly
+                over_speed, over_change = speed / reach[i, j, 0], change / reach[i, j, 1]
+                if over_speed < 1.0:
+                    over_speed = 1.0
+                if over_change < 1.0:
+                    over_change = 1.0
+                excess = over_speed * over_change
+                out = out or excess > 1.0
+                sigma = sigma * excess
+            scale[i, j] = sigma
+            x = abs(w0) / sigma
+            if x > peak or x != x:
+                peak = x
+        ratio[i], outside[i] = peak, out
+        if out:
+            outside_samples[i] += 1

@@ -17,10 +17,24 @@ from scipy.signal import lfilter
 from robofdi import RobofdiError
 from robofdi.decision.isolation import Signature
 from robofdi.models.friction import JointFriction
+from robofdi.jit import kernel
 from robofdi.models.manipulator import ManipulatorModel
+from robofdi.observers.evaluations import evaluations
 from robofdi.observers.residual import Residual, check_measurement
 
 __all__ = ["MomentumObserver", "JointMomentumDiagnoser", "identify_friction", "observer_filter"]
+
+
+@kernel
+def _momentum_step(gravity, damping, v, coriolis, friction, u, r_prev, p, p0, integral_prev, T, gain, integral, r):
+    """β = ĝ + D̂ q̇ − Ĉᵀq̇ (+ τ̂_f when ``friction`` is not None), the integral and r(k) of eq. (10), entry by
+    entry in the order of operations of their array form, into ``integral`` and ``r``."""
+    for i in range(r.shape[0]):
+        beta = gravity[i] + damping[i] * v[i] - coriolis[i]
+        if friction is not None:
+            beta = beta + friction[i]
+        integral[i] = integral_prev[i] + T * (u[i] - beta + r_prev[i])
+        r[i] = gain * (p[i] - p0[i] - integral[i])
 
 
 class MomentumObserver:
@@ -40,6 +54,7 @@ class MomentumObserver:
         self.estimate_components = list(model.joint_names)
         self.estimate_modes = ["level"] * self.n
         self.units = {"residual": ["N·m"] * self.n, "estimate": ["N·m"] * self.n}
+        self._evaluations = evaluations(model)
         self.reset()
 
     def reset(self) -> None:
@@ -52,17 +67,19 @@ class MomentumObserver:
         y = check_measurement(y, 2 * n, "y")
         u = check_measurement(u, n, "u")
         q, v = y[:n], y[n:]
-        self.mass = m.mass_matrix(q)        # M(q_k) of this sample, for users of the momentum (consistency's ν)
-        p = self.mass @ v
+        ev = self._evaluations             # M̂, ĝ, Ĉ at this sample's arguments, shared with the other diagnosers
+        self.mass = ev.mass_matrix(q)       # M(q_k) of this sample (read-only), for users of the momentum (consistency's ν)
+        p = self.mass.dot(v)
         if self._prev is None:
             self._p0, self._integral, self._r = p, np.zeros(n), np.zeros(n)
         else:
             qp, vp = self._prev
-            beta = m.gravity(qp) + m.damping * vp - m.coriolis(qp, vp).T @ vp
-            if self.friction is not None:
-                beta = beta + self.friction.torque(vp)
-            self._integral = self._integral + self.T * (u - beta + self._r)
-            self._r = self.gain * (p - self._p0 - self._integral)
+            coriolis = ev.coriolis(qp, vp).T.dot(vp)
+            friction = self.friction.torque(vp) if self.friction is not None else None
+            integral, r = np.empty(n), np.empty(n)
+            _momentum_step(ev.gravity(qp), m.damping, vp, coriolis, friction, u, self._r, p, self._p0,
+                           self._integral, self.T, self.gain, integral, r)
+            self._integral, self._r = integral, r
         self._prev = (q, v)
         return Residual(self._r.copy(), self._r.copy())
 

@@ -1,0 +1,58 @@
+"""Compiled kernels: the per-sample arithmetic of the diagnosers and decisions, compiled by numba where it pays.
+
+A kernel is a plain Python function over float arrays and numbers, written element by element in the order of
+operations of the NumPy expression it replaces (fastmath off, no fused multiply-add, ``math.sin``/``cos``/``exp``
+are the C library's, as NumPy's are for float64 on x86-64): the compiled kernel, its Python function and the
+NumPy code before it give the same bits. What a kernel may not hold: matrix products and solves (NumPy's BLAS
+and LAPACK stay outside, called on the same arrays as before), ``tanh`` (NumPy's own SIMD implementation) and
+reductions whose summation order NumPy chooses (``einsum``, ``sum`` over more than a few entries).
+
+:func:`kernel` compiles with ``numba.njit(cache=True, nogil=True)``: the machine code is cached on disk next to
+the source (``__pycache__``; numba's ``NUMBA_CACHE_DIR`` moves it), so a process pays the compilation once per
+source change, later ones load it in milliseconds. The pure-Python path: ``NUMBA_DISABLE_JIT=1`` (numba's own
+switch) runs every kernel of the process as its Python function; :func:`interpreted` does the same for a block
+of code (tests compare the two paths on one real run). Without numba installed, kernels are their Python
+functions.
+"""
+from __future__ import annotations
+
+import contextlib
+import sys
+from collections.abc import Callable, Iterator
+
+__all__ = ["COMPILED", "kernel", "interpreted"]
+
+try:                                           # pragma: no cover - which branch runs depends on the install
+    import numba
+
+    COMPILED = not numba.config.DISABLE_JIT
+except ImportError:                            # pragma: no cover
+    numba = None
+    COMPILED = False
+
+_KERNELS: list[tuple[str, str, Callable, Callable]] = []     # (module, name, compiled, python function)
+
+
+def kernel(fn: Callable) -> Callable:
+    """``fn`` compiled (numba, disk-cached, fastmath off) when numba is there and enabled, else ``fn`` itself.
+    Call a kernel through its module's global name (``_kernel(...)`` in the module that defines it), so that
+    :func:`interpreted` reaches every call."""
+    compiled = numba.njit(cache=True, nogil=True)(fn) if numba is not None else fn
+    _KERNELS.append((fn.__module__, fn.__name__, compiled, fn))
+    return compiled
+
+
+@contextlib.contextmanager
+def interpreted() -> Iterator[None]:
+    """Inside the block every kernel runs as its Python function (the pure-Python path), then compiled again."""
+    swapped = []
+    for module, name, compiled, python in _KERNELS:
+        namespace = vars(sys.modules[module])
+        if namespace.get(name) is compiled:
+            namespace[name] = python
+            swapped.append((namespace, name, compiled))
+    try:
+        yield
+    finally:
+        for namespace, name, compiled in swapped:
+            namespace[name] = compiled
