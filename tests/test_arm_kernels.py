@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from robofdi import ASSETS, RobofdiError
+from robofdi.jit import interpreted
 from robofdi.sims import ArmSimulator, SensorModel, kernels
 
 ARM6 = ASSETS / "arm6.xml"
@@ -24,12 +25,11 @@ def _drive(sim, steps, fault_at=None):
     return np.array(ys), sim.state, sim.u_applied.copy()
 
 
-def test_compiled_and_pure_python_paths_agree_bit_for_bit(monkeypatch):
+def test_compiled_and_pure_python_paths_agree_bit_for_bit():
     compiled = _drive(ArmSimulator(ARM6, sensors=SENSORS), 80, fault_at=30)
-    for name in KERNELS:             # the pure-Python path: each kernel's own Python function (NUMBA_DISABLE_JIT=1)
-        k = getattr(kernels, name)
-        monkeypatch.setattr(kernels, name, getattr(k, "py_func", k))
-    python = _drive(ArmSimulator(ARM6, sensors=SENSORS), 80, fault_at=30)
+    with interpreted():              # the pure-Python path: each kernel's own Python function (NUMBA_DISABLE_JIT=1)
+        assert all(not hasattr(getattr(kernels, name), "py_func") for name in KERNELS)
+        python = _drive(ArmSimulator(ARM6, sensors=SENSORS), 80, fault_at=30)
     for a, b in zip(compiled, python):
         assert np.array_equal(a, b)
     assert np.ptp(compiled[0][:, :6], axis=0).min() > 5e-4       # the arm moved: the comparison is not vacuous

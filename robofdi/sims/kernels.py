@@ -1,14 +1,15 @@
 """Compiled kernels of the arm simulator's hot path: the honest-harness effects of one physics sub-step and the
 sensor model, on preallocated arrays (no allocation, no Python per joint).
 
-Every kernel is plain Python on scalars, compiled with numba (``cache=True``: compiled once per source change and
-kept on disk beside this file — numba's ``NUMBA_CACHE_DIR`` moves it —, so later processes load it in
-milliseconds; ``fastmath`` off, so every operation is the IEEE operation the NumPy expression did and the record is
-bit-identical). The pure-Python path is numba's own switch: ``NUMBA_DISABLE_JIT=1`` in the environment runs every
-kernel as its Python function (the same results, slower); without numba installed, kernels are their Python
-functions. Two NumPy calls stay outside the kernels because NumPy's implementation differs from the C library's in
-the last bit: ``np.tanh`` (NumPy's SIMD tanh) and the ripple's ``A @ s`` (a BLAS product, whose summation order is
-the library's). ``math.sin`` and ``math.exp`` are the C library's, as NumPy's float64 ``sin``/``exp`` are on x86-64.
+Every kernel is plain Python on scalars, compiled by :func:`robofdi.jit.kernel` (numba, ``cache=True``: compiled
+once per source change and kept on disk beside this file — numba's ``NUMBA_CACHE_DIR`` moves it —, so later
+processes load it in milliseconds; ``fastmath`` off, so every operation is the IEEE operation the NumPy expression
+did and the record is bit-identical). The pure-Python path is :mod:`robofdi.jit`'s: ``NUMBA_DISABLE_JIT=1`` in the
+environment, or :func:`robofdi.jit.interpreted` for a block, runs every kernel as its Python function (the same
+results, slower); without numba installed, kernels are their Python functions. Two NumPy calls stay outside the
+kernels because NumPy's implementation differs from the C library's in the last bit: ``np.tanh`` (NumPy's SIMD
+tanh) and the ripple's ``A @ s`` (a BLAS product, whose summation order is the library's). ``math.sin`` and
+``math.exp`` are the C library's, as NumPy's float64 ``sin``/``exp`` are on x86-64.
 """
 from __future__ import annotations
 
@@ -16,24 +17,12 @@ import math
 
 import numpy as np
 
-__all__ = ["JIT", "compiled", "apply_torque", "ripple_arguments", "disturbance", "measure"]
+from robofdi.jit import COMPILED as JIT, kernel
 
-try:                                           # pragma: no cover - which branch runs depends on the install
-    import numba
-
-    #: True when the kernels are compiled (numba installed, ``NUMBA_DISABLE_JIT`` not set).
-    JIT = not numba.config.DISABLE_JIT
-except ImportError:                            # pragma: no cover
-    numba, JIT = None, False
+__all__ = ["JIT", "apply_torque", "ripple_arguments", "disturbance", "measure"]
 
 
-def compiled(fn):
-    """``fn`` compiled with numba (nopython, cached on disk, fastmath off) when numba is there, else ``fn``.
-    Callers reach a kernel through this module's attribute (``kernels.measure(...)``)."""
-    return fn if numba is None else numba.njit(cache=True, nogil=True)(fn)
-
-
-@compiled
+@kernel
 def apply_torque(u, lo, hi, inv_gain, act, ctrl, tau):  # pragma: no cover - compiled
     """tau = u saturated to [lo, hi] (np.minimum(np.maximum(u, lo), hi)); ctrl[act] = tau · inv_gain (inv_gain of
     length 0: ctrl = tau). False when u is not finite (nothing written then)."""
@@ -50,7 +39,7 @@ def apply_torque(u, lo, hi, inv_gain, act, ctrl, tau):  # pragma: no cover - com
     return True
 
 
-@compiled
+@kernel
 def ripple_arguments(qpos, qvel, qadr, dofs, index, freq, phase, inv_eps, s, t):  # pragma: no cover - compiled
     """s[j] = sin(freq[j] q[index[j]] + phase[j]) (every ripple term) and t[i] = q̇_i / ε_i (the Stribeck tanh's
     argument; NumPy takes its tanh), q = qpos[qadr], q̇ = qvel[dofs]."""
@@ -60,7 +49,7 @@ def ripple_arguments(qpos, qvel, qadr, dofs, index, freq, phase, inv_eps, s, t):
         t[i] = qvel[dofs[i]] * inv_eps[i]
 
 
-@compiled
+@kernel
 def disturbance(qvel, dofs, tau, s, split, load, ripple, ripple_on, excess, inv_v, tanh_t, stribeck_on,
                 qfrc):  # pragma: no cover - compiled
     """qfrc[dofs] = −δ of :meth:`ArmSimulator.disturbance`: δ_i = (A s)_i + τ_i c_i s[split + i] (``ripple`` = A s)
@@ -75,7 +64,7 @@ def disturbance(qvel, dofs, tau, s, split, load, ripple, ripple_on, excess, inv_
         qfrc[dofs[i]] = -d
 
 
-@compiled
+@kernel
 def measure(qpos, qvel, qadr, dofs, resolution, inv_resolution, pos_noise, zq, vel_noise, zv, out):  # pragma: no cover
     """out = [q; q̇] as the sensors read them: q quantised to ``resolution`` where it is > 0 (round half to even),
     plus pos_noise · zq and vel_noise · zv (each only when its draws ``zq`` / ``zv`` are not empty)."""
