@@ -26,12 +26,13 @@ import scipy.signal
 
 from robofdi.errors import RobofdiError, all_finite
 from robofdi.models.linear import LinearModel, require_discrete
+from robofdi.observers.kalman import EffectivenessDiagnoser, parameter_directions_of
 from robofdi.observers.residual import Residual, check_measurement
 
 __all__ = ["AugmentedErrorEstimator"]
 
 
-class AugmentedErrorEstimator:
+class AugmentedErrorEstimator(EffectivenessDiagnoser):
     """Diagnoser protocol: state, multiplicative parameters θ and loss of effectiveness r by the augmented error
     (module docstring). ``parameter_directions``: the Aⱼ (n×n each, acting on measured states only);
     ``poles``: n discrete poles of A − LC (scipy's place_poles; default 0.5, 0.55, …) or ``observer_gain`` L
@@ -43,14 +44,8 @@ class AugmentedErrorEstimator:
                  observer_gain=None, forgetting: float = 0.999, R0: float = 1e4):
         where = "AugmentedErrorEstimator"
         self.model = model = require_discrete(model, where, "diagnosis")
-        n, m, p = model.n, model.m, model.p
-        dirs = np.array(parameter_directions, dtype=float)
-        if dirs.size == 0:
-            dirs = np.zeros((0, n, n))
-        elif dirs.ndim == 2:
-            dirs = dirs[None]
-        if dirs.ndim != 3 or dirs.shape[1:] != (n, n) or not np.all(np.isfinite(dirs)):
-            raise RobofdiError(f"{where}: field 'parameter_directions' must be a list of finite {n}x{n} matrices")
+        n, p = model.n, model.p
+        dirs = parameter_directions_of(parameter_directions, n, where)
         C_pinv = np.linalg.pinv(model.C)
         for j, Aj in enumerate(dirs):
             if np.abs(Aj - Aj @ C_pinv @ model.C).max() > 1e-12 * max(1.0, np.abs(Aj).max()):
@@ -79,12 +74,7 @@ class AugmentedErrorEstimator:
         if isinstance(R0, bool) or not isinstance(R0, (int, float)) or not (np.isfinite(R0) and R0 > 0):
             raise RobofdiError(f"{where}: field 'R0' must be a number > 0, got {R0!r}")
         self.forgetting, self.R0 = float(forgetting), float(R0)
-        self.inputs = list(model.input_names)
-        self.measurements = list(model.output_names)
-        self.components = list(model.input_names)
-        self.estimate_components = list(model.input_names)
-        self.estimate_modes = ["level"] * m
-        self.units = {"residual": ["1"] * m, "estimate": ["1"] * m}
+        self._declare_effectiveness(model)
         self.reset()
 
     def reset(self) -> None:
@@ -95,11 +85,6 @@ class AugmentedErrorEstimator:
         self._R = self.R0 * np.eye(s)
         self._vartheta = np.zeros(s)
         self.innovation = np.zeros(self.model.p)
-
-    def signatures(self) -> list:
-        from robofdi.decision import Signature
-
-        return [Signature(c, frozenset({c})) for c in self.components]
 
     @property
     def state_estimate(self) -> np.ndarray | None:

@@ -30,7 +30,8 @@ from robofdi.models.linear import LinearModel, covariance_factor, format_mode, r
 from robofdi.observers.residual import Residual, check_measurement
 
 __all__ = ["ReducedOrderDesign", "reduced_order_design", "reduced_order_covariances", "steady_state_gain",
-           "KalmanFaultEstimator", "COVARIANCE_MODES", "ParameterFaultEKF"]
+           "KalmanFaultEstimator", "COVARIANCE_MODES", "ParameterFaultEKF", "EffectivenessDiagnoser",
+           "parameter_directions_of"]
 
 COVARIANCE_MODES = ("as_printed", "swapped", "corrected")
 #: Smallest singular value (relative to ‖CE‖) below which E₃ counts as singular.
@@ -364,7 +365,40 @@ class KalmanFaultEstimator:
         return self._r.copy()
 
 
-class ParameterFaultEKF:
+def parameter_directions_of(value, n: int, where: str) -> np.ndarray:
+    """The modelling error's directions Aⱼ as a (k, n, n) array (one n×n matrix, a list of them, or none)."""
+    dirs = np.array(value, dtype=float)
+    if dirs.size == 0:
+        return np.zeros((0, n, n))
+    if dirs.ndim == 2:
+        dirs = dirs[None]
+    if dirs.ndim != 3 or dirs.shape[1:] != (n, n) or not np.all(np.isfinite(dirs)):
+        raise RobofdiError(f"{where}: field 'parameter_directions' must be a list of finite {n}x{n} matrices")
+    return dirs
+
+
+class EffectivenessDiagnoser:
+    """What the estimators of a loss of effectiveness r per actuator declare as diagnosers (Remark 5's two
+    readings, :class:`ParameterFaultEKF` and :class:`~robofdi.observers.augmented_error.AugmentedErrorEstimator`):
+    the model's inputs and outputs, one residual and one level estimate per actuator (unit 1, named like the
+    inputs), each actuator fault isolated by its own row."""
+
+    def _declare_effectiveness(self, model: LinearModel) -> None:
+        m = model.m
+        self.inputs = list(model.input_names)
+        self.measurements = list(model.output_names)
+        self.components = list(model.input_names)
+        self.estimate_components = list(model.input_names)
+        self.estimate_modes = ["level"] * m
+        self.units = {"residual": ["1"] * m, "estimate": ["1"] * m}
+
+    def signatures(self) -> list:
+        from robofdi.decision import Signature
+
+        return [Signature(c, frozenset({c})) for c in self.components]
+
+
+class ParameterFaultEKF(EffectivenessDiagnoser):
     """Extended Kalman filter for state, uncertain parameters and loss of effectiveness — Jiang & Chowdhury (2005),
     Remark 5 ("if other kinds of uncertainties such as modelling errors are considered (entering the system in
     multiplicative form), the augmented system becomes nonlinear ... an EKF should be used to estimate both the
@@ -385,12 +419,7 @@ class ParameterFaultEKF:
         where = "ParameterFaultEKF"
         self.model = model = require_discrete(model, where, "diagnosis")
         n, m, p = model.n, model.m, model.p
-        dirs = np.array(parameter_directions, dtype=float).reshape(-1, n, n) if np.size(parameter_directions) == 0 \
-            else np.array(parameter_directions, dtype=float)
-        if dirs.ndim == 2:
-            dirs = dirs[None]
-        if dirs.ndim != 3 or dirs.shape[1:] != (n, n) or not np.all(np.isfinite(dirs)):
-            raise RobofdiError(f"{where}: field 'parameter_directions' must be a list of finite {n}x{n} matrices")
+        dirs = parameter_directions_of(parameter_directions, n, where)
         self.directions, self.n_theta = dirs, dirs.shape[0]
         nz = n + self.n_theta + m
         self.Qx = _positive_definite(process_noise, n, "process_noise", where, "process covariance")
@@ -402,23 +431,13 @@ class ParameterFaultEKF:
         self.Q = scipy.linalg.block_diag(self.Qx, np.diag(drift_t), np.diag(drift_r))
         self.P0 = np.eye(nz) if P0 is None else _positive_definite(P0, nz, "P0", where, "initial covariance")
         self.x0 = None if x0 is None else check_measurement(x0, n, "x0")
-        self.inputs = list(model.input_names)
-        self.measurements = list(model.output_names)
-        self.components = list(model.input_names)
-        self.estimate_components = list(model.input_names)
-        self.estimate_modes = ["level"] * m
-        self.units = {"residual": ["1"] * m, "estimate": ["1"] * m}
+        self._declare_effectiveness(model)
         self.reset()
 
     def reset(self) -> None:
         self._z = None
         self._P = self.P0.copy()
         self.innovation = np.zeros(self.model.p)
-
-    def signatures(self) -> list:
-        from robofdi.decision import Signature
-
-        return [Signature(c, frozenset({c})) for c in self.components]
 
     @property
     def state_estimate(self) -> np.ndarray | None:
