@@ -2,8 +2,9 @@
 
 A kernel is a plain Python function over float arrays and numbers, written element by element in the order of
 operations of the NumPy expression it replaces (fastmath off, no fused multiply-add, ``math.sin``/``cos``/``exp``
-are the C library's, as NumPy's are for float64 on x86-64): the compiled kernel, its Python function and the
-NumPy code before it give the same bits. What a kernel may not hold: matrix products and solves (NumPy's BLAS
+are the C library's, as NumPy's are for float64 on x86-64 without AVX-512): the compiled kernel and its Python
+function give the same bits on any machine, and the NumPy code before them too where NumPy's ``exp`` is the C
+library's (on AVX-512 CPUs NumPy has its own ``exp``, which differs in the last bit for some arguments). What a kernel may not hold: matrix products and solves (NumPy's BLAS
 and LAPACK stay outside, called on the same arrays as before), ``tanh`` (NumPy's own SIMD implementation) and
 reductions whose summation order NumPy chooses (``einsum``, ``sum`` over more than a few entries).
 

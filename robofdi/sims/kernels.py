@@ -9,7 +9,9 @@ environment, or :func:`robofdi.jit.interpreted` for a block, runs every kernel a
 results, slower); without numba installed, kernels are their Python functions. Two NumPy calls stay outside the
 kernels because NumPy's implementation differs from the C library's in the last bit: ``np.tanh`` (NumPy's SIMD
 tanh) and the ripple's ``A @ s`` (a BLAS product, whose summation order is the library's). ``math.sin`` and
-``math.exp`` are the C library's, as NumPy's float64 ``sin``/``exp`` are on x86-64.
+``math.exp`` are the C library's, as NumPy's float64 ``sin``/``exp`` are on x86-64 without AVX-512; on AVX-512
+CPUs NumPy's ``exp`` is its own (the last bit differs for some arguments), so there the NumPy formulation agrees
+with the kernels to rounding, while the compiled and the pure-Python paths still agree bit for bit.
 """
 from __future__ import annotations
 
