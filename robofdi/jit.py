@@ -4,9 +4,10 @@ A kernel is a plain Python function over float arrays and numbers, written eleme
 operations of the NumPy expression it replaces (fastmath off, no fused multiply-add, ``math.sin``/``cos``/``exp``
 are the C library's, as NumPy's are for float64 on x86-64 without AVX-512): the compiled kernel and its Python
 function give the same bits on any machine, and the NumPy code before them too where NumPy's ``exp`` is the C
-library's (on AVX-512 CPUs NumPy has its own ``exp``, which differs in the last bit for some arguments). What a kernel may not hold: matrix products and solves (NumPy's BLAS
-and LAPACK stay outside, called on the same arrays as before), ``tanh`` (NumPy's own SIMD implementation) and
-reductions whose summation order NumPy chooses (``einsum``, ``sum`` over more than a few entries).
+library's (on AVX-512 CPUs NumPy has its own ``exp``, which differs in the last bit for some arguments). What a
+kernel may not hold: matrix products and solves (NumPy's BLAS and LAPACK stay outside, called on the same arrays
+as before), ``tanh`` (NumPy's own SIMD implementation) and reductions whose summation order NumPy chooses
+(``einsum``, ``sum`` over more than a few entries).
 
 :func:`kernel` compiles with ``numba.njit(cache=True, nogil=True)``: the machine code is cached on disk next to
 the source (``__pycache__``; numba's ``NUMBA_CACHE_DIR`` moves it), so a process pays the compilation once per
