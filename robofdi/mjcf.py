@@ -392,6 +392,29 @@ def _drives(m: mujoco.MjModel, ids: Sequence[int], path: Path) -> list[Drive]:
 URDF_TIMESTEP = 1e-3
 #: Name of the <custom> numeric holding the arm joints' velocity limits [rad/s or m/s] (read by the nominal model).
 VELOCITY_LIMIT = "robofdi_velocity_limit"
+#: Name of the <custom> numeric holding the arm joints' gear ratios (dimensionless, the drives' datasheet values),
+#: and the ratio of a joint whose file gives none.
+GEAR_RATIO, DEFAULT_GEAR_RATIO = "robofdi_gear_ratio", 100.0
+
+
+def custom_numeric(m: mujoco.MjModel, name: str) -> np.ndarray | None:
+    """The data of ``<custom><numeric name=...>`` of a compiled model, None when the file has none."""
+    i = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_NUMERIC, name)
+    return None if i < 0 else np.array(m.numeric_data[m.numeric_adr[i]: m.numeric_adr[i] + m.numeric_size[i]])
+
+
+def gear_ratio(arm: CompiledArm) -> np.ndarray:
+    """(n,) gear ratios of the arm joints from ``<numeric name="robofdi_gear_ratio">`` (one per arm joint;
+    :data:`DEFAULT_GEAR_RATIO` each when the file gives none): a datasheet value, which the plant's torque ripple
+    and the diagnosers' ripple orders both read."""
+    n = len(arm.drives)
+    gear = custom_numeric(arm.model, GEAR_RATIO)
+    if gear is None:
+        return np.full(n, DEFAULT_GEAR_RATIO)
+    if gear.shape != (n,) or not np.all(np.isfinite(gear) & (gear > 0)):
+        raise RobofdiError(f"mjcf: <numeric name='{GEAR_RATIO}'> of {arm.path.name} must hold {n} finite values > 0 "
+                           f"(one per arm joint {arm.joint_names}), got {gear.tolist()}")
+    return gear
 
 
 def _package_name(folder: Path) -> str | None:

@@ -12,7 +12,7 @@ import numpy as np
 from robofdi import RobofdiError
 from robofdi.models.manipulator import ManipulatorModel
 from robofdi.observers.consistency import ConsistencyDesign, ConsistencyResidual, design_consistency
-from robofdi.observers.kinematic import WINDOWS
+from robofdi.observers.kinematic import RIPPLE_CYCLES, WINDOWS, ripple_orders
 from robofdi.observers.diagnostic import Adaptive, DiagnosticObserver, Recursive, RippleModel, TimeDelayed
 from robofdi.observers.momentum import MomentumObserver
 from robofdi.observers.sliding_mode_arm import ArmSlidingModeObserver
@@ -38,7 +38,9 @@ class ArmSchemeSettings:
     [1/s] of the consistency scheme's momentum rows, its target false-alarm rate [1/h] (thresholds by
     extreme-value theory, :func:`robofdi.decision.extreme_value_thresholds`) and its isolation confirmation
     window [samples] (:class:`robofdi.decision.ThresholdDecision` ``confirm``), the quiet time [s] after which an
-    isolation may be revised (``release``), and its kinematic windows [s];
+    isolation may be revised (``release``), its kinematic windows [s] and the torque-ripple periods per motor
+    revolution whose aliasing its kinematic rows cover (with the model's nominal gear ratios,
+    :func:`robofdi.observers.kinematic.ripple_orders`; () = none);
     the sliding-mode scheme's switching gain Λ [rad/s²], integration sub-step [s], in-sample filter constant [s]
     and equivalent-control low-pass [s] at the diagnosis rate, by default the momentum baseline's bandwidth 1/K_O
     (:class:`robofdi.observers.sliding_mode_arm.ArmSlidingModeObserver`)."""
@@ -54,6 +56,7 @@ class ArmSchemeSettings:
     consistency_confirm: int = 3
     consistency_release: float = 0.5
     consistency_windows: tuple = WINDOWS
+    consistency_ripple_cycles: tuple = RIPPLE_CYCLES
     smo_gain: float = 200.0
     smo_substep: float = 2e-6
     smo_tau: float = 2e-5
@@ -119,7 +122,10 @@ class SchemeCalibration:
 
 
 def _design_consistency(model, inputs, settings: ArmSchemeSettings, skip: int) -> ConsistencyDesign:
-    return design_consistency(model, inputs, settings.T, settings.consistency_gain, skip, settings.consistency_windows)
+    cycles = settings.consistency_ripple_cycles
+    orders = ripple_orders(model.gear_ratio, cycles) if len(cycles) else None
+    return design_consistency(model, inputs, settings.T, settings.consistency_gain, skip, settings.consistency_windows,
+                              orders)
 
 
 def scheme_calibration(name: str, settings: ArmSchemeSettings = ArmSchemeSettings()) -> SchemeCalibration:

@@ -62,7 +62,8 @@ from robofdi.jit import kernel
 from robofdi.models.friction import JointFriction
 from robofdi.models.manipulator import ManipulatorModel
 from robofdi.observers.kinematic import (
-    WINDOWS, KinematicConsistency, design_window_scales, identify_skew, kinematic_increments, window_reach,
+    WINDOWS, KinematicConsistency, design_window_scales, identify_ripple, identify_skew, kinematic_increments,
+    window_reach,
 )
 from robofdi.observers.momentum import MomentumObserver, identify_friction
 from robofdi.observers.residual import Residual, check_measurement
@@ -95,8 +96,11 @@ class ConsistencyDesign:
     bound coefficients of the dynamic rows, ``skew`` (n,) [s] and ``window_scales`` (n, len(windows), 3) of the
     kinematic rows (:func:`~robofdi.observers.kinematic.design_window_scales`), ``step_scale`` (n,) [rad/s] of
     the step rows (the largest fault-free |ν|), the observer ``gain`` K_O [1/s], sample time ``T`` [s], the
-    kinematic ``windows`` [s] and the operating envelope the kinematic scales were designed on, ``reach``
-    (n, len(windows), 2) (:func:`~robofdi.observers.kinematic.window_reach`; None: unbounded)."""
+    kinematic ``windows`` [s], the operating envelope the kinematic scales were designed on, ``reach``
+    (n, len(windows), 2) (:func:`~robofdi.observers.kinematic.window_reach`; None: unbounded), and the drives'
+    nominal ripple orders (n, n_orders) [cycles/rad] whose aliasing the kinematic rows cover
+    (:func:`~robofdi.observers.kinematic.ripple_orders`) with their identified per-sample errors
+    ``ripple_amplitude`` (n, n_orders) [rad] (:func:`~robofdi.observers.kinematic.identify_ripple`; None: none)."""
 
     friction: JointFriction
     envelope: np.ndarray
@@ -107,6 +111,8 @@ class ConsistencyDesign:
     T: float
     windows: tuple = WINDOWS
     reach: np.ndarray | None = None
+    ripple_orders: np.ndarray | None = None
+    ripple_amplitude: np.ndarray | None = None
 
     def arrays(self) -> dict[str, np.ndarray]:
         """Flat arrays (for caching in an .npz); :meth:`from_arrays` inverts it."""
@@ -114,7 +120,9 @@ class ConsistencyDesign:
         return {"friction": f.coefficients, "friction_shape": np.array([f.stribeck_velocity, f.smoothing]),
                 "envelope": self.envelope, "skew": self.skew, "window_scales": self.window_scales,
                 "step_scale": self.step_scale, "gain_T": np.array([self.gain, self.T]),
-                "windows": np.array(self.windows, dtype=float)} | ({} if self.reach is None else {"reach": self.reach})
+                "windows": np.array(self.windows, dtype=float)} | ({} if self.reach is None else {"reach": self.reach}) \
+            | ({} if self.ripple_orders is None else {"ripple_orders": self.ripple_orders,
+                                                      "ripple_amplitude": self.ripple_amplitude})
 
     @classmethod
     def from_arrays(cls, a: dict) -> ConsistencyDesign:
@@ -122,7 +130,9 @@ class ConsistencyDesign:
         return cls(JointFriction.from_coefficients(a["friction"], float(shape[0]), float(shape[1])),
                    np.asarray(a["envelope"]), np.asarray(a["skew"]), np.asarray(a["window_scales"]),
                    np.asarray(a["step_scale"]), float(a["gain_T"][0]), float(a["gain_T"][1]),
-                   tuple(float(w) for w in a["windows"]), None if "reach" not in a else np.asarray(a["reach"]))
+                   tuple(float(w) for w in a["windows"]), None if "reach" not in a else np.asarray(a["reach"]),
+                   *((None, None) if "ripple_orders" not in a
+                     else (np.asarray(a["ripple_orders"]), np.asarray(a["ripple_amplitude"]))))
 
 
 class ConsistencyResidual:
@@ -137,7 +147,7 @@ class ConsistencyResidual:
         self.model, self.design, self.n, self.T = model, design, n, design.T
         self._momentum = MomentumObserver(model, design.T, design.gain, design.friction)
         self._kinematic = KinematicConsistency(design.T, design.skew, design.window_scales, design.windows,
-                                               design.reach)
+                                               design.reach, design.ripple_orders, design.ripple_amplitude)
         self._a = design.gain * design.T
         self._hold = max(1, int(round(STEP_HOLD / design.T)))
         self._single = int(np.argmin(design.windows))       # the single-sample kinematic window
@@ -256,12 +266,15 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_scale, re
 
 
 def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray, np.ndarray]], T: float,
-                       gain: float = DEFAULT_GAIN, skip: int = 0, windows: Sequence[float] = WINDOWS
-                       ) -> ConsistencyDesign:
+                       gain: float = DEFAULT_GAIN, skip: int = 0, windows: Sequence[float] = WINDOWS,
+                       ripple_orders: np.ndarray | None = None) -> ConsistencyDesign:
     """Learn a :class:`ConsistencyDesign` from fault-free runs, each given as the (Y, U) the diagnoser sees
     ((N, 2n) measurements, (N, n) inputs ū(k−1); see :func:`robofdi.loop.diagnoser_inputs`): friction, then the
-    operating-point bound of the friction-compensated residual and the step scale, then the kinematic skew and
-    window scales."""
+    operating-point bound of the friction-compensated residual and the step scale, then the kinematic skew,
+    window scales and envelope, and, given the drives' ``ripple_orders`` (n, n_orders) [cycles/rad]
+    (:func:`~robofdi.observers.kinematic.ripple_orders`), their aliased per-sample errors
+    (:func:`~robofdi.observers.kinematic.identify_ripple`; the single-sample scale where the runs never came
+    near an alias)."""
     n = model.n
     if not runs:
         raise RobofdiError("design_consistency: expected at least one fault-free run")
@@ -298,5 +311,11 @@ def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray,
     vs = [np.asarray(Y)[:, n:] for Y, _ in runs]
     skew = identify_skew(qs, vs, T, skip)
     scales = design_window_scales([kinematic_increments(q, v, T, skew) for q, v in zip(qs, vs)], vs, T, skip, windows)
+    orders = None if ripple_orders is None else np.asarray(ripple_orders, dtype=float)
+    if orders is not None and (orders.ndim != 2 or orders.shape[0] != n):
+        raise RobofdiError(f"design_consistency: field 'ripple_orders' must be an ({n}, n_orders) array "
+                           f"[cycles/rad], got shape {orders.shape}")
     reach = window_reach(vs, T, skip, windows)
-    return ConsistencyDesign(friction, envelope, skew, scales, step, gain, T, tuple(windows), reach)
+    amplitude = None if orders is None else identify_ripple(qs, vs, T, skew, orders, skip,
+                                                            fallback=scales[:, int(np.argmin(windows)), 0])
+    return ConsistencyDesign(friction, envelope, skew, scales, step, gain, T, tuple(windows), reach, orders, amplitude)

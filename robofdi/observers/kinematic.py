@@ -20,12 +20,31 @@ far outside the point is (the product of the ratios over the reach, each at leas
 are counted (:attr:`KinematicConsistency.outside`), so a motion faster than any calibrated one widens the
 tolerance instead of raising a false alarm.
 
+Aliased torque ripple. A drive's ripple of order m (cycles per radian of the joint: multiples of 6 per
+electrical period, twice per motor revolution for a strain-wave gear, so m = k G for the gear ratio G) makes a
+small velocity ripple at m|q̇|/2π Hz, which the velocity sensor samples without an anti-aliasing filter. Where
+that frequency comes near a non-zero multiple of the diagnosis rate 1/T, the ripple is sampled at nearly the same
+phase every sample and the trapezoid integrates it as if it were a velocity bias: e_k holds c_m exp(i m q_k)
+(its real part; c_m complex, |c_m| [rad] the per-sample error of the aliased ripple), whose window sum is at most
+|c_m| |Σ_W a_k exp(i m q_k)|, with a_k = 1 on samples near an alias (the ripple phase advance per sample,
+m|q̇_k| T, within :data:`ALIAS_BAND` of a turn of a non-zero whole number of turns: an aliased frequency below
+0.1/T), else 0 (farther from an alias the aliased ripple turns fast and averages out in the sums, which the
+design's scales hold). That sum is W for a ripple whose aliased phase stands still. |c_m| is identified per joint
+and order from the design runs' samples near an alias (:func:`identify_ripple`), and σ_W gains
+Σ_m |c_m| |Σ_W a_k exp(i m q_k)|: the tolerance follows the ripple's coherence, which no design run has to have
+held (arm6's wrist cruising at 8.7 rad/s, G = 60: 6G|q̇|/2π = 500 Hz, reached 2.8× its threshold without it).
+Near an alias a velocity bias and the ripple cannot be told apart; the term is what that costs. An order whose
+alias no design run came near gets the single-sample scale as |c_m| (:func:`identify_ripple`'s fallback). The orders are nominal
+(:func:`ripple_orders`, from the file's gear ratios), not the plant's.
+
 Valid only when the velocity does not come from differentiating the same encoder (then e ≡ 0 by construction
 and encoder faults must be found through the dynamics).
 """
 from __future__ import annotations
 
 from collections.abc import Sequence
+
+import math
 
 import numpy as np
 
@@ -34,7 +53,7 @@ from robofdi.errors import RobofdiError
 from robofdi.jit import kernel
 
 __all__ = ["KinematicConsistency", "kinematic_increments", "identify_skew", "design_window_scales", "WINDOWS",
-           "SKEW_INSTRUMENT", "window_reach"]
+           "SKEW_INSTRUMENT", "window_reach", "ripple_orders", "identify_ripple", "RIPPLE_CYCLES", "ALIAS_BAND"]
 
 #: Window lengths [s] of the accumulated inconsistency (0 = the single sample).
 WINDOWS = (0.0, 0.1, 0.5, 2.0, 4.0)
@@ -43,6 +62,30 @@ WINDOWS = (0.0, 0.1, 0.5, 2.0, 4.0)
 #: unseen motions: arm campaign, run 1 of seed 10); longer windows get at least this window's scale grown as a
 #: random walk, a_W >= a_L √(W/L), b_W >= b_L (the trapezoid and skew errors telescope in a sum: they do not grow).
 LEARNT_WINDOW = 0.5
+
+
+#: Samples near an alias, for :func:`identify_ripple`: the ripple phase advance per sample within this fraction of
+#: a turn of a non-zero whole number of turns.
+ALIAS_BAND = 0.1
+#: Fewest near-alias samples of a joint and order from which :func:`identify_ripple` estimates |c_m|.
+ALIAS_SAMPLES = 20
+
+#: Torque-ripple periods per motor revolution whose aliasing the kinematic rows guard against: the permanent-magnet
+#: drive's 6th harmonic of the electrical period and its 2nd and 3rd multiples (Jahns & Soong 1996, IEEE TIE 43(2)),
+#: and the strain-wave gear's 2 per wave-generator revolution (Tuttle & Seering 1996, IEEE TRA 12(2)).
+RIPPLE_CYCLES = (6.0, 12.0, 18.0, 2.0)
+
+
+def ripple_orders(gear_ratio: np.ndarray, cycles: Sequence[float] = RIPPLE_CYCLES) -> np.ndarray:
+    """(n, len(cycles)) ripple orders m = k G [cycles/rad of the joint] of drives with gear ratios G (n,)
+    (dimensionless, from the datasheet: :attr:`robofdi.models.ManipulatorModel.gear_ratio`)."""
+    G = np.asarray(gear_ratio, dtype=float)
+    if G.ndim != 1 or not np.all(np.isfinite(G) & (G > 0)):
+        raise RobofdiError(f"ripple_orders: field 'gear_ratio' must be finite values > 0 (one per joint), got {G!r}")
+    k = np.asarray(cycles, dtype=float)
+    if k.ndim != 1 or not np.all(np.isfinite(k) & (k > 0)):
+        raise RobofdiError(f"ripple_orders: field 'cycles' must be finite values > 0, got {cycles!r}")
+    return G[:, None] * k[None, :]
 
 
 def kinematic_increments(q: np.ndarray, v: np.ndarray, T: float, skew: np.ndarray | float = 0.0) -> np.ndarray:
@@ -153,15 +196,49 @@ def window_reach(velocities: Sequence[np.ndarray], T: float, skip: int = 0,
     return np.maximum(reach, 1e-9)
 
 
+def identify_ripple(qs: Sequence[np.ndarray], vs: Sequence[np.ndarray], T: float, skew: np.ndarray,
+                    orders: np.ndarray, skip: int = 0, fallback: np.ndarray | None = None) -> np.ndarray:
+    """(n, n_orders) per-sample error |c_m| [rad] of each aliased ripple order (module docstring): e_k regressed
+    on (cos m q_k, sin m q_k) by least squares over the fault-free runs' samples whose ripple phase advance
+    m|q̇_k| T is within :data:`ALIAS_BAND` of a turn of a non-zero whole number of turns (near an alias, where
+    e_k ≈ Re(c_m exp(i m q_k))). Where fewer than :data:`ALIAS_SAMPLES` such samples exist, ``fallback`` (n,)
+    (e.g. the single-sample scale) for every order of that joint, or 0 if None."""
+    orders = np.asarray(orders, dtype=float)
+    n, n_orders = orders.shape
+    gram = np.zeros((n, n_orders, 2, 2))
+    moment = np.zeros((n, n_orders, 2))
+    count = np.zeros((n, n_orders), dtype=int)
+    for q, v in zip(qs, vs):
+        q, v = np.asarray(q, dtype=float), np.asarray(v, dtype=float)
+        e = kinematic_increments(q, v, T, skew)[max(skip, 1):, :, None]
+        q, v = q[max(skip, 1):, :, None], v[max(skip, 1):, :, None]
+        turns = orders[None] * np.abs(v) * T / (2 * np.pi)
+        whole = np.floor(turns + 0.5)
+        near = (whole >= 1) & (np.abs(turns - whole) < ALIAS_BAND)
+        x = np.stack([np.cos(orders[None] * q), np.sin(orders[None] * q)], axis=-1) * near[..., None]
+        gram += np.einsum("kjoa,kjob->joab", x, x)
+        moment += np.einsum("kjoa,kjo->joa", x, e * near)
+        count += near.sum(axis=0)
+    amplitude = np.zeros((n, n_orders))
+    enough = count >= ALIAS_SAMPLES
+    for i, o in zip(*np.nonzero(enough)):
+        amplitude[i, o] = np.hypot(*np.linalg.lstsq(gram[i, o], moment[i, o], rcond=None)[0])
+    if fallback is not None:
+        amplitude = np.where(enough, amplitude, np.asarray(fallback, dtype=float)[:, None])
+    return amplitude
+
+
 class KinematicConsistency:
     """Stepping form: ``update(q, v)`` → (per joint: max_W |Σ_W e| / σ_W (dimensionless), e_k [rad]).
     ``reach`` (n, len(windows), 2): the designed operating envelope (:func:`window_reach`); None = unbounded.
-    :attr:`outside` (n,) says, per joint, whether the last sample was outside it in some window, and
-    :attr:`outside_samples` counts such samples since :meth:`reset`; :attr:`scale` (n, len(windows)) holds the
-    last sample's σ_W [rad]."""
+    ``orders`` (n, n_orders) [cycles/rad] and ``ripple`` (n, n_orders) [rad]: the drives' ripple orders
+    (:func:`ripple_orders`) and their aliased per-sample errors |c_m| (:func:`identify_ripple`), whose coherent
+    sums widen σ_W (module docstring); None = none. :attr:`outside` (n,) says, per joint, whether the last
+    sample was outside the reach in some window, and :attr:`outside_samples` counts such samples since
+    :meth:`reset`; :attr:`scale` (n, len(windows)) holds the last sample's σ_W [rad]."""
 
     def __init__(self, T: float, skew: np.ndarray, scales: np.ndarray, windows: Sequence[float] = WINDOWS,
-                 reach: np.ndarray | None = None):
+                 reach: np.ndarray | None = None, orders: np.ndarray | None = None, ripple: np.ndarray | None = None):
         self.T = float(T)
         self.skew = np.asarray(skew, dtype=float)
         self.scales = np.asarray(scales, dtype=float)
@@ -174,17 +251,29 @@ class KinematicConsistency:
         if self.reach is not None and (self.reach.shape != (n, len(windows), 2) or np.any(self.reach <= 0)):
             raise RobofdiError(f"KinematicConsistency: field 'reach' must be None or an ({n}, {len(windows)}, 2) "
                                f"array > 0, got shape {self.reach.shape}")
+        if (orders is None) != (ripple is None):
+            raise RobofdiError("KinematicConsistency: give both 'orders' and 'ripple' (one amplitude per order), or "
+                               "neither")
+        self.orders = np.zeros((n, 0)) if orders is None else np.asarray(orders, dtype=float)
+        self.ripple = np.zeros((n, 0)) if ripple is None else np.asarray(ripple, dtype=float)
+        if (self.orders.ndim != 2 or self.orders.shape[0] != n or not np.all(np.isfinite(self.orders) & (self.orders > 0))
+                or self.ripple.shape != self.orders.shape or not np.all(np.isfinite(self.ripple) & (self.ripple >= 0))):
+            raise RobofdiError(f"KinematicConsistency: fields 'orders' and 'ripple' must be ({n}, n_orders) arrays of "
+                               f"ripple orders > 0 [cycles/rad] and amplitudes >= 0 [rad], got shapes "
+                               f"{self.orders.shape} and {self.ripple.shape}")
         self.sizes = _window_samples(self.T, windows)
         self._sizes = np.array(self.sizes, dtype=np.int64)
         self._reach = np.ones((n, len(windows), 2)) if self.reach is None else np.ascontiguousarray(self.reach)
         self.scales = np.ascontiguousarray(self.scales)
         self.skew = np.ascontiguousarray(self.skew)
+        self.orders, self.ripple = np.ascontiguousarray(self.orders), np.ascontiguousarray(self.ripple)
         self.reset()
 
     def reset(self) -> None:
         self._prev = None
         n = self.skew.shape[0]
-        self._history = np.zeros((max(self.sizes) + 1, 3, n))   # ring buffer of cumulative sums of e, |q̇|, Δq̇
+        # ring buffer of cumulative sums of e, |q̇|, Δq̇ and, per ripple order, cos and sin of m q
+        self._history = np.zeros((max(self.sizes) + 1, 3 + 2 * self.orders.shape[1], n))
         self._k = 0
         self.outside = np.zeros(n, dtype=bool)
         self.outside_samples = np.zeros(n, dtype=int)
@@ -196,8 +285,8 @@ class KinematicConsistency:
         outside, scales = np.empty(n, dtype=bool), np.empty((n, windows))
         qp, vp = self._prev if self._prev is not None else (q, v)
         _kinematic_step(q, v, qp, vp, self._prev is None, self.T, self.skew, self._history, self._k, self._sizes,
-                        self.scales, self._reach, self.reach is not None, ratio, e, outside, scales,
-                        self.outside_samples)
+                        self.scales, self.orders, self.ripple, self._reach, self.reach is not None, ratio, e, outside,
+                        scales, self.outside_samples)
         self._prev = (q, v)
         self._k += 1
         self.outside, self.scale = outside, scales
@@ -205,13 +294,14 @@ class KinematicConsistency:
 
 
 @kernel
-def _kinematic_step(q, v, qp, vp, first, T, skew, history, k, sizes, scales, reach, bounded, ratio, e, outside,
-                    scale, outside_samples):
+def _kinematic_step(q, v, qp, vp, first, T, skew, history, k, sizes, scales, orders, ripple, reach, bounded, ratio,
+                    e, outside, scale, outside_samples):
     """One sample of :meth:`KinematicConsistency.update`, joint by joint in the order of operations of its array
-    form: e_k, the cumulative sums in the ring buffer ``history`` at sample ``k``, each window's sum over its
-    scale σ_W (widened outside ``reach`` when ``bounded``); writes ``ratio``, ``e``, ``outside``, ``scale``
-    and counts ``outside_samples``."""
-    size = history.shape[0]
+    form: e_k, the cumulative sums in the ring buffer ``history`` at sample ``k`` (e, |q̇|, Δq̇, then cos and
+    sin of m q per ripple order of ``orders`` on samples near an alias), each window's sum over its scale σ_W (plus
+    the ``ripple`` amplitude times each order's coherent sum; widened outside ``reach`` when ``bounded``); writes
+    ``ratio``, ``e``, ``outside``, ``scale`` and counts ``outside_samples``."""
+    size, n_orders = history.shape[0], orders.shape[1]
     now, before = k % size, (k - 1) % size
     for i in range(q.shape[0]):
         if first:
@@ -225,11 +315,22 @@ def _kinematic_step(q, v, qp, vp, first, T, skew, history, k, sizes, scales, rea
         else:
             c0, c1, c2 = ei, abs(v[i]), dvi
         history[now, 0, i], history[now, 1, i], history[now, 2, i] = c0, c1, c2
+        for o in range(n_orders):
+            phase = orders[i, o] * q[i]
+            turns = orders[i, o] * abs(v[i]) * T / (2 * math.pi)
+            whole = math.floor(turns + 0.5)
+            if whole >= 1 and abs(turns - whole) < ALIAS_BAND:      # near an alias (module docstring)
+                cos, sin = math.cos(phase), math.sin(phase)
+            else:
+                cos, sin = 0.0, 0.0
+            if k:
+                cos, sin = history[before, 3 + 2 * o, i] + cos, history[before, 4 + 2 * o, i] + sin
+            history[now, 3 + 2 * o, i], history[now, 4 + 2 * o, i] = cos, sin
         peak, out = 0.0, False
         for j in range(sizes.shape[0]):
             w = sizes[j]
+            back = (k - w) % size
             if k >= w:
-                back = (k - w) % size
                 w0, w1, w2 = c0 - history[back, 0, i], c1 - history[back, 1, i], c2 - history[back, 2, i]
             else:
                 w0, w1, w2 = c0, c1, c2
@@ -244,6 +345,11 @@ def _kinematic_step(q, v, qp, vp, first, T, skew, history, k, sizes, scales, rea
                 excess = over_speed * over_change
                 out = out or excess > 1.0
                 sigma = sigma * excess
+            for o in range(n_orders):       # the aliased ripple's largest contribution to this window's sum
+                wc, ws = history[now, 3 + 2 * o, i], history[now, 4 + 2 * o, i]
+                if k >= w:
+                    wc, ws = wc - history[back, 3 + 2 * o, i], ws - history[back, 4 + 2 * o, i]
+                sigma = sigma + ripple[i, o] * math.sqrt(wc * wc + ws * ws)
             scale[i, j] = sigma
             x = abs(w0) / sigma
             if x > peak or x != x:

@@ -43,7 +43,7 @@ import numpy as np
 from robofdi.checks import check_fields, is_number
 from robofdi.config import part
 from robofdi.errors import RobofdiError, all_finite
-from robofdi.mjcf import CompiledArm, compile_arm
+from robofdi.mjcf import CompiledArm, compile_arm, custom_numeric, gear_ratio
 from robofdi.models.manipulator import ManipulatorModel, ModelMismatch, sensor_channel_names
 from robofdi.seeding import stream
 from robofdi.sims import kernels
@@ -205,11 +205,6 @@ class ArmSettings:
     payload_offset: np.ndarray      # (3,) [m] in the payload body's frame
 
 
-def _custom_numeric(m: mujoco.MjModel, name: str):
-    i = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_NUMERIC, name)
-    return None if i < 0 else np.array(m.numeric_data[m.numeric_adr[i]: m.numeric_adr[i] + m.numeric_size[i]])
-
-
 def _custom_text(m: mujoco.MjModel, name: str) -> str | None:
     i = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_TEXT, name)
     if i < 0:
@@ -221,17 +216,12 @@ def _custom_text(m: mujoco.MjModel, name: str) -> str | None:
 def arm_settings(arm: CompiledArm) -> ArmSettings:
     """Read robofdi_gear_ratio, robofdi_payload_body, robofdi_payload_offset from ``arm``'s <custom> (defaults:
     gear ratio 100 per joint, the body of the last arm joint, offset 0)."""
-    m, n, file = arm.model, len(arm.drives), arm.path.name
-    gear = _custom_numeric(m, "robofdi_gear_ratio")
-    if gear is None:
-        gear = np.full(n, 100.0)
-    elif gear.shape != (n,) or not np.all(np.isfinite(gear) & (gear > 0)):
-        raise RobofdiError(f"mjcf: <numeric name='robofdi_gear_ratio'> of {file} must hold {n} finite values > 0 "
-                           f"(one per arm joint {arm.joint_names}), got {gear.tolist()}")
+    m, file = arm.model, arm.path.name
+    gear = gear_ratio(arm)
     body = _custom_text(m, "robofdi_payload_body") or arm.drives[-1].body
     if mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, body) < 0:
         raise RobofdiError(f"mjcf: <text name='robofdi_payload_body'> of {file} names {body!r}, which is not a body")
-    offset = _custom_numeric(m, "robofdi_payload_offset")
+    offset = custom_numeric(m, "robofdi_payload_offset")
     if offset is None:
         offset = np.zeros(3)
     elif offset.shape != (3,) or not np.all(np.isfinite(offset)):
@@ -556,7 +546,8 @@ class ArmSimulator:
         """Apply torques u (n, [N·m or N], saturated) for one control period; return the measurement.
 
         The hot path runs the compiled kernels of :mod:`robofdi.sims.kernels` on preallocated arrays (the same
-        numbers as :meth:`disturbance` and :meth:`measure`'s NumPy expressions, bit for bit)."""
+        numbers as :meth:`disturbance` and :meth:`measure`'s NumPy expressions: bit for bit where NumPy's float64
+        ``exp`` is the C library's, to rounding on AVX-512 CPUs, :mod:`robofdi.sims.kernels`)."""
         u = np.asarray(u, dtype=float)
         tau = np.empty(self.n)
         if u.shape != (self.n,) or not kernels.apply_torque(u, self._torque_lo, self._torque_hi, self._inv_gain_k,
