@@ -403,6 +403,32 @@ def custom_numeric(m: mujoco.MjModel, name: str) -> np.ndarray | None:
     return None if i < 0 else np.array(m.numeric_data[m.numeric_adr[i]: m.numeric_adr[i] + m.numeric_size[i]])
 
 
+def custom_text(m: mujoco.MjModel, name: str) -> str | None:
+    """The data of ``<custom><text name=...>`` of a compiled model, None when the file has none."""
+    i = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_TEXT, name)
+    if i < 0:
+        return None
+    raw = bytes(m.text_data[m.text_adr[i]: m.text_adr[i] + m.text_size[i]])
+    return raw.split(b"\0", 1)[0].decode("utf-8").strip()
+
+
+def payload_point(arm: CompiledArm) -> tuple[str, np.ndarray]:
+    """(body, offset (3,) [m] in its frame) of the arm's payload point from ``<text name="robofdi_payload_body">``
+    and ``<numeric name="robofdi_payload_offset">`` (defaults: the body of the last arm joint, offset 0): where the
+    plant's ``payload`` and "payload" mass faults put their mass, and where the payload hypothesis looks for it."""
+    m, file = arm.model, arm.path.name
+    body = custom_text(m, "robofdi_payload_body") or arm.drives[-1].body
+    if mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, body) < 0:
+        raise RobofdiError(f"mjcf: <text name='robofdi_payload_body'> of {file} names {body!r}, which is not a body")
+    offset = custom_numeric(m, "robofdi_payload_offset")
+    if offset is None:
+        offset = np.zeros(3)
+    elif offset.shape != (3,) or not np.all(np.isfinite(offset)):
+        raise RobofdiError(f"mjcf: <numeric name='robofdi_payload_offset'> of {file} must hold 3 finite values "
+                           f"x y z [m], got {offset.tolist()}")
+    return body, offset
+
+
 def gear_ratio(arm: CompiledArm) -> np.ndarray:
     """(n,) gear ratios of the arm joints from ``<numeric name="robofdi_gear_ratio">`` (one per arm joint;
     :data:`DEFAULT_GEAR_RATIO` each when the file gives none): a datasheet value, which the plant's torque ripple

@@ -158,6 +158,22 @@ def test_actuator_step_raises_its_joint_only_and_no_sensor_row(designed):
     assert z[after, n:2 * n].max() < 2.0                             # kinematic rows: actuator faults cannot raise them
     assert _first_isolation(tr)[1] == "joint3"
     np.testing.assert_allclose(tr.estimate[(t > 1.15) & (t < 1.2), 2].mean(), 60.0, rtol=0.15)
+    assert z[after, 3 * n].max() < 0.5                               # one joint's torque is not a payload
+
+
+def test_a_payload_change_is_isolated_as_the_payload_and_its_mass_estimated(designed):
+    """5 kg added at the payload point at 1 s (the plant's component_mass fault): the dynamic rows of the joints
+    it loads alarm, the payload row names it, and the least-squares mass is within 15 % of 5 kg; nothing alarms
+    before."""
+    _, _, model, rates, _, design = designed
+    sc = arm_scenario("arm6.xml", faults=["component_mass:payload:5@1.0"], seed=3, schemes=("momentum",), duration=1.6)
+    tr = _trace(run_scenario(sc, calibration(sc)[0]), model, design, rates, confirm=ArmSchemeSettings().consistency_confirm)
+    n, t = model.n, tr.time
+    z = np.abs(tr.residual)
+    assert z[(t > SKIP * 0.002) & (t < 1.0)].max() < MARGIN
+    time, got = _first_isolation(tr)
+    assert got == "payload" and time - 1.0 < 0.1, (time, got)
+    np.testing.assert_allclose(np.median(tr.estimate[(t > 1.2) & (t < 1.6), 3 * n]), 5.0, rtol=0.15)
 
 
 def test_position_sensor_bias_raises_its_kinematic_row(designed):

@@ -25,7 +25,7 @@ import numpy as np
 import pinocchio as pin
 
 from robofdi import RobofdiError
-from robofdi.mjcf import _JOINT_KINDS, VELOCITY_LIMIT, _name, compile_arm, gear_ratio
+from robofdi.mjcf import _JOINT_KINDS, VELOCITY_LIMIT, _name, compile_arm, gear_ratio, payload_point
 from robofdi.seeding import rng
 
 __all__ = ["ModelMismatch", "ManipulatorModel", "pinocchio_model", "sensor_channel_names"]
@@ -136,7 +136,8 @@ class ManipulatorModel:
     the file's joint coordinates [rad or m], velocities in rad/s or m/s, torques in N·m or N. ``joint_range``
     (n, 2) [rad or m] is ±inf where a joint is unlimited; ``velocity_limit`` (n,) [rad/s or m/s] is inf where the
     file gives none (a URDF's ``<limit velocity>``, see :func:`robofdi.mjcf.urdf_to_mjcf`); ``gear_ratio`` (n,)
-    the drives' datasheet gear ratios (:func:`robofdi.mjcf.gear_ratio`).
+    the drives' datasheet gear ratios (:func:`robofdi.mjcf.gear_ratio`); ``payload_body`` and ``payload_offset``
+    (3,) [m] the payload point (:func:`robofdi.mjcf.payload_point`).
     """
 
     def __init__(self, mjcf: str | Path, mismatch: ModelMismatch | None = None,
@@ -164,6 +165,7 @@ class ManipulatorModel:
         self.joint_range = np.where(m.jnt_limited[ids, None].astype(bool), m.jnt_range[ids], [-np.inf, np.inf])
         self.velocity_limit = _velocity_limit(m, self.n, arm.path)
         self.gear_ratio = gear_ratio(arm)
+        self.payload_body, self.payload_offset = payload_point(arm)
         self._ref = np.array([m.qpos0[d.qpos] for d in arm.drives])
         self._has_ref = bool(np.any(self._ref != 0))
         self._lower = np.tril_indices(self.n, -1)

@@ -19,6 +19,11 @@ the design runs):
   for :data:`STEP_HOLD`. A velocity-sensor step passes the test at its onset (ν = b explains e_k), and the
   held peak keeps that sample: the row is the peak of |ν| over :data:`STEP_HOLD`, over its largest fault-free
   value (the step scale).
+* ``payload`` — the payload hypothesis (:mod:`robofdi.observers.payload`): how much of the normalised dynamic
+  residuals a mass at the payload point explains beyond what one joint could,
+  √max(0, (y·ρ)²/(y·y) − max_i ρ_i²), with ρ_i = r_i / bound_i and y_i = LP(Y)_i / bound_i the filtered torque per
+  kg of a payload; its estimate is the least-squares mass δm̂ [kg]. It is 0 for an actuator fault (ρ along one
+  joint) and grows with a payload change that loads several joints.
 
 A frozen velocity sensor (its reading held) has no step at onset, so ν says nothing; the kinematic row alarms as
 the joint moves on, and alone it would call it an encoder fault. A drive's velocity estimate carries noise and
@@ -39,7 +44,8 @@ jump by b in one sample without a torque to accelerate it.
 Signatures (the hypotheses): actuator fault on joint i raises ``joint<i>`` (the step rows may follow, through
 M⁻¹); a position-sensor fault raises ``joint<i>_kin`` (the dynamic rows may follow through gravity); a
 velocity-sensor fault raises ``joint<i>_kin`` and ``joint<i>_step`` (the dynamic rows may follow: the measured
-velocity enters the momentum M(q) q̇).
+velocity enters the momentum M(q) q̇); a payload change raises ``payload`` (the dynamic and step rows may
+follow), so by parsimony it replaces the actuator faults of the joints it loads.
 
 The step rows' alarm threshold carries the false-alarm rate, so it sits 1.4–3.5× above the largest fault-free |ν| of
 the calibration; a velocity bias of 0.02–0.05 rad/s then left its step row below it and was isolated as an
@@ -66,6 +72,7 @@ from robofdi.observers.kinematic import (
     window_reach,
 )
 from robofdi.observers.momentum import MomentumObserver, identify_friction
+from robofdi.observers.payload import PayloadRegressor, payload_evidence
 from robofdi.observers.residual import Residual, check_measurement
 
 try:        # LAPACK's gesv as numpy.linalg.solve calls it, without its per-call checks (the same result bits)
@@ -136,9 +143,10 @@ class ConsistencyDesign:
 
 
 class ConsistencyResidual:
-    """Diagnoser (see the module docstring). Residual components ``joint<i>``, ``joint<i>_kin`` and
-    ``joint<i>_step`` (dimensionless); estimates: actuator torque ``joint<i>`` [N·m] (level), position offset
-    ``joint<i>_pos`` [rad] (increment) and velocity bias ``joint<i>_vel`` [rad/s] (level)."""
+    """Diagnoser (see the module docstring). Residual components ``joint<i>``, ``joint<i>_kin``,
+    ``joint<i>_step`` and ``payload`` (dimensionless); estimates: actuator torque ``joint<i>`` [N·m] (level),
+    position offset ``joint<i>_pos`` [rad] (increment), velocity bias ``joint<i>_vel`` [rad/s] (level) and the
+    added payload ``payload`` [kg] (level)."""
 
     def __init__(self, model: ManipulatorModel, design: ConsistencyDesign):
         n = model.n
@@ -148,24 +156,27 @@ class ConsistencyResidual:
         self._momentum = MomentumObserver(model, design.T, design.gain, design.friction)
         self._kinematic = KinematicConsistency(design.T, design.skew, design.window_scales, design.windows,
                                                design.reach, design.ripple_orders, design.ripple_amplitude)
+        self._payload = PayloadRegressor(model, design.T, design.gain)
         self._a = design.gain * design.T
         self._hold = max(1, int(round(STEP_HOLD / design.T)))
         self._single = int(np.argmin(design.windows))       # the single-sample kinematic window
         names = list(model.joint_names)
         self.inputs = names
         self.measurements = [f"{j}_pos" for j in names] + [f"{j}_vel" for j in names]
-        self.components = names + [f"{j}_kin" for j in names] + [f"{j}_step" for j in names]
-        self.estimate_components = names + [f"{j}_pos" for j in names] + [f"{j}_vel" for j in names]
-        self.estimate_modes = ["level"] * n + ["increment"] * n + ["level"] * n
-        #: The rows that tell hypotheses apart (velocity sensor or encoder) once another row has alarmed: their
-        #: evidence level is their largest fault-free value, not their false-alarm threshold (ThresholdDecision).
-        self.discriminating = [f"{j}_step" for j in names]
-        self.units = {"residual": ["1"] * (3 * n), "estimate": ["N·m"] * n + ["rad"] * n + ["rad/s"] * n}
+        self.components = names + [f"{j}_kin" for j in names] + [f"{j}_step" for j in names] + ["payload"]
+        self.estimate_components = names + [f"{j}_pos" for j in names] + [f"{j}_vel" for j in names] + ["payload"]
+        self.estimate_modes = ["level"] * n + ["increment"] * n + ["level"] * n + ["level"]
+        #: The rows that tell hypotheses apart (velocity sensor or encoder; payload or actuator) once another row
+        #: has alarmed: their evidence level is their largest fault-free value, not their false-alarm threshold
+        #: (ThresholdDecision).
+        self.discriminating = [f"{j}_step" for j in names] + ["payload"]
+        self.units = {"residual": ["1"] * (3 * n + 1), "estimate": ["N·m"] * n + ["rad"] * n + ["rad/s"] * n + ["kg"]}
         self.reset()
 
     def reset(self) -> None:
         self._momentum.reset()
         self._kinematic.reset()
+        self._payload.reset()
         self._features = None
         self._v_prev = None
         self._r_prev = None
@@ -210,10 +221,12 @@ class ConsistencyResidual:
             self._repeats = np.where(np.abs(v - self._v_prev) <= FROZEN_CHANGE, self._repeats + 1, 0.0)
         self._v_prev = v
         kin, e = self._kinematic.update(q, v)
-        z, estimate = np.empty(3 * n), np.empty(3 * n)
-        _step_rows(r, self.innovation, kin, e, self.bound(), self._kinematic.scale, self._single, self.design.skew,
+        z, estimate = np.empty(3 * n + 1), np.empty(3 * n + 1)
+        bound = self.bound()
+        _step_rows(r, self.innovation, kin, e, bound, self._kinematic.scale, self._single, self.design.skew,
                    self.design.step_scale, self._repeats, FROZEN_SAMPLES, self._steps, self._jumps,
                    self._k % self._hold, (self._k - 1) % self._hold, self.T, z, estimate)
+        z[3 * n], estimate[3 * n] = payload_evidence(z[:n], self._payload.update(q, v) / bound)
         self._k += 1
         return Residual(z, estimate)
 
@@ -225,6 +238,7 @@ class ConsistencyResidual:
         sigs = [Signature(j, frozenset([j]), steps) for j in names]
         sigs += [Signature(f"{j}_pos", frozenset([f"{j}_kin"]), dynamic) for j in names]
         sigs += [Signature(f"{j}_vel", frozenset([f"{j}_kin", f"{j}_step"]), dynamic) for j in names]
+        sigs.append(Signature("payload", frozenset(["payload"]), dynamic | steps))
         return sigs
 
 

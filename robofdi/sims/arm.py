@@ -43,7 +43,7 @@ import numpy as np
 from robofdi.checks import check_fields, is_number
 from robofdi.config import part
 from robofdi.errors import RobofdiError, all_finite
-from robofdi.mjcf import CompiledArm, compile_arm, custom_numeric, gear_ratio
+from robofdi.mjcf import CompiledArm, compile_arm, gear_ratio, payload_point
 from robofdi.models.manipulator import ManipulatorModel, ModelMismatch, sensor_channel_names
 from robofdi.seeding import stream
 from robofdi.sims import kernels
@@ -205,28 +205,11 @@ class ArmSettings:
     payload_offset: np.ndarray      # (3,) [m] in the payload body's frame
 
 
-def _custom_text(m: mujoco.MjModel, name: str) -> str | None:
-    i = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_TEXT, name)
-    if i < 0:
-        return None
-    raw = bytes(m.text_data[m.text_adr[i]: m.text_adr[i] + m.text_size[i]])
-    return raw.split(b"\0", 1)[0].decode("utf-8").strip()
-
-
 def arm_settings(arm: CompiledArm) -> ArmSettings:
     """Read robofdi_gear_ratio, robofdi_payload_body, robofdi_payload_offset from ``arm``'s <custom> (defaults:
     gear ratio 100 per joint, the body of the last arm joint, offset 0)."""
-    m, file = arm.model, arm.path.name
+    body, offset = payload_point(arm)
     gear = gear_ratio(arm)
-    body = _custom_text(m, "robofdi_payload_body") or arm.drives[-1].body
-    if mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, body) < 0:
-        raise RobofdiError(f"mjcf: <text name='robofdi_payload_body'> of {file} names {body!r}, which is not a body")
-    offset = custom_numeric(m, "robofdi_payload_offset")
-    if offset is None:
-        offset = np.zeros(3)
-    elif offset.shape != (3,) or not np.all(np.isfinite(offset)):
-        raise RobofdiError(f"mjcf: <numeric name='robofdi_payload_offset'> of {file} must hold 3 finite values "
-                           f"x y z [m], got {offset.tolist()}")
     return ArmSettings(gear, body, offset)
 
 

@@ -1,0 +1,100 @@
+"""Issue 24's acceptance campaigns: benchmarks/arm_acceptance.toml on the shipped arms and robosuite's arms.
+
+    python benchmarks/arm_acceptance.py [--robots arm6.xml arm7.xml panda] [--speed fast] [--workers 2]
+                                        [--out runs/arm-acceptance] [--runs N] [--seed S]
+
+A robot is a shipped asset name, an MJCF path, or the name of a robosuite 1.5 arm (``panda``, ``iiwa``,
+``ur5e``, ``kinova3``: its raw ``robot.xml``, servos turned into torque motors; needs the robosuite extra).
+--speed sets the missions' speed ("normal" or "fast"; normal missions get two segments, fast ones three).
+Each (robot, speed) campaign is resumable: re-running the command continues it. Per diagnoser it prints the
+table of benchmarks/arm_quality.py (false-alarm runs with the 95 % Clopper–Pearson upper bound, detection and
+correct isolation at ≥ 2× the minimum detectable fault, the median abrupt delay in samples, incipient faults
+detected) plus correct isolation at any time after detection ("eventually correct") and the median time to
+a correct isolation, then the consistency scheme by fault class.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+try:
+    import tomllib
+except ModuleNotFoundError:        # Python 3.10
+    import tomli as tomllib
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+from arm_quality import per_class, quality  # noqa: E402
+
+from robofdi.campaign import run_campaign  # noqa: E402
+from robofdi.campaign.results import load  # noqa: E402
+
+ROBOSUITE_ARMS = ("panda", "iiwa", "ur5e", "kinova3")
+
+
+def robot_file(name: str) -> tuple[str, bool]:
+    """(MJCF path or asset name, torque_motors) of ``name``: a robosuite arm's raw robot.xml, else the name."""
+    if name in ROBOSUITE_ARMS:
+        spec = importlib.util.find_spec("robosuite")
+        if spec is None or not spec.submodule_search_locations:
+            raise SystemExit(f"--robots {name}: robosuite is not installed (pip install -e '.[robosuite]')")
+        path = Path(spec.submodule_search_locations[0]) / "models" / "assets" / "robots" / name / "robot.xml"
+        return str(path), True
+    return name, False
+
+
+def eventually(table: pd.DataFrame) -> pd.DataFrame:
+    """Per diagnoser: faulty runs detected, correct at first isolation, correct at any time, and the median time
+    from onset to the first correct isolation [ms]."""
+    faulty = table[table["faulty"] & table["error"].isna()]
+    rows = []
+    for name, f in faulty.groupby("diagnoser", sort=False):
+        detected = f["detected"].fillna(False).astype(bool)
+        later = f["time_to_correct_isolation"].notna()
+        rows.append({"diagnoser": name, "detected": f"{int(detected.sum())}/{len(f)}",
+                     "correct first": int(f["correct"].fillna(False).astype(bool).sum()),
+                     "eventually correct": int(later.sum()),
+                     "median time to correct isolation [ms]":
+                         f"{1e3 * np.median(f.loc[later, 'time_to_correct_isolation']):.0f}" if later.any() else "-"})
+    return pd.DataFrame(rows).set_index("diagnoser")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--robots", nargs="+", default=["arm6.xml", "arm7.xml"])
+    ap.add_argument("--speed", choices=("normal", "fast"), default="fast")
+    ap.add_argument("--workers", type=int, default=None)
+    ap.add_argument("--out", default="runs/arm-acceptance")
+    ap.add_argument("--runs", type=int, default=None, help="only the first N runs (a prefix of the campaign)")
+    ap.add_argument("--seed", type=int, default=None, help="campaign seed (default: the TOML's)")
+    args = ap.parse_args()
+    spec = tomllib.loads((HERE / "arm_acceptance.toml").read_text())
+    if args.seed is not None:
+        spec["seed"] = args.seed
+    spec["system"]["speed"] = args.speed
+    spec["system"]["segments"] = 3 if args.speed == "fast" else 2
+    for name in args.robots:
+        robot, motors = robot_file(name)
+        spec["system"]["robot"], spec["system"]["torque_motors"] = robot, motors
+        out = Path(args.out) / f"{Path(name).stem}-{args.speed}"
+        t0 = time.perf_counter()
+        run_campaign(spec, out, workers=args.workers, resume=(out / "runs.jsonl").is_file(), runs=args.runs,
+                     progress=True)
+        table = load(out).table
+        print(f"\n## {name}, {args.speed}: {table['index'].nunique()} runs, {time.perf_counter() - t0:.0f} s wall")
+        print(quality(table).to_string())
+        print(eventually(table).to_string())
+        if "consistency" in spec["diagnosers"]:
+            print("\nconsistency by fault class:")
+            print(per_class(table, "consistency").to_string())
+
+
+if __name__ == "__main__":
+    main()
