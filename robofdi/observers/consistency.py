@@ -121,25 +121,26 @@ class ConsistencyDesign:
     ripple_orders: np.ndarray | None = None
     ripple_amplitude: np.ndarray | None = None
 
+    #: The optional arrays of :meth:`arrays` (absent when None).
+    OPTIONAL = ("reach", "ripple_orders", "ripple_amplitude")
+
     def arrays(self) -> dict[str, np.ndarray]:
         """Flat arrays (for caching in an .npz); :meth:`from_arrays` inverts it."""
         f = self.friction
-        return {"friction": f.coefficients, "friction_shape": np.array([f.stribeck_velocity, f.smoothing]),
-                "envelope": self.envelope, "skew": self.skew, "window_scales": self.window_scales,
-                "step_scale": self.step_scale, "gain_T": np.array([self.gain, self.T]),
-                "windows": np.array(self.windows, dtype=float)} | ({} if self.reach is None else {"reach": self.reach}) \
-            | ({} if self.ripple_orders is None else {"ripple_orders": self.ripple_orders,
-                                                      "ripple_amplitude": self.ripple_amplitude})
+        out = {"friction": f.coefficients, "friction_shape": np.array([f.stribeck_velocity, f.smoothing]),
+               "envelope": self.envelope, "skew": self.skew, "window_scales": self.window_scales,
+               "step_scale": self.step_scale, "gain_T": np.array([self.gain, self.T]),
+               "windows": np.array(self.windows, dtype=float)}
+        return out | {k: getattr(self, k) for k in self.OPTIONAL if getattr(self, k) is not None}
 
     @classmethod
     def from_arrays(cls, a: dict) -> ConsistencyDesign:
         shape = a["friction_shape"]
+        optional = {k: np.asarray(a[k]) for k in cls.OPTIONAL if k in a}
         return cls(JointFriction.from_coefficients(a["friction"], float(shape[0]), float(shape[1])),
                    np.asarray(a["envelope"]), np.asarray(a["skew"]), np.asarray(a["window_scales"]),
                    np.asarray(a["step_scale"]), float(a["gain_T"][0]), float(a["gain_T"][1]),
-                   tuple(float(w) for w in a["windows"]), None if "reach" not in a else np.asarray(a["reach"]),
-                   *((None, None) if "ripple_orders" not in a
-                     else (np.asarray(a["ripple_orders"]), np.asarray(a["ripple_amplitude"]))))
+                   tuple(float(w) for w in a["windows"]), **optional)
 
 
 class ConsistencyResidual:

@@ -34,17 +34,16 @@ and order from the design runs' samples near an alias (:func:`identify_ripple`),
 Σ_m |c_m| |Σ_W a_k exp(i m q_k)|: the tolerance follows the ripple's coherence, which no design run has to have
 held (arm6's wrist cruising at 8.7 rad/s, G = 60: 6G|q̇|/2π = 500 Hz, reached 2.8× its threshold without it).
 Near an alias a velocity bias and the ripple cannot be told apart; the term is what that costs. An order whose
-alias no design run came near gets the single-sample scale as |c_m| (:func:`identify_ripple`'s fallback). The orders are nominal
-(:func:`ripple_orders`, from the file's gear ratios), not the plant's.
+alias no design run came near gets the single-sample scale as |c_m| (:func:`identify_ripple`'s fallback). The
+orders are nominal (:func:`ripple_orders`, from the file's gear ratios), not the plant's.
 
 Valid only when the velocity does not come from differentiating the same encoder (then e ≡ 0 by construction
 and encoder faults must be found through the dynamics).
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -53,7 +52,8 @@ from robofdi.errors import RobofdiError
 from robofdi.jit import kernel
 
 __all__ = ["KinematicConsistency", "kinematic_increments", "identify_skew", "design_window_scales", "WINDOWS",
-           "SKEW_INSTRUMENT", "window_reach", "ripple_orders", "identify_ripple", "RIPPLE_CYCLES", "ALIAS_BAND"]
+           "SKEW_INSTRUMENT", "window_reach", "ripple_orders", "identify_ripple", "RIPPLE_CYCLES", "ALIAS_BAND",
+           "ALIAS_SAMPLES"]
 
 #: Window lengths [s] of the accumulated inconsistency (0 = the single sample).
 WINDOWS = (0.0, 0.1, 0.5, 2.0, 4.0)
