@@ -312,6 +312,23 @@ class Recorder:
         for key, value in values.items():
             rows[key].append(value)
 
+    def appenders(self, *keys: str) -> tuple:
+        """The :attr:`robofdi.columns.Column.appender` of each series in ``keys``: a hot loop appends one row a
+        tick with them (the same rows as :meth:`append`) and calls :meth:`settle` every ``chunk`` ticks."""
+        return tuple(self.rows[k].appender for k in keys)
+
+    def label_appenders(self) -> list[tuple[str, Any, Any]]:
+        """(fault name, appender of its active flags, appender of its values) of every label, in order."""
+        return [(name, a.appender, v.appender) for name, (a, v) in self.labels.items()]
+
+    def settle(self) -> None:
+        """Convert every series' full chunk of pending rows into a block (:meth:`robofdi.columns.Column.settle`)."""
+        for column in self.rows.values():
+            column.settle()
+        for pair in self.labels.values():
+            for column in pair:
+                column.settle()
+
     def append_labels(self, labels: Mapping[str, tuple[bool, float]]) -> None:
         """One tick of :attr:`robofdi.faults.FaultInjector.labels` (name → (active, value))."""
         for name, (active, value) in labels.items():
@@ -433,6 +450,20 @@ def _flat(reference) -> np.ndarray:
     if isinstance(reference, tuple):
         return np.concatenate([np.atleast_1d(np.asarray(r, dtype=float)) for r in reference])
     return np.atleast_1d(np.asarray(reference, dtype=float))
+
+
+def _ahead_blockable(ahead) -> bool:
+    """True when read-ahead reference rows (q_d, q̇_d, q̈_d) are float64 arrays of one 2-D shape, so that the per-tick
+    tuples ``(q_d[k], q̇_d[k], q̈_d[k])`` would stack (:class:`robofdi.columns.Column`) to :func:`_ahead_block`."""
+    return (isinstance(ahead, tuple) and len(ahead) > 0
+            and all(isinstance(p, np.ndarray) and p.dtype == np.float64 and p.ndim == 2 and p.shape == ahead[0].shape
+                    for p in ahead))
+
+
+def _ahead_block(ahead, start: int, stop: int) -> np.ndarray:
+    """Rows ``start:stop`` of read-ahead reference parts as one (rows, parts, n) block: row k is
+    ``np.asarray((q_d[k], q̇_d[k], q̈_d[k]))``, the same numbers as the per-tick tuples stacked."""
+    return np.stack([p[start:stop] for p in ahead], axis=1)
 
 
 def _stack_references(refs: list) -> np.ndarray:
@@ -582,10 +613,28 @@ class ClosedLoop:
             label_units = {f.name: _label_unit(f, sim) for f in self.faults if f.name in inj.label_names}
             traces = {}
 
+        # a reference that can be read ahead (``sample(times)``: Quintic, Sequence) is sampled a block of ticks at a
+        # time, the same numbers as calling it every tick; any other reference is called every tick. The read-ahead
+        # rows are recorded a block at a time too (:func:`_ahead_block`: the rows the per-tick tuples would stack to)
+        sample = getattr(self.reference, "sample", None)
+        time_column, ref_column = rec.rows["time"], rec.rows["reference"]
+        ahead, ahead_whole, ahead_kept = None, False, 0
+
+        def sync_reference() -> None:
+            """Put the read-ahead reference rows of the ticks recorded so far into the reference column."""
+            nonlocal ahead_kept
+            if ahead_whole:
+                missing = len(time_column) - len(ref_column)
+                if missing > 0:
+                    ref_column.extend(_ahead_block(ahead, ahead_kept, ahead_kept + missing))
+                    ahead_kept += missing
+
         def record() -> Record:
+            sync_reference()
             return self._record(rec, bank, scenario, seed, run_key, duration, meta)
 
         def flush(rows=None) -> None:
+            sync_reference()
             series, labels = rec.take(rows)
             reference = series.pop("reference")
             reference = _stack_references(reference)
@@ -598,9 +647,14 @@ class ClosedLoop:
             writer.append(out, columns, units, {k: (a, v, label_units[k]) for k, (a, v) in labels.items()},
                           bank.take(), traces)
 
-        # a reference that can be read ahead (``sample(times)``: Quintic, Sequence) is sampled a block of ticks at a
-        # time, the same numbers as calling it every tick; any other reference is called every tick
-        sample = getattr(self.reference, "sample", None)
+        # the hot loop: bound methods and the columns' own appenders, looked up once (the same calls and rows as
+        # ``rec.append(...)`` every tick; the rows are converted a chunk at a time by ``rec.settle``)
+        (add_time, add_state, add_ref, add_u_cmd, add_u, add_u_diag, add_y_true, add_y_meas,
+         add_u_applied) = rec.appenders("time", "state", "reference", "u_cmd", "u", "u_diag", "y_true", "y_meas",
+                                        "u_applied")
+        add_labels = rec.label_appenders()
+        sense, actuate, emulate, push = inj.sense, inj.actuate, inj.emulate, bank.push
+        control, step, reference_at = self.controller.update, sim.step, self.reference
         try:
             y = sim.reset(initial_state, seed=stream(seed, run_key, "sensors"))
             u_prev_diag = np.zeros(len(sim.actuators))
@@ -609,43 +663,64 @@ class ClosedLoop:
                 if sample is not None:
                     k = j % chunk
                     if k == 0:
-                        ahead_q, ahead_v, ahead_a = sample([i * dt for i in range(j, min(j + chunk, steps + 1))])
+                        sync_reference()
+                        ahead = sample([i * dt for i in range(j, min(j + chunk, steps + 1))])
+                        ahead_whole, ahead_kept = _ahead_blockable(ahead), 0
+                        ahead_q, ahead_v, ahead_a = ahead
                     ref = (ahead_q[k], ahead_v[k], ahead_a[k])
                 else:
-                    ref = self.reference(t)
-                y_faulty = inj.sense(t, y)
-                bank.push(j, t, y_faulty, u_prev_diag)
+                    ref = reference_at(t)
+                y_faulty = sense(t, y)
+                push(j, t, y_faulty, u_prev_diag)
                 if oracle:
                     health = Health(t, tuple(fault_by_name[n].target for n, (a, _) in inj.labels.items() if a),
                                     {fault_by_name[n].target: v for n, (a, v) in inj.labels.items() if a}, ORACLE)
                 else:
                     health = bank.health
-                u_cmd = self.controller.update(y_faulty if online else y, ref)
+                u_cmd = control(y_faulty if online else y, ref)
                 u = accommodation.update(u_cmd, health) if accommodation is not None else u_cmd
                 if online:
-                    u_plant, u_diag = inj.actuate(t, u), u
+                    u_plant, u_diag = actuate(t, u), u
                     if components:
                         for kind, target, value in inj.components(t):
                             sim.apply_component_fault(kind, target, value)
                 else:
-                    u_plant, u_diag = u, inj.emulate(t, u)
-                rec.append(time=t, state=sim.state, reference=ref, u_cmd=u_cmd, u=u, u_diag=u_diag,
-                           y_true=sim.true_output, y_meas=y_faulty)
-                rec.append_labels(inj.labels)
+                    u_plant, u_diag = u, emulate(t, u)
+                state, y_true = sim.state, sim.true_output
+                add_time(t)
+                add_state(state)
+                if not ahead_whole:
+                    add_ref(ref)
+                add_u_cmd(u_cmd)
+                add_u(u)
+                add_u_diag(u_diag)
+                add_y_true(y_true)
+                add_y_meas(y_faulty)
+                if add_labels:
+                    labels = inj.labels
+                    for name, add_active, add_value in add_labels:
+                        active, value = labels[name]
+                        add_active(bool(active))
+                        add_value(float(value))
                 u_prev_diag = u_diag
                 if j < steps:
-                    y = sim.step(u_plant)
-                    rec.append(u_applied=sim.u_applied.copy())
+                    y = step(u_plant)
+                    add_u_applied(sim.u_applied.copy())
                 else:
-                    rec.append(u_applied=sim.saturate(u_plant))
-                if writer is not None and (j + 1) % chunk == 0:
-                    flush()
+                    add_u_applied(sim.saturate(u_plant))
+                if (j + 1) % chunk == 0:
+                    if writer is not None:
+                        flush()
+                    else:
+                        sync_reference()
+                        rec.settle()
                 if progress is not None:
                     progress(1)
             if writer is not None:
                 flush()
                 return writer.close()
         except KeyboardInterrupt as exc:         # SIGINT or SIGTERM (robofdi.interrupts): stop, keep the record
+            sync_reference()
             signum = signal_of(exc)
             message = f"run interrupted by {signal.Signals(signum).name} at t = {rec.last('time', 0.0):.3f} s"
             if writer is not None:
@@ -654,6 +729,7 @@ class ClosedLoop:
                 raise err from None
             raise RunInterrupted(message, _trim(record()), signum) from None
         except Exception as exc:
+            sync_reference()
             message = f"run failed at t = {rec.last('time', 0.0):.3f} s: {exc}"
             if writer is not None:
                 err = RunAborted(message, None)

@@ -44,6 +44,33 @@ def test_a_column_gives_back_exactly_what_was_appended_blocked_or_listed():
     assert mixed.is_list and [len(r) for r in mixed.rows] == [2, 3]
 
 
+def test_a_column_filled_by_its_appender_and_by_blocks_equals_one_filled_row_by_row():
+    rows = [np.arange(3.0) + k for k in range(11)]
+    slow, fast = Column(chunk=4), Column(chunk=4)
+    add = fast.appender
+    for k, r in enumerate(rows):
+        slow.append(r)
+        add(r)
+        if (k + 1) % 4 == 0:
+            fast.settle()
+    assert fast._count == slow._count == 8 and len(fast._items) == 3
+    np.testing.assert_array_equal(fast.array(), slow.array())
+    fast.take()
+    add(rows[0])                                 # the appender survives a take
+    np.testing.assert_array_equal(fast.array(), rows[:1])
+    blocks = Column(chunk=4)
+    blocks.extend(np.asarray(rows[:3]))
+    blocks.extend(np.asarray(rows[3:]))
+    np.testing.assert_array_equal(blocks.array(), np.asarray(rows))
+    np.testing.assert_array_equal(blocks[5], rows[5])
+    np.testing.assert_array_equal(blocks[-1], rows[-1])
+    mixed = Column(chunk=4)
+    mixed.append(rows[0])
+    mixed.extend(np.asarray(rows[1:6]))          # rows pending: appended row by row, converted at 4 as before
+    assert mixed._count == 4 and len(mixed._items) == 2
+    np.testing.assert_array_equal(mixed.array(), np.asarray(rows[:6]))
+
+
 def _loop(faults=()):
     sc = scenario("ch3-actuator", seed=0, duration=0.4, schemes=("momentum",), faults=())
     sim = sc.simulator()
@@ -89,6 +116,21 @@ def test_a_streamed_record_equals_the_in_memory_one_and_files_repeat_byte_for_by
         assert "partial" not in f.attrs and f["truth/state"].chunks is not None
     again = loop.run_to_file(tmp_path / "b" / "record.h5", 0.4, q0, seed=3, scenario="s", meta={"k": 1}, chunk=64)
     assert again.read_bytes() == path.read_bytes()
+
+
+def test_a_read_ahead_reference_is_recorded_as_the_reference_called_every_tick(tmp_path):
+    fault = Fault("tau3", "actuator_additive", "joint3", onset=0.2, magnitude=30.0)
+    loop, sc = _loop((fault,))
+    motion = loop.reference
+    per_tick, _ = _loop((fault,))
+    per_tick.reference = lambda t: motion(t)     # no ``sample``: called and recorded tick by tick
+    a, b = loop.run(0.3, sc.start_pose, seed=2), per_tick.run(0.3, sc.start_pose, seed=2)
+    assert a.signals["reference"].shape == (301, 18)
+    _same(a, b)
+    pa = loop.run_to_file(tmp_path / "a.h5", 0.3, sc.start_pose, seed=2, chunk=37)
+    pb = per_tick.run_to_file(tmp_path / "b.h5", 0.3, sc.start_pose, seed=2, chunk=37)
+    _same(load(pa), a)
+    assert pa.read_bytes() == pb.read_bytes()
 
 
 def test_a_streamed_run_that_fails_keeps_its_chunks_as_a_partial_file(tmp_path):
