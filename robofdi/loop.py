@@ -169,6 +169,9 @@ class DiagnosisRunner:
         self._latest = None
         self._rows: dict[str, Column] = {k: Column(self.chunk)
                                          for k in ("time", "residual", "alarm", "isolated", "estimate")}
+        # the trace columns' own appenders (:attr:`robofdi.columns.Column.appender`), settled every chunk samples
+        self._add = tuple(column.appender for column in self._rows.values())
+        self._pending = 0
 
     def push(self, j: int, t: float, y: np.ndarray, u_prev: np.ndarray) -> bool:
         """Control tick j at time t: y measured now, u_prev the input held over the tick that just ended
@@ -181,24 +184,32 @@ class DiagnosisRunner:
         self._count += 1
         if j % self._ratio:
             return False
-        u = self._held / self._count if self._mean else self._held
+        u = self._held                    # a fresh array every interval: divided in place, the same quotient
+        if self._mean:
+            u /= self._count
         self._count = 0
-        res = self.diagnosis.diagnoser.update(y, u)
-        decision = self.diagnosis.decision
+        diagnosis = self.diagnosis
+        res = diagnosis.diagnoser.update(y, u)
+        decision = diagnosis.decision
         if decision is not None:
             alarms = decision.update(res.r)
             alarm, isolated = alarms.alarm, alarms.isolated
         else:
             alarm, isolated = np.zeros(res.r.size, dtype=bool), ()
         estimate = self.identification.update(res.estimate, isolated)
-        rows = self._rows
-        rows["time"].append(t)
-        rows["residual"].append(res.r)
-        rows["alarm"].append(alarm)
+        add_time, add_residual, add_alarm, add_isolated, add_estimate = self._add
+        add_time(t)
+        add_residual(res.r)
+        add_alarm(alarm)
         if isolated != self._isolated:
             self._isolated, self._joined = isolated, "+".join(isolated)
-        rows["isolated"].append(self._joined)
-        rows["estimate"].append(estimate)
+        add_isolated(self._joined)
+        add_estimate(estimate)
+        self._pending += 1
+        if self._pending >= self.chunk:   # what Column.append does at a full chunk: convert the rows into blocks
+            for column in self._rows.values():
+                column.settle()
+            self._pending = 0
         self._latest = (alarm, self._joined)
         if isolated:                      # the health is made when it is read (the health source's, one late)
             self._last, self._health = (t, isolated, estimate), None
@@ -226,6 +237,7 @@ class DiagnosisRunner:
         d = self.diagnosis.diagnoser
         widths = {"residual": len(d.components), "alarm": len(d.components), "estimate": len(d.estimate_components)}
         out = {}
+        self._pending = 0
         for key, column in self._rows.items():
             rows = column.take()
             dtype = object if key == "isolated" else bool if key == "alarm" else float
