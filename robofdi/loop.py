@@ -48,6 +48,7 @@ from robofdi.protocols import (
     Reference,
     Simulator,
 )
+from robofdi.protocols import output_is_state as _output_is_state
 from robofdi.record import DiagnoserTrace, FaultLabels, Record
 from robofdi.seeding import stream
 
@@ -312,11 +313,24 @@ class Recorder:
     the arrays of its :class:`~robofdi.record.Record`.
 
     ``keys``: the row series; ``label_names``: the faults whose (active, value) labels are kept; ``chunk``: rows
-    per block (and per chunk handed out by :meth:`take` when the record is streamed to disk)."""
+    per block (and per chunk handed out by :meth:`take` when the record is streamed to disk); ``same``: series →
+    an earlier series whose rows it always is (the same objects every tick, e.g. u_diag = u in online injection):
+    only that one is kept, the other is its copy (:meth:`array`, :meth:`take`), and is never appended to."""
 
-    def __init__(self, keys: Sequence[str], label_names: Sequence[str] = (), chunk: int = CHUNK):
+    def __init__(self, keys: Sequence[str], label_names: Sequence[str] = (), chunk: int = CHUNK,
+                 same: Mapping[str, str] | None = None):
         self.chunk = chunk
-        self.rows: dict[str, Column] = {k: Column(chunk) for k in keys}
+        self.keys = tuple(keys)
+        self.same: dict[str, str] = {}
+        same = dict(same or {})
+        for key, source in same.items():
+            for _ in range(len(same)):           # follow chains (u_diag → u → u_cmd); a cycle is refused below
+                source = same.get(source, source)
+            if source in same or key not in self.keys or source not in self.keys or source == key:
+                raise RobofdiError(f"Recorder: field 'same' maps {key!r} to {source!r}: both must be other series "
+                                   f"of {list(self.keys)}")
+            self.same[key] = source
+        self.rows: dict[str, Column] = {k: Column(chunk) for k in self.keys if k not in self.same}
         self.labels: dict[str, tuple[Column, Column]] = {name: (Column(chunk), Column(chunk)) for name in label_names}
 
     def append(self, **values) -> None:
@@ -349,7 +363,7 @@ class Recorder:
             columns[1].append(float(value))
 
     def last(self, key: str, default=None):
-        rows = self.rows[key]
+        rows = self.rows[self.same.get(key, key)]
         return rows[-1] if len(rows) else default
 
     def __len__(self) -> int:
@@ -358,7 +372,8 @@ class Recorder:
 
     def array(self, key: str, width: int | None = None, dtype=float) -> np.ndarray:
         """The rows of ``key`` as an array ((N,) for scalars; (N, width) when ``width`` is given)."""
-        a = self.rows[key].array(dtype)
+        source = self.same.get(key)
+        a = self.rows[key].array(dtype) if source is None else np.array(self.rows[source].array(dtype))
         return a if width is None else a.reshape(-1, width)
 
     def fault_labels(self, units: Mapping[str, str]) -> dict[str, FaultLabels]:
@@ -371,9 +386,15 @@ class Recorder:
         def cut(a):
             return a if rows is None else a[:rows]
 
-        series = {k: cut(c.take()) for k, c in self.rows.items()}
+        taken = {k: cut(c.take()) for k, c in self.rows.items()}
+        series = {k: taken[k] if k in taken else _copy_rows(taken[self.same[k]]) for k in self.keys}
         labels = {k: (cut(a.take()), cut(v.take())) for k, (a, v) in self.labels.items()}
         return series, labels
+
+
+def _copy_rows(rows):
+    """A copy of taken rows (an array, or a list of a list column)."""
+    return rows.copy() if isinstance(rows, np.ndarray) else list(rows)
 
 
 def _record_rates(record: Record) -> Rates:
@@ -608,8 +629,13 @@ class ClosedLoop:
             accommodation.reset()
         online = self.injection == "online"
         components = inj.has_component_faults
+        # series that are the same objects every tick are kept once: u = u_cmd without accommodation, u_diag = u in
+        # online injection, y_true = state when the simulator says so (:func:`robofdi.protocols.output_is_state`)
+        output_is_state = _output_is_state(sim)
+        same = {key: source for key, source, alike in (("u", "u_cmd", accommodation is None), ("u_diag", "u", online),
+                                                       ("y_true", "state", output_is_state)) if alike}
         rec = Recorder(("time", "state", "u_applied", "reference", "u_cmd", "u", "u_diag", "y_true", "y_meas"),
-                       inj.label_names, chunk)
+                       inj.label_names, chunk, same)
         fault_by_name = {f.name: f for f in self.faults}
         writer = None
         if path is not None:
@@ -662,8 +688,8 @@ class ClosedLoop:
         # the hot loop: bound methods and the columns' own appenders, looked up once (the same calls and rows as
         # ``rec.append(...)`` every tick; the rows are converted a chunk at a time by ``rec.settle``)
         (add_time, add_state, add_ref, add_u_cmd, add_u, add_u_diag, add_y_true, add_y_meas,
-         add_u_applied) = rec.appenders("time", "state", "reference", "u_cmd", "u", "u_diag", "y_true", "y_meas",
-                                        "u_applied")
+         add_u_applied) = (rec.rows[k].appender if k in rec.rows else None for k in (
+            "time", "state", "reference", "u_cmd", "u", "u_diag", "y_true", "y_meas", "u_applied"))
         add_labels = rec.label_appenders()
         sense, actuate, emulate, push = inj.sense, inj.actuate, inj.emulate, bank.push
         control, step, reference_at = self.controller.update, sim.step, self.reference
@@ -698,15 +724,19 @@ class ClosedLoop:
                             sim.apply_component_fault(kind, target, value)
                 else:
                     u_plant, u_diag = u, emulate(t, u)
-                state, y_true = sim.state, sim.true_output
+                state = sim.state
+                y_true = state if output_is_state else sim.true_output
                 add_time(t)
                 add_state(state)
                 if not ahead_whole:
                     add_ref(ref)
                 add_u_cmd(u_cmd)
-                add_u(u)
-                add_u_diag(u_diag)
-                add_y_true(y_true)
+                if add_u is not None:
+                    add_u(u)
+                if add_u_diag is not None:
+                    add_u_diag(u_diag)
+                if add_y_true is not None:
+                    add_y_true(y_true)
                 add_y_meas(y_faulty)
                 if add_labels:
                     labels = inj.labels

@@ -11,9 +11,11 @@ from robofdi.control import ComputedTorque
 from robofdi.decision import ThresholdDecision
 from robofdi.experiments.ch3_industrial_robot import scenario
 from robofdi.faults import Fault
-from robofdi.loop import ClosedLoop, Diagnosis, Rates, RunAborted
+from robofdi.loop import ClosedLoop, Diagnosis, Rates, Recorder, RunAborted
 from robofdi.observers import MomentumObserver
+from robofdi.protocols import output_is_state, returns_state
 from robofdi.record import load, partial_name
+from robofdi.sims import ArmSimulator
 
 
 def test_a_column_gives_back_exactly_what_was_appended_blocked_or_listed():
@@ -69,6 +71,41 @@ def test_a_column_filled_by_its_appender_and_by_blocks_equals_one_filled_row_by_
     mixed.extend(np.asarray(rows[1:6]))          # rows pending: appended row by row, converted at 4 as before
     assert mixed._count == 4 and len(mixed._items) == 2
     np.testing.assert_array_equal(mixed.array(), np.asarray(rows[:6]))
+
+
+def test_a_recorder_keeps_a_series_that_is_always_another_once_and_hands_out_copies():
+    rec = Recorder(("time", "u_cmd", "u", "u_diag"), chunk=2, same={"u_diag": "u", "u": "u_cmd"})
+    assert rec.same == {"u_diag": "u_cmd", "u": "u_cmd"} and list(rec.rows) == ["time", "u_cmd"]
+    add_time, add_u = rec.rows["time"].appender, rec.rows["u_cmd"].appender
+    for k in range(3):
+        add_time(k * 0.1)
+        add_u(np.full(2, float(k)))
+        rec.settle()
+    u_cmd, u = rec.array("u_cmd", 2), rec.array("u", 2)
+    np.testing.assert_array_equal(u, u_cmd)
+    assert u is not u_cmd and not np.shares_memory(u, u_cmd)
+    series, _ = rec.take()
+    assert list(series) == ["time", "u_cmd", "u", "u_diag"]      # the order of ``keys``: the file's dataset order
+    np.testing.assert_array_equal(series["u_diag"], series["u_cmd"])
+    with pytest.raises(RobofdiError, match="field 'same'"):
+        Recorder(("u", "v"), same={"u": "v", "v": "u"})
+
+
+def test_only_a_true_output_marked_as_the_state_is_read_once():
+    assert output_is_state(object.__new__(ArmSimulator))
+
+    class OwnOutput(ArmSimulator):
+        @property
+        def true_output(self):
+            return self.state * 2.0
+
+    assert not output_is_state(object.__new__(OwnOutput))
+
+    class Plant:
+        state = property(lambda self: np.zeros(2))
+        true_output = property(returns_state(lambda self: self.state))
+
+    assert output_is_state(Plant())
 
 
 def _loop(faults=()):
