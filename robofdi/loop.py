@@ -189,6 +189,12 @@ class DiagnosisRunner:
         if self._mean:
             u /= self._count
         self._count = 0
+        self.sample(t, y, u)
+        return True
+
+    def sample(self, t: float, y: np.ndarray, u: np.ndarray) -> None:
+        """One diagnosis sample at time t: y measured now, u the ū of the interval that just ended (the diagnoser
+        is handed this very array) — what :meth:`push` does on a diagnosis tick, once ū is formed."""
         diagnosis = self.diagnosis
         res = diagnosis.diagnoser.update(y, u)
         decision = diagnosis.decision
@@ -214,7 +220,6 @@ class DiagnosisRunner:
         self._latest = (alarm, self._joined)
         if isolated:                      # the health is made when it is read (the health source's, one late)
             self._last, self._health = (t, isolated, estimate), None
-        return True
 
     def latest(self) -> tuple[np.ndarray, str]:
         """(alarm per residual component, isolated hypotheses joined by "+") of the last diagnosis sample; no
@@ -276,23 +281,45 @@ class DiagnosisBank:
                                f"{sorted(diagnoses)}, got {health_source!r}")
         self.runners = {name: DiagnosisRunner(d, rates, name, chunk) for name, d in diagnoses.items()}
         self._source = self.runners.get(health_source) if health_source is not None else None
+        self._ratio, self._mean = rates.ratio, rates.input_hold == "mean"
         self.health = self._pending = HEALTHY
+        self._count, self._held = 0, None
 
     def reset(self) -> None:
         for runner in self.runners.values():
             runner.reset()
         self.health = self._pending = HEALTHY
+        self._count, self._held = 0, None
 
     def push(self, j: int, t: float, y: np.ndarray, u_prev: np.ndarray) -> bool:
-        """:meth:`DiagnosisRunner.push` of every diagnosis; True when a diagnosis sample was taken."""
-        sampled = False
-        for runner in self.runners.values():
-            sampled |= runner.push(j, t, y, u_prev)
-        if sampled:      # health moves on one diagnosis sample late: no algebraic loop
-            self.health = self._pending
-            if self._source is not None:
-                self._pending = self._source.health
-        return sampled
+        """:meth:`DiagnosisRunner.push` of every diagnosis; True when a diagnosis sample was taken.
+
+        Every runner has the bank's rates, so ū is formed once (as :meth:`DiagnosisRunner.push` forms it: the same
+        sums and quotient) and each runner is handed its own copy (:meth:`DiagnosisRunner.sample`)."""
+        runners = self.runners
+        if not runners:
+            return False
+        if self._count == 0:
+            self._held = np.array(u_prev, dtype=float)
+        elif self._mean:
+            self._held += u_prev
+        self._count += 1
+        if j % self._ratio:
+            return False
+        u = self._held                    # a fresh array every interval: divided in place, the same quotient
+        if self._mean:
+            u /= self._count
+        self._count = 0
+        if len(runners) == 1:
+            for runner in runners.values():
+                runner.sample(t, y, u)
+        else:                             # copies first: a diagnoser that changed its ū would not reach the others
+            for runner, own in zip(runners.values(), [u] + [u.copy() for _ in range(len(runners) - 1)]):
+                runner.sample(t, y, own)
+        self.health = self._pending       # health moves on one diagnosis sample late: no algebraic loop
+        if self._source is not None:
+            self._pending = self._source.health
+        return True
 
     @property
     def latest_health(self) -> Health:
