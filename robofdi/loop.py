@@ -657,9 +657,11 @@ class ClosedLoop:
         online = self.injection == "online"
         components = inj.has_component_faults
         # series that are the same objects every tick are kept once: u = u_cmd without accommodation, u_diag = u in
-        # online injection, y_true = state when the simulator says so (:func:`robofdi.protocols.output_is_state`)
+        # online injection (and offline without actuator faults), y_true = state when the simulator says so
+        # (:func:`robofdi.protocols.output_is_state`)
         output_is_state = _output_is_state(sim)
-        same = {key: source for key, source, alike in (("u", "u_cmd", accommodation is None), ("u_diag", "u", online),
+        same = {key: source for key, source, alike in (("u", "u_cmd", accommodation is None),
+                                                       ("u_diag", "u", online or not inj.has_actuator_faults),
                                                        ("y_true", "state", output_is_state)) if alike}
         rec = Recorder(("time", "state", "u_applied", "reference", "u_cmd", "u", "u_diag", "y_true", "y_meas"),
                        inj.label_names, chunk, same)
@@ -719,6 +721,7 @@ class ClosedLoop:
             "time", "state", "reference", "u_cmd", "u", "u_diag", "y_true", "y_meas", "u_applied"))
         add_labels = rec.label_appenders()
         sense, actuate, emulate, push = inj.sense, inj.actuate, inj.emulate, bank.push
+        sensing, actuating = inj.has_sensor_faults, inj.has_actuator_faults   # else y and u pass through as they are
         control, step, reference_at = self.controller.update, sim.step, self.reference
         try:
             y = sim.reset(initial_state, seed=stream(seed, run_key, "sensors"))
@@ -735,7 +738,7 @@ class ClosedLoop:
                     ref = (ahead_q[k], ahead_v[k], ahead_a[k])
                 else:
                     ref = reference_at(t)
-                y_faulty = sense(t, y)
+                y_faulty = sense(t, y) if sensing else y
                 push(j, t, y_faulty, u_prev_diag)
                 if oracle:
                     health = Health(t, tuple(fault_by_name[n].target for n, (a, _) in inj.labels.items() if a),
@@ -745,12 +748,12 @@ class ClosedLoop:
                 u_cmd = control(y_faulty if online else y, ref)
                 u = accommodation.update(u_cmd, health) if accommodation is not None else u_cmd
                 if online:
-                    u_plant, u_diag = actuate(t, u), u
+                    u_plant, u_diag = actuate(t, u) if actuating else u, u
                     if components:
                         for kind, target, value in inj.components(t):
                             sim.apply_component_fault(kind, target, value)
                 else:
-                    u_plant, u_diag = u, emulate(t, u)
+                    u_plant, u_diag = u, emulate(t, u) if actuating else u
                 state = sim.state
                 y_true = state if output_is_state else sim.true_output
                 add_time(t)
