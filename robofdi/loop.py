@@ -722,6 +722,7 @@ class ClosedLoop:
         add_labels = rec.label_appenders()
         sense, actuate, emulate, push = inj.sense, inj.actuate, inj.emulate, bank.push
         sensing, actuating = inj.has_sensor_faults, inj.has_actuator_faults   # else y and u pass through as they are
+        diagnosing = bool(bank.runners)
         control, step, reference_at = self.controller.update, sim.step, self.reference
         try:
             y = sim.reset(initial_state, seed=stream(seed, run_key, "sensors"))
@@ -739,7 +740,8 @@ class ClosedLoop:
                 else:
                     ref = reference_at(t)
                 y_faulty = sense(t, y) if sensing else y
-                push(j, t, y_faulty, u_prev_diag)
+                if diagnosing:
+                    push(j, t, y_faulty, u_prev_diag)
                 if oracle:
                     health = Health(t, tuple(fault_by_name[n].target for n, (a, _) in inj.labels.items() if a),
                                     {fault_by_name[n].target: v for n, (a, v) in inj.labels.items() if a}, ORACLE)
