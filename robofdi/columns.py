@@ -55,6 +55,34 @@ class Column:
         if len(items) >= self.chunk and not self._listed:
             self._convert()
 
+    @property
+    def appender(self):
+        """The pending rows' own ``list.append``, valid for the column's life (that list is only ever changed in
+        place): a hot loop appends one row with it, without :meth:`append`'s call and test, and calls
+        :meth:`settle` every ``chunk`` rows so that the rows are still converted chunk by chunk."""
+        return self._items.append
+
+    def settle(self) -> None:
+        """Convert the pending rows into a block once there are ``chunk`` of them (what :meth:`append` does)."""
+        if len(self._items) >= self.chunk and not self._listed:
+            self._convert()
+
+    def extend(self, block: np.ndarray) -> None:
+        """Append the rows of ``block`` (one row per entry of its first axis): the same column as appending
+        ``block[0]``, ``block[1]``, … one by one. A float64 or bool array is kept as one block when no rows are
+        pending and its rows have the shape and dtype of the column's blocks; anything else is appended row by row.
+        The block is kept, not copied: do not change it afterwards."""
+        if (not self._items and not self._listed and isinstance(block, np.ndarray) and block.ndim >= 1
+                and block.dtype in (np.float64, np.bool_)
+                and (not self._blocks or (self._blocks[0].shape[1:] == block.shape[1:]
+                                          and self._blocks[0].dtype == block.dtype))):
+            if len(block):
+                self._blocks.append(block)
+                self._count += len(block)
+            return
+        for row in block:
+            self.append(row)
+
     def _convert(self) -> None:
         items = self._items
         try:
@@ -68,11 +96,11 @@ class Column:
             return
         self._blocks.append(block)
         self._count += len(items)
-        self._items = []
+        items.clear()                             # in place: an :attr:`appender` stays valid
 
     def _to_list(self) -> None:
         rows = [row for block in self._blocks for row in block]
-        self._items = rows + self._items
+        self._items[:0] = rows
         self._blocks, self._count, self._listed = [], 0, True
 
     def __getitem__(self, i: int):
@@ -83,7 +111,11 @@ class Column:
             raise IndexError("column index out of range")
         if i >= self._count:
             return self._items[i - self._count]
-        return self._blocks[i // self.chunk][i % self.chunk].copy()
+        for block in self._blocks:                # blocks of ``chunk`` rows, or of any length (:meth:`extend`)
+            if i < len(block):
+                return block[i].copy()
+            i -= len(block)
+        raise IndexError("column index out of range")
 
     def array(self, dtype=None) -> np.ndarray:
         """Every row not yet taken, stacked (N rows of the row shape), as ``np.asarray(rows, dtype)`` of the rows."""
@@ -104,7 +136,8 @@ class Column:
     def take(self):
         """The rows appended since the last take (an array; a list for a list column), and forget them."""
         if self._listed:
-            items, self._items = self._items, []
+            items = self._items[:]
+            self._items.clear()                   # in place: an :attr:`appender` stays valid
             return items
         if not (self._blocks or self._items):
             return np.zeros((0,), dtype=float)
@@ -112,5 +145,6 @@ class Column:
             out = self.array()
         except ValueError:                        # ragged rows not yet converted: as a list
             out = list(self)
-        self._blocks, self._items, self._count = [], [], 0
+        self._blocks, self._count = [], 0
+        self._items.clear()
         return out

@@ -48,6 +48,7 @@ from robofdi.protocols import (
     Reference,
     Simulator,
 )
+from robofdi.protocols import output_is_state as _output_is_state
 from robofdi.record import DiagnoserTrace, FaultLabels, Record
 from robofdi.seeding import stream
 
@@ -169,6 +170,9 @@ class DiagnosisRunner:
         self._latest = None
         self._rows: dict[str, Column] = {k: Column(self.chunk)
                                          for k in ("time", "residual", "alarm", "isolated", "estimate")}
+        # the trace columns' own appenders (:attr:`robofdi.columns.Column.appender`), settled every chunk samples
+        self._add = tuple(column.appender for column in self._rows.values())
+        self._pending = 0
 
     def push(self, j: int, t: float, y: np.ndarray, u_prev: np.ndarray) -> bool:
         """Control tick j at time t: y measured now, u_prev the input held over the tick that just ended
@@ -181,28 +185,41 @@ class DiagnosisRunner:
         self._count += 1
         if j % self._ratio:
             return False
-        u = self._held / self._count if self._mean else self._held
+        u = self._held                    # a fresh array every interval: divided in place, the same quotient
+        if self._mean:
+            u /= self._count
         self._count = 0
-        res = self.diagnosis.diagnoser.update(y, u)
-        decision = self.diagnosis.decision
+        self.sample(t, y, u)
+        return True
+
+    def sample(self, t: float, y: np.ndarray, u: np.ndarray) -> None:
+        """One diagnosis sample at time t: y measured now, u the ū of the interval that just ended (the diagnoser
+        is handed this very array) — what :meth:`push` does on a diagnosis tick, once ū is formed."""
+        diagnosis = self.diagnosis
+        res = diagnosis.diagnoser.update(y, u)
+        decision = diagnosis.decision
         if decision is not None:
             alarms = decision.update(res.r)
             alarm, isolated = alarms.alarm, alarms.isolated
         else:
             alarm, isolated = np.zeros(res.r.size, dtype=bool), ()
         estimate = self.identification.update(res.estimate, isolated)
-        rows = self._rows
-        rows["time"].append(t)
-        rows["residual"].append(res.r)
-        rows["alarm"].append(alarm)
+        add_time, add_residual, add_alarm, add_isolated, add_estimate = self._add
+        add_time(t)
+        add_residual(res.r)
+        add_alarm(alarm)
         if isolated != self._isolated:
             self._isolated, self._joined = isolated, "+".join(isolated)
-        rows["isolated"].append(self._joined)
-        rows["estimate"].append(estimate)
+        add_isolated(self._joined)
+        add_estimate(estimate)
+        self._pending += 1
+        if self._pending >= self.chunk:   # what Column.append does at a full chunk: convert the rows into blocks
+            for column in self._rows.values():
+                column.settle()
+            self._pending = 0
         self._latest = (alarm, self._joined)
         if isolated:                      # the health is made when it is read (the health source's, one late)
             self._last, self._health = (t, isolated, estimate), None
-        return True
 
     def latest(self) -> tuple[np.ndarray, str]:
         """(alarm per residual component, isolated hypotheses joined by "+") of the last diagnosis sample; no
@@ -226,6 +243,7 @@ class DiagnosisRunner:
         d = self.diagnosis.diagnoser
         widths = {"residual": len(d.components), "alarm": len(d.components), "estimate": len(d.estimate_components)}
         out = {}
+        self._pending = 0
         for key, column in self._rows.items():
             rows = column.take()
             dtype = object if key == "isolated" else bool if key == "alarm" else float
@@ -263,23 +281,45 @@ class DiagnosisBank:
                                f"{sorted(diagnoses)}, got {health_source!r}")
         self.runners = {name: DiagnosisRunner(d, rates, name, chunk) for name, d in diagnoses.items()}
         self._source = self.runners.get(health_source) if health_source is not None else None
+        self._ratio, self._mean = rates.ratio, rates.input_hold == "mean"
         self.health = self._pending = HEALTHY
+        self._count, self._held = 0, None
 
     def reset(self) -> None:
         for runner in self.runners.values():
             runner.reset()
         self.health = self._pending = HEALTHY
+        self._count, self._held = 0, None
 
     def push(self, j: int, t: float, y: np.ndarray, u_prev: np.ndarray) -> bool:
-        """:meth:`DiagnosisRunner.push` of every diagnosis; True when a diagnosis sample was taken."""
-        sampled = False
-        for runner in self.runners.values():
-            sampled |= runner.push(j, t, y, u_prev)
-        if sampled:      # health moves on one diagnosis sample late: no algebraic loop
-            self.health = self._pending
-            if self._source is not None:
-                self._pending = self._source.health
-        return sampled
+        """:meth:`DiagnosisRunner.push` of every diagnosis; True when a diagnosis sample was taken.
+
+        Every runner has the bank's rates, so ū is formed once (as :meth:`DiagnosisRunner.push` forms it: the same
+        sums and quotient) and each runner is handed its own copy (:meth:`DiagnosisRunner.sample`)."""
+        runners = self.runners
+        if not runners:
+            return False
+        if self._count == 0:
+            self._held = np.array(u_prev, dtype=float)
+        elif self._mean:
+            self._held += u_prev
+        self._count += 1
+        if j % self._ratio:
+            return False
+        u = self._held                    # a fresh array every interval: divided in place, the same quotient
+        if self._mean:
+            u /= self._count
+        self._count = 0
+        if len(runners) == 1:
+            for runner in runners.values():
+                runner.sample(t, y, u)
+        else:                             # copies first: a diagnoser that changed its ū would not reach the others
+            for runner, own in zip(runners.values(), [u] + [u.copy() for _ in range(len(runners) - 1)]):
+                runner.sample(t, y, own)
+        self.health = self._pending       # health moves on one diagnosis sample late: no algebraic loop
+        if self._source is not None:
+            self._pending = self._source.health
+        return True
 
     @property
     def latest_health(self) -> Health:
@@ -300,17 +340,47 @@ class Recorder:
     the arrays of its :class:`~robofdi.record.Record`.
 
     ``keys``: the row series; ``label_names``: the faults whose (active, value) labels are kept; ``chunk``: rows
-    per block (and per chunk handed out by :meth:`take` when the record is streamed to disk)."""
+    per block (and per chunk handed out by :meth:`take` when the record is streamed to disk); ``same``: series →
+    an earlier series whose rows it always is (the same objects every tick, e.g. u_diag = u in online injection):
+    only that one is kept, the other is its copy (:meth:`array`, :meth:`take`), and is never appended to."""
 
-    def __init__(self, keys: Sequence[str], label_names: Sequence[str] = (), chunk: int = CHUNK):
+    def __init__(self, keys: Sequence[str], label_names: Sequence[str] = (), chunk: int = CHUNK,
+                 same: Mapping[str, str] | None = None):
         self.chunk = chunk
-        self.rows: dict[str, Column] = {k: Column(chunk) for k in keys}
+        self.keys = tuple(keys)
+        self.same: dict[str, str] = {}
+        same = dict(same or {})
+        for key, source in same.items():
+            for _ in range(len(same)):           # follow chains (u_diag → u → u_cmd); a cycle is refused below
+                source = same.get(source, source)
+            if source in same or key not in self.keys or source not in self.keys or source == key:
+                raise RobofdiError(f"Recorder: field 'same' maps {key!r} to {source!r}: both must be other series "
+                                   f"of {list(self.keys)}")
+            self.same[key] = source
+        self.rows: dict[str, Column] = {k: Column(chunk) for k in self.keys if k not in self.same}
         self.labels: dict[str, tuple[Column, Column]] = {name: (Column(chunk), Column(chunk)) for name in label_names}
 
     def append(self, **values) -> None:
         rows = self.rows
         for key, value in values.items():
             rows[key].append(value)
+
+    def appenders(self, *keys: str) -> tuple:
+        """The :attr:`robofdi.columns.Column.appender` of each series in ``keys``: a hot loop appends one row a
+        tick with them (the same rows as :meth:`append`) and calls :meth:`settle` every ``chunk`` ticks."""
+        return tuple(self.rows[k].appender for k in keys)
+
+    def label_appenders(self) -> list[tuple[str, Any, Any]]:
+        """(fault name, appender of its active flags, appender of its values) of every label, in order."""
+        return [(name, a.appender, v.appender) for name, (a, v) in self.labels.items()]
+
+    def settle(self) -> None:
+        """Convert every series' full chunk of pending rows into a block (:meth:`robofdi.columns.Column.settle`)."""
+        for column in self.rows.values():
+            column.settle()
+        for pair in self.labels.values():
+            for column in pair:
+                column.settle()
 
     def append_labels(self, labels: Mapping[str, tuple[bool, float]]) -> None:
         """One tick of :attr:`robofdi.faults.FaultInjector.labels` (name → (active, value))."""
@@ -320,7 +390,7 @@ class Recorder:
             columns[1].append(float(value))
 
     def last(self, key: str, default=None):
-        rows = self.rows[key]
+        rows = self.rows[self.same.get(key, key)]
         return rows[-1] if len(rows) else default
 
     def __len__(self) -> int:
@@ -329,7 +399,8 @@ class Recorder:
 
     def array(self, key: str, width: int | None = None, dtype=float) -> np.ndarray:
         """The rows of ``key`` as an array ((N,) for scalars; (N, width) when ``width`` is given)."""
-        a = self.rows[key].array(dtype)
+        source = self.same.get(key)
+        a = self.rows[key].array(dtype) if source is None else np.array(self.rows[source].array(dtype))
         return a if width is None else a.reshape(-1, width)
 
     def fault_labels(self, units: Mapping[str, str]) -> dict[str, FaultLabels]:
@@ -342,9 +413,15 @@ class Recorder:
         def cut(a):
             return a if rows is None else a[:rows]
 
-        series = {k: cut(c.take()) for k, c in self.rows.items()}
+        taken = {k: cut(c.take()) for k, c in self.rows.items()}
+        series = {k: taken[k] if k in taken else _copy_rows(taken[self.same[k]]) for k in self.keys}
         labels = {k: (cut(a.take()), cut(v.take())) for k, (a, v) in self.labels.items()}
         return series, labels
+
+
+def _copy_rows(rows):
+    """A copy of taken rows (an array, or a list of a list column)."""
+    return rows.copy() if isinstance(rows, np.ndarray) else list(rows)
 
 
 def _record_rates(record: Record) -> Rates:
@@ -433,6 +510,20 @@ def _flat(reference) -> np.ndarray:
     if isinstance(reference, tuple):
         return np.concatenate([np.atleast_1d(np.asarray(r, dtype=float)) for r in reference])
     return np.atleast_1d(np.asarray(reference, dtype=float))
+
+
+def _ahead_blockable(ahead) -> bool:
+    """True when read-ahead reference rows (q_d, q̇_d, q̈_d) are float64 arrays of one 2-D shape, so that the per-tick
+    tuples ``(q_d[k], q̇_d[k], q̈_d[k])`` would stack (:class:`robofdi.columns.Column`) to :func:`_ahead_block`."""
+    return (isinstance(ahead, tuple) and len(ahead) > 0
+            and all(isinstance(p, np.ndarray) and p.dtype == np.float64 and p.ndim == 2 and p.shape == ahead[0].shape
+                    for p in ahead))
+
+
+def _ahead_block(ahead, start: int, stop: int) -> np.ndarray:
+    """Rows ``start:stop`` of read-ahead reference parts as one (rows, parts, n) block: row k is
+    ``np.asarray((q_d[k], q̇_d[k], q̈_d[k]))``, the same numbers as the per-tick tuples stacked."""
+    return np.stack([p[start:stop] for p in ahead], axis=1)
 
 
 def _stack_references(refs: list) -> np.ndarray:
@@ -565,8 +656,15 @@ class ClosedLoop:
             accommodation.reset()
         online = self.injection == "online"
         components = inj.has_component_faults
+        # series that are the same objects every tick are kept once: u = u_cmd without accommodation, u_diag = u in
+        # online injection (and offline without actuator faults), y_true = state when the simulator says so
+        # (:func:`robofdi.protocols.output_is_state`)
+        output_is_state = _output_is_state(sim)
+        same = {key: source for key, source, alike in (("u", "u_cmd", accommodation is None),
+                                                       ("u_diag", "u", online or not inj.has_actuator_faults),
+                                                       ("y_true", "state", output_is_state)) if alike}
         rec = Recorder(("time", "state", "u_applied", "reference", "u_cmd", "u", "u_diag", "y_true", "y_meas"),
-                       inj.label_names, chunk)
+                       inj.label_names, chunk, same)
         fault_by_name = {f.name: f for f in self.faults}
         writer = None
         if path is not None:
@@ -582,10 +680,28 @@ class ClosedLoop:
             label_units = {f.name: _label_unit(f, sim) for f in self.faults if f.name in inj.label_names}
             traces = {}
 
+        # a reference that can be read ahead (``sample(times)``: Quintic, Sequence) is sampled a block of ticks at a
+        # time, the same numbers as calling it every tick; any other reference is called every tick. The read-ahead
+        # rows are recorded a block at a time too (:func:`_ahead_block`: the rows the per-tick tuples would stack to)
+        sample = getattr(self.reference, "sample", None)
+        time_column, ref_column = rec.rows["time"], rec.rows["reference"]
+        ahead, ahead_whole, ahead_kept = None, False, 0
+
+        def sync_reference() -> None:
+            """Put the read-ahead reference rows of the ticks recorded so far into the reference column."""
+            nonlocal ahead_kept
+            if ahead_whole:
+                missing = len(time_column) - len(ref_column)
+                if missing > 0:
+                    ref_column.extend(_ahead_block(ahead, ahead_kept, ahead_kept + missing))
+                    ahead_kept += missing
+
         def record() -> Record:
+            sync_reference()
             return self._record(rec, bank, scenario, seed, run_key, duration, meta)
 
         def flush(rows=None) -> None:
+            sync_reference()
             series, labels = rec.take(rows)
             reference = series.pop("reference")
             reference = _stack_references(reference)
@@ -598,9 +714,16 @@ class ClosedLoop:
             writer.append(out, columns, units, {k: (a, v, label_units[k]) for k, (a, v) in labels.items()},
                           bank.take(), traces)
 
-        # a reference that can be read ahead (``sample(times)``: Quintic, Sequence) is sampled a block of ticks at a
-        # time, the same numbers as calling it every tick; any other reference is called every tick
-        sample = getattr(self.reference, "sample", None)
+        # the hot loop: bound methods and the columns' own appenders, looked up once (the same calls and rows as
+        # ``rec.append(...)`` every tick; the rows are converted a chunk at a time by ``rec.settle``)
+        (add_time, add_state, add_ref, add_u_cmd, add_u, add_u_diag, add_y_true, add_y_meas,
+         add_u_applied) = (rec.rows[k].appender if k in rec.rows else None for k in (
+            "time", "state", "reference", "u_cmd", "u", "u_diag", "y_true", "y_meas", "u_applied"))
+        add_labels = rec.label_appenders()
+        sense, actuate, emulate, push = inj.sense, inj.actuate, inj.emulate, bank.push
+        sensing, actuating = inj.has_sensor_faults, inj.has_actuator_faults   # else y and u pass through as they are
+        diagnosing = bool(bank.runners)
+        control, step, reference_at = self.controller.update, sim.step, self.reference
         try:
             y = sim.reset(initial_state, seed=stream(seed, run_key, "sensors"))
             u_prev_diag = np.zeros(len(sim.actuators))
@@ -609,43 +732,69 @@ class ClosedLoop:
                 if sample is not None:
                     k = j % chunk
                     if k == 0:
-                        ahead_q, ahead_v, ahead_a = sample([i * dt for i in range(j, min(j + chunk, steps + 1))])
+                        sync_reference()
+                        ahead = sample([i * dt for i in range(j, min(j + chunk, steps + 1))])
+                        ahead_whole, ahead_kept = _ahead_blockable(ahead), 0
+                        ahead_q, ahead_v, ahead_a = ahead
                     ref = (ahead_q[k], ahead_v[k], ahead_a[k])
                 else:
-                    ref = self.reference(t)
-                y_faulty = inj.sense(t, y)
-                bank.push(j, t, y_faulty, u_prev_diag)
+                    ref = reference_at(t)
+                y_faulty = sense(t, y) if sensing else y
+                if diagnosing:
+                    push(j, t, y_faulty, u_prev_diag)
                 if oracle:
                     health = Health(t, tuple(fault_by_name[n].target for n, (a, _) in inj.labels.items() if a),
                                     {fault_by_name[n].target: v for n, (a, v) in inj.labels.items() if a}, ORACLE)
                 else:
                     health = bank.health
-                u_cmd = self.controller.update(y_faulty if online else y, ref)
+                u_cmd = control(y_faulty if online else y, ref)
                 u = accommodation.update(u_cmd, health) if accommodation is not None else u_cmd
                 if online:
-                    u_plant, u_diag = inj.actuate(t, u), u
+                    u_plant, u_diag = actuate(t, u) if actuating else u, u
                     if components:
                         for kind, target, value in inj.components(t):
                             sim.apply_component_fault(kind, target, value)
                 else:
-                    u_plant, u_diag = u, inj.emulate(t, u)
-                rec.append(time=t, state=sim.state, reference=ref, u_cmd=u_cmd, u=u, u_diag=u_diag,
-                           y_true=sim.true_output, y_meas=y_faulty)
-                rec.append_labels(inj.labels)
+                    u_plant, u_diag = u, emulate(t, u) if actuating else u
+                state = sim.state
+                y_true = state if output_is_state else sim.true_output
+                add_time(t)
+                add_state(state)
+                if not ahead_whole:
+                    add_ref(ref)
+                add_u_cmd(u_cmd)
+                if add_u is not None:
+                    add_u(u)
+                if add_u_diag is not None:
+                    add_u_diag(u_diag)
+                if add_y_true is not None:
+                    add_y_true(y_true)
+                add_y_meas(y_faulty)
+                if add_labels:
+                    labels = inj.labels
+                    for name, add_active, add_value in add_labels:
+                        active, value = labels[name]
+                        add_active(bool(active))
+                        add_value(float(value))
                 u_prev_diag = u_diag
                 if j < steps:
-                    y = sim.step(u_plant)
-                    rec.append(u_applied=sim.u_applied.copy())
+                    y = step(u_plant)
+                    add_u_applied(sim.u_applied.copy())
                 else:
-                    rec.append(u_applied=sim.saturate(u_plant))
-                if writer is not None and (j + 1) % chunk == 0:
-                    flush()
+                    add_u_applied(sim.saturate(u_plant))
+                if (j + 1) % chunk == 0:
+                    if writer is not None:
+                        flush()
+                    else:
+                        sync_reference()
+                        rec.settle()
                 if progress is not None:
                     progress(1)
             if writer is not None:
                 flush()
                 return writer.close()
         except KeyboardInterrupt as exc:         # SIGINT or SIGTERM (robofdi.interrupts): stop, keep the record
+            sync_reference()
             signum = signal_of(exc)
             message = f"run interrupted by {signal.Signals(signum).name} at t = {rec.last('time', 0.0):.3f} s"
             if writer is not None:
@@ -654,6 +803,7 @@ class ClosedLoop:
                 raise err from None
             raise RunInterrupted(message, _trim(record()), signum) from None
         except Exception as exc:
+            sync_reference()
             message = f"run failed at t = {rec.last('time', 0.0):.3f} s: {exc}"
             if writer is not None:
                 err = RunAborted(message, None)

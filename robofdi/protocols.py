@@ -22,7 +22,21 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 __all__ = ["Simulator", "Controller", "Reference", "Accommodation", "Diagnoser", "Decision", "Identifier", "Health",
-           "System", "TargetLimit", "Mission", "Parts"]
+           "System", "TargetLimit", "Mission", "Parts", "returns_state", "output_is_state"]
+
+
+def returns_state(getter):
+    """Mark a simulator's ``true_output`` getter that returns ``self.state`` (the same numbers, nothing else done):
+    a loop may then read the state once a tick and record y_true as its copy (:func:`output_is_state`)."""
+    getter.returns_state = True
+    return getter
+
+
+def output_is_state(simulator) -> bool:
+    """True when ``type(simulator).true_output`` is a property whose getter is marked by :func:`returns_state` (a
+    subclass that overrides ``true_output`` is not, unless it marks its own getter)."""
+    prop = getattr(type(simulator), "true_output", None)
+    return isinstance(prop, property) and getattr(prop.fget, "returns_state", False) is True
 
 
 @runtime_checkable

@@ -166,6 +166,16 @@ class FaultInjector:
     def has_component_faults(self) -> bool:
         return bool(self._by_family["component"])
 
+    @property
+    def has_actuator_faults(self) -> bool:
+        """False when :meth:`actuate` and :meth:`emulate` return ``u`` itself (no actuator fault)."""
+        return bool(self._by_family["actuator"])
+
+    @property
+    def has_sensor_faults(self) -> bool:
+        """False when :meth:`sense` returns ``y`` itself (no sensor fault)."""
+        return bool(self._by_family["sensor"])
+
     def components(self, t: float) -> list[tuple[str, str, float]]:
         """(kind, target, change from nominal) of every component fault at time t (0.0 while inactive)."""
         changes = []

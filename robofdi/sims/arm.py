@@ -45,6 +45,7 @@ from robofdi.config import part
 from robofdi.errors import RobofdiError, all_finite
 from robofdi.mjcf import CompiledArm, compile_arm, gear_ratio, payload_point
 from robofdi.models.manipulator import ManipulatorModel, ModelMismatch, sensor_channel_names
+from robofdi.protocols import returns_state
 from robofdi.seeding import stream
 from robofdi.sims import kernels
 from robofdi.sims.noise import ChannelNoise
@@ -469,6 +470,7 @@ class ArmSimulator:
         return np.concatenate((self._qpos[self._q_at], self._qvel[self._v_at]))
 
     @property
+    @returns_state
     def true_output(self) -> np.ndarray:
         """What ideal encoders would read: [q; q̇], the state itself."""
         return self.state
