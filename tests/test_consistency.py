@@ -13,7 +13,7 @@ from robofdi.observers.arm_schemes import ArmSchemeSettings
 from robofdi.observers.consistency import ConsistencyDesign, ConsistencyResidual, design_consistency
 from robofdi.control import Quintic
 from robofdi.observers.kinematic import (
-    KinematicConsistency, design_window_scales, identify_ripple, kinematic_increments, ripple_orders,
+    KinematicConsistency, design_window_scales, identify_ripple, identify_skew, kinematic_increments, ripple_orders,
 )
 from robofdi.systems.arm import arm_scenario, calibration, calibration_records, run_scenario
 
@@ -248,6 +248,22 @@ def test_a_frozen_velocity_sensor_is_isolated_as_the_velocity_sensor(designed):
     assert np.abs(tr.residual[(t > SKIP * 0.002) & (t < 1.0)]).max() < MARGIN
     time, got = _first_isolation(tr)
     assert got == "joint3_vel" and time - 1.0 < 0.1
+
+
+def test_skew_is_identified_when_the_instrument_is_anti_correlated():
+    """A joint whose velocity swings at a quarter of the sample rate (as robosuite's iiwa's light joint 7 does)
+    makes Σ Δq̇ z negative; the instrumental-variable estimate is still the skew of the integration (it used to be
+    refused). The plant: semi-implicit Euler steps of h = T/4 on a velocity linear within each sample, so
+    e_k = (h/2) Δq̇_k exactly (kinematic.identify_skew)."""
+    T, h, sub = 0.002, 0.0005, 4
+    k = np.arange(1000)
+    samples = 0.5 * np.sin(2 * np.pi * 0.7 * k * T) + 0.3 * np.cos(np.pi * k / 2)     # 125 Hz = 1 / (4 T)
+    v = np.concatenate([[samples[0]], (samples[:-1, None] + np.outer(np.diff(samples), np.arange(1, sub + 1) / sub)).ravel()])
+    q = np.cumsum(v) * h                                     # q_{j+1} = q_j + h v_{j+1}
+    qs, vs = q[::sub, None], v[::sub, None]
+    dv, z = np.diff(vs[:, 0])[3:], vs[2:-2, 0] - vs[:-4, 0]
+    assert (dv * z).sum() < 0                                # the case: the instrument is anti-correlated
+    np.testing.assert_allclose(identify_skew([qs], [vs], T), h / 2, rtol=1e-6)
 
 
 def test_kinematic_stepping_matches_the_offline_sums():

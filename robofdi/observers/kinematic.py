@@ -108,12 +108,14 @@ def identify_skew(qs: Sequence[np.ndarray], vs: Sequence[np.ndarray], T: float, 
     velocity-noise variance, which on slow motions is as large as the true velocity change (measured on arm6:
     0.14–0.2 ms where the integration implies 0.25 ms). The instrument z_k = q̇_{k−2} − q̇_{k−4}
     (:data:`SKEW_INSTRUMENT`) follows the true velocity change of a smooth motion but shares no noise sample
-    with e_k (whose noise is that of q_k, q_{k−1}, q̇_k and q̇_{k−1}), so the estimate is consistent. For a
+    with e_k (whose noise is that of q_k, q_{k−1}, q̇_k and q̇_{k−1}), so the estimate is consistent; the
+    denominator Σ Δq̇ z may be negative (a joint oscillating at about a quarter of the sample rate, where the
+    lagged change is anti-correlated: robosuite's iiwa's light last joint), only not ≈ 0. For a
     plant integrated with semi-implicit Euler steps of h and accelerations constant over a sample, the skew
     is h/2 (q gains h·q̇_{j+1} per step: Σ h q̇_j − T (q̇_k + q̇_{k−1})/2 = (h/2) Δq̇)."""
     lag, span = SKEW_INSTRUMENT
     first = max(skip, 1, lag + span)
-    num, den = 0.0, 0.0
+    num, den, size = 0.0, 0.0, 0.0
     for q, v in zip(qs, vs):
         v = np.asarray(v, dtype=float)
         if v.shape[0] <= first:
@@ -121,9 +123,9 @@ def identify_skew(qs: Sequence[np.ndarray], vs: Sequence[np.ndarray], T: float, 
         e = kinematic_increments(q, v, T)[first:]
         dv = (v[1:] - v[:-1])[first - 1:]
         z = v[first - lag:v.shape[0] - lag] - v[first - lag - span:v.shape[0] - lag - span]
-        num, den = num + (e * z).sum(axis=0), den + (dv * z).sum(axis=0)
+        num, den, size = num + (e * z).sum(axis=0), den + (dv * z).sum(axis=0), size + np.abs(dv * z).sum(axis=0)
     den = np.asarray(den, dtype=float)
-    if np.isscalar(num) or np.any(den <= 0):
+    if np.isscalar(num) or np.any(~(np.abs(den) > 1e-6 * size)):
         raise RobofdiError("identify_skew: the fault-free runs must move every joint (no velocity change seen)")
     return num / den
 
