@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 
 from robofdi import RobofdiError
+from robofdi.control import Quintic
 from robofdi.decision import ThresholdDecision
 from robofdi.loop import Diagnosis, diagnose_record, diagnoser_inputs
 from robofdi.models.friction import JointFriction
 from robofdi.observers.arm_schemes import ArmSchemeSettings
 from robofdi.observers.consistency import ConsistencyDesign, ConsistencyResidual, design_consistency
-from robofdi.control import Quintic
 from robofdi.observers.kinematic import (
     KinematicConsistency, design_window_scales, identify_ripple, identify_skew, kinematic_increments, ripple_orders,
 )
@@ -105,10 +105,10 @@ def test_an_aliased_ripple_is_identified_and_its_coherent_sum_covered(designed):
     ripple as a velocity bias and the kinematic row leaves its bound (the plant effect is outside the design).
     The amplitude identified from another run, one that only passes the alias, brings it back inside the margin of
     unseen motions (measured: 5.0 → 1.35 of a design from normal-speed motions); it only ever widens."""
-    _, sim, model, _, _, design = designed
+    base, _, model, _, _, design = designed
     n = model.n
-    sweep, _ = _wrist_run(designed[0], 1.3 * ALIAS)        # passes the alias twice, dwells above it
-    cruise, _ = _wrist_run(designed[0], ALIAS)             # its peak dwells on it
+    sweep, _ = _wrist_run(base, 1.3 * ALIAS)        # passes the alias twice, dwells above it
+    cruise, _ = _wrist_run(base, ALIAS)             # its peak dwells on it
     assert np.abs(cruise[:, 2 * n - 1]).max() == pytest.approx(ALIAS, rel=0.03)
     orders = ripple_orders(model.gear_ratio)
     ripple = identify_ripple([sweep[:, :n]], [sweep[:, n:]], design.T, design.skew, orders, SKIP)
