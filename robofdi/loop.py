@@ -146,6 +146,36 @@ class RunInterrupted(Interrupted):
         self.partial_path = None
 
 
+class InputHold:
+    """The input ū a diagnosis sample is handed, formed from the control-rate inputs of its interval
+    (:attr:`Rates.input_hold`): their mean, summed in order (bit-identical to ``sum(inputs) / len``), or the first."""
+
+    __slots__ = ("_ratio", "_mean", "_count", "_held")
+
+    def __init__(self, rates: Rates):
+        self._ratio, self._mean = rates.ratio, rates.input_hold == "mean"
+        self.reset()
+
+    def reset(self) -> None:
+        self._count, self._held = 0, None        # inputs so far; their sum (or the first)
+
+    def add(self, j: int, u_prev: np.ndarray) -> np.ndarray | None:
+        """Control tick j's input held over the tick that just ended; ū on a diagnosis tick (a fresh array every
+        interval), else None."""
+        if self._count == 0:
+            self._held = np.array(u_prev, dtype=float)
+        elif self._mean:
+            self._held += u_prev
+        self._count += 1
+        if j % self._ratio:
+            return None
+        u = self._held                    # a fresh array every interval: divided in place, the same quotient
+        if self._mean:
+            u /= self._count
+        self._count = 0
+        return u
+
+
 class DiagnosisRunner:
     """Steps one diagnosis at the diagnosis rate from control-rate samples, keeps its trace and its health."""
 
@@ -163,9 +193,7 @@ class DiagnosisRunner:
             d.decision.reset()
         self.identification.reset()
         self._health, self._last = HEALTHY, None
-        self._held = None                 # the sum (or the first) of the inputs of the diagnosis interval
-        self._count = 0
-        self._ratio, self._mean = self.rates.ratio, self.rates.input_hold == "mean"
+        self._hold = InputHold(self.rates)
         self._isolated, self._joined = (), ""
         self._latest = None
         self._rows: dict[str, Column] = {k: Column(self.chunk)
@@ -177,18 +205,9 @@ class DiagnosisRunner:
     def push(self, j: int, t: float, y: np.ndarray, u_prev: np.ndarray) -> bool:
         """Control tick j at time t: y measured now, u_prev the input held over the tick that just ended
         (zeros at the first tick, which only initialises the diagnoser). True when a diagnosis sample was taken."""
-        # ū: the mean of the interval's inputs summed in order (bit-identical to sum(inputs) / len), or the first
-        if self._count == 0:
-            self._held = np.array(u_prev, dtype=float)
-        elif self._mean:
-            self._held += u_prev
-        self._count += 1
-        if j % self._ratio:
+        u = self._hold.add(j, u_prev)
+        if u is None:
             return False
-        u = self._held                    # a fresh array every interval: divided in place, the same quotient
-        if self._mean:
-            u /= self._count
-        self._count = 0
         self.sample(t, y, u)
         return True
 
@@ -281,15 +300,14 @@ class DiagnosisBank:
                                f"{sorted(diagnoses)}, got {health_source!r}")
         self.runners = {name: DiagnosisRunner(d, rates, name, chunk) for name, d in diagnoses.items()}
         self._source = self.runners.get(health_source) if health_source is not None else None
-        self._ratio, self._mean = rates.ratio, rates.input_hold == "mean"
+        self._hold = InputHold(rates)
         self.health = self._pending = HEALTHY
-        self._count, self._held = 0, None
 
     def reset(self) -> None:
         for runner in self.runners.values():
             runner.reset()
         self.health = self._pending = HEALTHY
-        self._count, self._held = 0, None
+        self._hold.reset()
 
     def push(self, j: int, t: float, y: np.ndarray, u_prev: np.ndarray) -> bool:
         """:meth:`DiagnosisRunner.push` of every diagnosis; True when a diagnosis sample was taken.
@@ -299,17 +317,9 @@ class DiagnosisBank:
         runners = self.runners
         if not runners:
             return False
-        if self._count == 0:
-            self._held = np.array(u_prev, dtype=float)
-        elif self._mean:
-            self._held += u_prev
-        self._count += 1
-        if j % self._ratio:
+        u = self._hold.add(j, u_prev)
+        if u is None:
             return False
-        u = self._held                    # a fresh array every interval: divided in place, the same quotient
-        if self._mean:
-            u /= self._count
-        self._count = 0
         if len(runners) == 1:
             for runner in runners.values():
                 runner.sample(t, y, u)
