@@ -210,7 +210,7 @@ def test_velocity_bias_and_encoder_drift_are_told_apart_by_the_step_row(designed
     step = np.abs(tr.residual[:, 2 * n + j])
     assert step[(t > SKIP * 0.002) & (t < 1.0)].max() < 2.0
     if isolated.endswith("_vel"):       # ν = b on its own joint: 0.05 rad/s against ≈ 0.01 fault-free
-        assert step[(t >= 1.0) & (t < 1.01)].max() * design.step_scale[j] == pytest.approx(0.05, rel=0.25)
+        assert step[(t >= 1.0) & (t < 1.01)].max() * design.step_scale[j, 0] == pytest.approx(0.05, rel=0.25)
     else:
         assert step[t >= 1.0].max() < 2.0
     time, got = _first_isolation(tr)
@@ -218,11 +218,12 @@ def test_velocity_bias_and_encoder_drift_are_told_apart_by_the_step_row(designed
 
 
 def test_a_velocity_step_below_the_step_alarm_is_isolated_from_its_evidence(designed):
-    """A velocity bias of 1.5× the joint's largest fault-free ν: its step row stays below the alarm threshold (2),
+    """A velocity bias of 1.8× the fault-free bound of ν at the joint's speed (ν at onset is b plus noise): its step row stays below the alarm threshold (2),
     so without evidence levels only the kinematic row speaks and it is called an encoder drift; counted as
     evidence from the fault-free maximum (1) once the kinematic row has alarmed, it is the velocity sensor."""
     _, _, model, rates, _, design = designed
-    b = 1.5 * design.step_scale[4]
+    motion = arm_scenario("arm6.xml", seed=5, schemes=("momentum",)).motion
+    b = 1.8 * design.step_bound(np.asarray(motion(1.0)[1]))[4]     # the bound at the planned speed
     sc = arm_scenario("arm6.xml", faults=[f"sensor_bias:joint5_vel:{b}@1.0"], seed=5, schemes=("momentum",))
     rec = run_scenario(sc, calibration(sc)[0])
     confirm = ArmSchemeSettings().consistency_confirm

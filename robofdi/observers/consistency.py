@@ -101,8 +101,9 @@ FROZEN_SAMPLES = 2
 class ConsistencyDesign:
     """What :class:`ConsistencyResidual` learns once per robot: ``friction`` (identified), ``envelope`` (n, 4)
     bound coefficients of the dynamic rows, ``skew`` (n,) [s] and ``window_scales`` (n, len(windows), 3) of the
-    kinematic rows (:func:`~robofdi.observers.kinematic.design_window_scales`), ``step_scale`` (n,) [rad/s] of
-    the step rows (the largest fault-free |ν|), the observer ``gain`` K_O [1/s], sample time ``T`` [s], the
+    kinematic rows (:func:`~robofdi.observers.kinematic.design_window_scales`), ``step_scale`` (n, 2) of the
+    step rows: the tightest bound c₀ + c₁ s of the fault-free |ν| over the joint's speed s (:meth:`step_bound`;
+    c₀ [rad/s], c₁ dimensionless), the observer ``gain`` K_O [1/s], sample time ``T`` [s], the
     kinematic ``windows`` [s], the operating envelope the kinematic scales were designed on, ``reach``
     (n, len(windows), 2) (:func:`~robofdi.observers.kinematic.window_reach`; None: unbounded), and the drives'
     nominal ripple orders (n, n_orders) [cycles/rad] whose aliasing the kinematic rows cover
@@ -123,6 +124,10 @@ class ConsistencyDesign:
 
     #: The optional arrays of :meth:`arrays` (absent when None).
     OPTIONAL = ("reach", "ripple_orders", "ripple_amplitude")
+
+    def step_bound(self, speed: np.ndarray) -> np.ndarray:
+        """(n,) bound [rad/s] of the fault-free |ν| at joint speeds ``speed`` (n,) [rad/s]: c₀ + c₁ |speed|."""
+        return self.step_scale[:, 0] + self.step_scale[:, 1] * np.abs(speed)
 
     def arrays(self) -> dict[str, np.ndarray]:
         """Flat arrays (for caching in an .npz); :meth:`from_arrays` inverts it."""
@@ -151,7 +156,7 @@ class ConsistencyResidual:
 
     def __init__(self, model: ManipulatorModel, design: ConsistencyDesign):
         n = model.n
-        if design.envelope.shape != (n, 4) or design.skew.shape != (n,) or design.step_scale.shape != (n,):
+        if design.envelope.shape != (n, 4) or design.skew.shape != (n,) or design.step_scale.shape != (n, 2):
             raise RobofdiError(f"ConsistencyResidual: design is for {design.skew.shape[0]} joints, the model has {n}")
         self.model, self.design, self.n, self.T = model, design, n, design.T
         self._momentum = MomentumObserver(model, design.T, design.gain, design.friction)
@@ -183,6 +188,7 @@ class ConsistencyResidual:
         self._r_prev = None
         self._repeats = np.zeros(self.n)     # consecutive samples with an unchanged velocity reading
         self.innovation = np.zeros(self.n)      # ν of the last sample [rad/s]
+        self._previous = np.zeros((2, self.n))  # the last sample's kinematic increment e [rad] and ν [rad/s]
         self._steps = np.zeros((self._hold, self.n))     # ring buffer of |ν| / scale over the hold
         self._jumps = np.zeros((self._hold, self.n))    # ring buffer of position-step ratios
         self._k = 0
@@ -220,13 +226,14 @@ class ConsistencyResidual:
         else:       # the residual's own first-order dynamics: a torque acting over (k−1, k] shows in r_k
             self._features = (1 - self._a) * self._features + self._a * envelope_features(u, self._v_prev)
             self._repeats = np.where(np.abs(v - self._v_prev) <= FROZEN_CHANGE, self._repeats + 1, 0.0)
+        speed = np.abs(v) if self._v_prev is None else (np.abs(v) + np.abs(self._v_prev)) / 2
         self._v_prev = v
         kin, e = self._kinematic.update(q, v)
         z, estimate = np.empty(3 * n + 1), np.empty(3 * n + 1)
         bound = self.bound()
         _step_rows(r, self.innovation, kin, e, bound, self._kinematic.scale, self._single, self.design.skew,
-                   self.design.step_scale, self._repeats, FROZEN_SAMPLES, self._steps, self._jumps,
-                   self._k % self._hold, (self._k - 1) % self._hold, self.T, z, estimate)
+                   self.design.step_bound(speed), self._repeats, FROZEN_SAMPLES, self._steps, self._jumps,
+                   self._previous, self._k % self._hold, (self._k - 1) % self._hold, self.T, z, estimate)
         z[3 * n], estimate[3 * n] = payload_evidence(z[:n], self._payload.update(q, v) / bound)
         self._k += 1
         return Residual(z, estimate)
@@ -244,21 +251,28 @@ class ConsistencyResidual:
 
 
 @kernel
-def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_scale, repeats, frozen_samples, steps, jumps,
-               row, previous_row, T, z, estimate):
+def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, repeats, frozen_samples, steps, jumps,
+               previous, row, previous_row, T, z, estimate):
     """The rows of :meth:`ConsistencyResidual.update` after its momentum and kinematic parts, joint by joint in
     the order of operations of their array form: the residual ``z`` and the ``estimate``; the step and jump ring
-    buffers ``steps``/``jumps`` held at ``row``.
+    buffers ``steps``/``jumps`` held at ``row``; ``previous`` (2, n) the last sample's e and ν, updated.
 
     A position step is an increment more than a velocity step of ν can make: a step b in q̇_k adds −(T/2 + τ_s) b
     to e_k (:mod:`~robofdi.observers.kinematic`), so |e_k| > 2 (T/2 + |τ_s|) |ν| + the single-sample scale (a
-    factor 2 for ν's own error) is a position step, held as |e_k| / scale."""
+    factor 2 for ν's own error) is a position step, held as |e_k| / scale. It clears the ν held from before it
+    only if the increment also *changed* by more than the velocity steps of this and the last sample can make
+    (twice the single-sample scale for the two samples' own errors): a velocity offset b adds −(T/2 + τ_s) b to
+    e_k at its onset and −T b to every e after it, each more than its ν ≈ 0 explains, but the increment persists,
+    so the onset's ν = b stays held."""
     n, hold = r.shape[0], steps.shape[0]
     for i in range(n):
         single_scale = scale[i, single]
         increment = abs(e[i])
-        position_step = increment > 2 * (T / 2 + abs(skew[i])) * abs(innovation[i]) + single_scale
-        if position_step:       # no ν held from before the step but the previous sample's (see update)
+        reach = 2 * (T / 2 + abs(skew[i]))
+        position_step = increment > reach * abs(innovation[i]) + single_scale
+        changed = abs(e[i] - previous[0, i]) > reach * (abs(innovation[i]) + abs(previous[1, i])) + 2 * single_scale
+        previous[0, i], previous[1, i] = e[i], innovation[i]
+        if position_step and changed:       # no ν held from before the step but the previous sample's (see update)
             keep = steps[previous_row, i]
             for h in range(hold):
                 steps[h, i] = 0.0
@@ -268,7 +282,7 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_scale, re
         for h in range(1, hold):
             if jumps[h, i] > jump or jumps[h, i] != jumps[h, i]:
                 jump = jumps[h, i]
-        steps[row, i] = 0.0 if jump > 0 else abs(innovation[i]) / step_scale[i]
+        steps[row, i] = 0.0 if jump > 0 else abs(innovation[i]) / step_bound[i]
         step = steps[0, i]
         for h in range(1, hold):
             if steps[h, i] > step or steps[h, i] != steps[h, i]:
@@ -307,21 +321,25 @@ def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray,
 
     plain = replay(MomentumObserver(model, T, gain))
     friction = identify_friction(plain, [np.asarray(Y)[:, n:] for Y, _ in runs], gain, T, skip)
-    unit = ConsistencyDesign(friction, np.ones((n, 4)), np.zeros(n), np.ones((n, len(windows), 3)), np.ones(n),
-                             gain, T, tuple(windows))
-    features, residuals, step = [], [], np.full(n, 1e-9)
+    unit = ConsistencyDesign(friction, np.ones((n, 4)), np.zeros(n), np.ones((n, len(windows), 3)),
+                             np.column_stack([np.ones(n), np.zeros(n)]), gain, T, tuple(windows))
+    features, residuals, speeds, innovations = [], [], [], []
     for Y, U in runs:
         d = ConsistencyResidual(model, unit)
-        rows, feats = [], []
-        for k, (y, u) in enumerate(zip(Y, U)):
+        rows, feats, nus = [], [], []
+        for y, u in zip(Y, U):
             res = d.update(y, u)
             rows.append(res.estimate[:n])
             feats.append(d._features.copy())
-            if k >= skip:
-                np.maximum(step, np.abs(d.innovation), out=step)
+            nus.append(d.innovation)
         residuals.append(np.array(rows))
         features.append(np.array(feats))
+        v = np.abs(np.asarray(Y)[:, n:])
+        speeds.append(np.concatenate([v[:1], (v[1:] + v[:-1]) / 2]))     # the speed step_bound is given
+        innovations.append(np.array(nus))
     envelope = design_envelope(features, residuals, skip)
+    step = design_envelope([np.stack([np.ones_like(s), s], axis=-1) for s in speeds], innovations, skip)
+    step[:, 0] = np.maximum(step[:, 0], 1e-9)
     qs = [np.asarray(Y)[:, :n] for Y, _ in runs]
     vs = [np.asarray(Y)[:, n:] for Y, _ in runs]
     skew = identify_skew(qs, vs, T, skip)
