@@ -218,9 +218,10 @@ def test_velocity_bias_and_encoder_drift_are_told_apart_by_the_step_row(designed
 
 
 def test_a_velocity_step_below_the_step_alarm_is_isolated_from_its_evidence(designed):
-    """A velocity bias of 1.8× the fault-free bound of ν at the joint's speed (ν at onset is b plus noise): its step row stays below the alarm threshold (2),
-    so without evidence levels only the kinematic row speaks and it is called an encoder drift; counted as
-    evidence from the fault-free maximum (1) once the kinematic row has alarmed, it is the velocity sensor."""
+    """A velocity bias of 1.8× the fault-free bound of ν at the joint's speed (ν at onset is b plus noise): its
+    step row stays below the alarm threshold (2), so without evidence levels only the kinematic row speaks and it
+    is called an encoder drift; counted as evidence from the fault-free bound (1) once the kinematic row has
+    alarmed, it is the velocity sensor."""
     _, _, model, rates, _, design = designed
     motion = arm_scenario("arm6.xml", seed=5, schemes=("momentum",)).motion
     b = 1.8 * design.step_bound(np.asarray(motion(1.0)[1]))[4]     # the bound at the planned speed

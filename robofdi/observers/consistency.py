@@ -13,16 +13,19 @@ the design runs):
   by 3.5 N·m).
 * ``joint<i>_kin`` — kinematic consistency between the joint's position and velocity sensors
   (:mod:`robofdi.observers.kinematic`), which no actuator fault can raise.
-* ``joint<i>_step`` — the velocity innovation ν_k = M(q_k)⁻¹ (r_k − r_{k−1}) / K_O [rad/s]: the part of the
-  measured velocity change the dynamics cannot explain (the momentum observer's one-step prediction error,
-  r_k − r_{k−1} = K_O (p_k − p_{k−1} − T (ū − β − r_{k−1}))). A velocity-sensor step of b gives ν = b on its own
-  joint only (M⁻¹ undoes the inertial coupling); a drifting or offset encoder gives none (the true velocity is
+* ``joint<i>_step`` — the velocity innovation ν_k [rad/s]: the velocity step on joint i alone that best explains
+  the torque impulse w_k = (r_k − r_{k−1}) / K_O, the part of the measured momentum change the dynamics cannot
+  explain (the momentum observer's one-step prediction error, r_k − r_{k−1} = K_O (p_k − p_{k−1} −
+  T (ū − β − r_{k−1}))): ν_i = M_iᵀ W w / M_iᵀ W M_i (:meth:`ConsistencyResidual.velocity_innovation`). A
+  velocity-sensor step of b on joint i gives w = M_i b, so ν_i = b (other joints' rows see the inertial
+  coupling's share of it); a drifting or offset encoder gives none (the true velocity is
   untouched), except that a large encoder step moves M(q) q̇ at once, and the observer and the controller answer
   it over the next samples (a 30 mrad step changes the gravity torque): from a sample whose kinematic increment
-  is more than a velocity step of ν can make (twice (T/2 + τ_s)|ν|, plus its fault-free scale), ν is not counted
-  for :data:`STEP_HOLD`. A velocity-sensor step passes the test at its onset (ν = b explains e_k), and the
-  held peak keeps that sample: the row is the peak of |ν| over :data:`STEP_HOLD`, over its largest fault-free
-  value (the step scale).
+  is more than a velocity step of ν can make (twice (T/2 + τ_s)|ν|, plus its fault-free scale), and changed by
+  more than the last two samples' ν can make, ν is not counted for :data:`STEP_HOLD`. A velocity-sensor step
+  passes the test at its onset (ν = b explains e_k) and after it (the increment persists at −T b), and the held
+  peak keeps that sample: the row is the peak of |ν| over :data:`STEP_HOLD`, over its fault-free bound at the
+  joint's speed (the step scale, c₀ + c₁ |q̇_i|: the innovation grows with speed).
 * ``payload`` — the payload hypothesis (:mod:`robofdi.observers.payload`): how much of the normalised dynamic
   residuals a mass at the payload point explains beyond what one joint could,
   √max(0, (y·ρ)²/(y·y) − max_i ρ_i²), with ρ_i = r_i / bound_i and y_i = LP(Y)_i / bound_i the filtered torque per
@@ -48,13 +51,14 @@ jump by b in one sample without a torque to accelerate it.
 Signatures (the hypotheses): actuator fault on joint i raises ``joint<i>`` (the step rows may follow, through
 M⁻¹); a position-sensor fault raises ``joint<i>_kin`` (the dynamic rows may follow through gravity); a
 velocity-sensor fault raises ``joint<i>_kin`` and ``joint<i>_step`` (the dynamic rows may follow: the measured
-velocity enters the momentum M(q) q̇); a payload change raises ``payload`` (the dynamic and step rows may
-follow), so by parsimony it replaces the actuator faults of the joints it loads.
+velocity enters the momentum M(q) q̇; so may the other step rows, through the inertial coupling); a payload
+change raises ``payload`` (the dynamic and step rows may follow), so by parsimony it replaces the actuator
+faults of the joints it loads.
 
-The step rows' alarm threshold carries the false-alarm rate, so it sits 1.4–3.5× above the largest fault-free |ν| of
-the calibration; a velocity bias of 0.02–0.05 rad/s then left its step row below it and was isolated as an
-encoder drift. As evidence, once a kinematic row has alarmed, a step row counts from its largest fault-free value
-(``discriminating``; :class:`~robofdi.decision.ThresholdDecision`'s ``evidence``).
+The step rows' alarm threshold carries the false-alarm rate, so it sits 1.4–3.5× above the fault-free bound of
+|ν|; a velocity bias of 0.02–0.05 rad/s then left its step row below it and was isolated as an encoder drift. As
+evidence, once a kinematic row has alarmed, a step row counts from its fault-free bound (1; ``discriminating``;
+:class:`~robofdi.decision.ThresholdDecision`'s ``evidence``).
 
 Everything it needs from fault-free data is one :class:`ConsistencyDesign`, computed once per robot by
 :func:`design_consistency` from a motion suite.
@@ -67,7 +71,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from robofdi.decision.envelope import design_envelope, envelope_features
-from robofdi.errors import RobofdiError, all_finite
+from robofdi.errors import RobofdiError
 from robofdi.jit import kernel
 from robofdi.models.friction import JointFriction
 from robofdi.models.manipulator import ManipulatorModel
@@ -78,11 +82,6 @@ from robofdi.observers.kinematic import (
 from robofdi.observers.momentum import MomentumObserver, identify_friction
 from robofdi.observers.payload import PayloadRegressor, payload_evidence
 from robofdi.observers.residual import Residual, check_measurement
-
-try:        # LAPACK's gesv as numpy.linalg.solve calls it, without its per-call checks (the same result bits)
-    from numpy.linalg._umath_linalg import solve1 as _solve
-except ImportError:         # pragma: no cover - a NumPy without the private module
-    _solve = np.linalg.solve
 
 __all__ = ["ConsistencyDesign", "ConsistencyResidual", "design_consistency", "DEFAULT_GAIN", "STEP_HOLD",
            "FROZEN_CHANGE", "FROZEN_SAMPLES"]
@@ -112,7 +111,9 @@ class ConsistencyDesign:
     (n, len(windows), 2) (:func:`~robofdi.observers.kinematic.window_reach`; None: unbounded), and the drives'
     nominal ripple orders (n, n_orders) [cycles/rad] whose aliasing the kinematic rows cover
     (:func:`~robofdi.observers.kinematic.ripple_orders`) with their identified per-sample errors
-    ``ripple_amplitude`` (n, n_orders) [rad] (:func:`~robofdi.observers.kinematic.identify_ripple`; None: none)."""
+    ``ripple_amplitude`` (n, n_orders) [rad] (:func:`~robofdi.observers.kinematic.identify_ripple`; None: none),
+    and ``impulse_scale`` (n,) [N·m·s], the fault-free spread of the torque impulse (r_k − r_{k−1}) / K_O per
+    joint that weighs the velocity innovation (:meth:`ConsistencyResidual.velocity_innovation`; None: equal)."""
 
     friction: JointFriction
     envelope: np.ndarray
@@ -125,9 +126,10 @@ class ConsistencyDesign:
     reach: np.ndarray | None = None
     ripple_orders: np.ndarray | None = None
     ripple_amplitude: np.ndarray | None = None
+    impulse_scale: np.ndarray | None = None
 
     #: The optional arrays of :meth:`arrays` (absent when None).
-    OPTIONAL = ("reach", "ripple_orders", "ripple_amplitude")
+    OPTIONAL = ("reach", "ripple_orders", "ripple_amplitude", "impulse_scale")
 
     def step_bound(self, speed: np.ndarray) -> np.ndarray:
         """(n,) bound [rad/s] of the fault-free |ν| at joint speeds ``speed`` (n,) [rad/s]: c₀ + c₁ |speed|."""
@@ -167,6 +169,11 @@ class ConsistencyResidual:
         self._kinematic = KinematicConsistency(design.T, design.skew, design.window_scales, design.windows,
                                                design.reach, design.ripple_orders, design.ripple_amplitude)
         self._payload = PayloadRegressor(model, design.T, design.gain)
+        scale = np.ones(n) if design.impulse_scale is None else np.asarray(design.impulse_scale, dtype=float)
+        if scale.shape != (n,) or not np.all(np.isfinite(scale) & (scale > 0)):
+            raise RobofdiError(f"ConsistencyResidual: field 'impulse_scale' must be {n} finite values > 0 [N·m·s], "
+                               f"got {design.impulse_scale!r}")
+        self._impulse_weight = scale ** -2.0
         self._a = design.gain * design.T
         self._hold = max(1, int(round(STEP_HOLD / design.T)))
         self._single = int(np.argmin(design.windows))       # the single-sample kinematic window
@@ -208,14 +215,19 @@ class ConsistencyResidual:
         return np.maximum(np.einsum("nf,nf->n", self._features, self.design.envelope), 1e-12)
 
     def velocity_innovation(self, mass: np.ndarray, r: np.ndarray) -> np.ndarray:
-        """ν_k = M(q_k)⁻¹ (r_k − r_{k−1}) / K_O [rad/s] (module docstring), given M(q_k); 0 at the first sample."""
+        """ν_k [rad/s] (module docstring) given M(q_k); 0 at the first sample. Joint j's entry is the velocity
+        step on joint j alone that best explains the torque impulse w = (r_k − r_{k−1}) / K_O, which such a step
+        makes M_j b (M_j: column j of M): ν_j = M_jᵀ W w / M_jᵀ W M_j, W = diag(impulse_scale)⁻² (the weighted
+        least-squares fit of one joint's step; the generalised likelihood ratio's estimate under white impulse
+        noise). Solving M ν = w for all joints at once (ν = M⁻¹ w) is exact for a step too, but near a
+        singular M (robosuite's iiwa with joint 2 ≈ 0, where joints 1 and 3 are coaxial and their relative
+        motion has almost no inertia) it amplifies every impulse along the weak direction: the fault-free
+        |ν| of joint 1 reached 0.2 rad/s against 0.02 rad/s for the one-joint fit."""
         previous, self._r_prev = self._r_prev, r.copy()
         if previous is None:
             return np.zeros(self.n)
-        nu = _solve(mass, r - previous)
-        if not all_finite(nu):         # singular: numpy's own solve names the error
-            nu = np.linalg.solve(mass, r - previous)
-        return nu / self.design.gain
+        weighted = self._impulse_weight[:, None] * mass
+        return (weighted.T @ (r - previous)) / np.einsum("ij,ij->j", weighted, mass) / self.design.gain
 
     def update(self, y: np.ndarray, u: np.ndarray) -> Residual:
         """y = [q; q̇](k), u = ū(k−1)."""
@@ -250,7 +262,7 @@ class ConsistencyResidual:
         dynamic, steps = frozenset(names), frozenset(f"{j}_step" for j in names)
         sigs = [Signature(j, frozenset([j]), steps) for j in names]
         sigs += [Signature(f"{j}_pos", frozenset([f"{j}_kin"]), dynamic) for j in names]
-        sigs += [Signature(f"{j}_vel", frozenset([f"{j}_kin", f"{j}_step"]), dynamic) for j in names]
+        sigs += [Signature(f"{j}_vel", frozenset([f"{j}_kin", f"{j}_step"]), dynamic | steps) for j in names]
         sigs.append(Signature("payload", frozenset(["payload"]), dynamic | steps))
         return sigs
 
@@ -328,22 +340,27 @@ def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray,
     friction = identify_friction(plain, [np.asarray(Y)[:, n:] for Y, _ in runs], gain, T, skip)
     unit = ConsistencyDesign(friction, np.ones((n, 4)), np.zeros(n), np.ones((n, len(windows), 3)),
                              np.column_stack([np.ones(n), np.zeros(n)]), gain, T, tuple(windows))
-    features, residuals, speeds, innovations = [], [], [], []
+    features, residuals, speeds, masses = [], [], [], []
     for Y, U in runs:
         d = ConsistencyResidual(model, unit)
-        rows, feats, nus = [], [], []
+        rows, feats, mass = [], [], []
         for y, u in zip(Y, U):
             res = d.update(y, u)
             rows.append(res.estimate[:n])
             feats.append(d._features.copy())
-            nus.append(d.innovation)
+            mass.append(d._momentum.mass.copy())
         residuals.append(np.array(rows))
         features.append(np.array(feats))
+        masses.append(np.array(mass))
         v = np.abs(np.asarray(Y)[:, n:])
         speeds.append(np.concatenate([v[:1], (v[1:] + v[:-1]) / 2]))     # the speed step_bound is given
-        innovations.append(np.array(nus))
     envelope = design_envelope(features, residuals, skip)
-    step = design_envelope([np.stack([np.ones_like(s), s], axis=-1) for s in speeds], innovations, skip)
+    impulses = [np.diff(r, axis=0, prepend=r[:1]) / gain for r in residuals]     # (r_k − r_{k−1}) / K_O
+    impulse_scale = np.maximum(np.concatenate([w[skip + 1:] for w in impulses]).std(axis=0), 1e-12)
+    weight = impulse_scale ** -2.0
+    innovations = [np.einsum("kij,i,ki->kj", M, weight, w) / np.einsum("kij,i,kij->kj", M, weight, M)
+                   for M, w in zip(masses, impulses)]          # velocity_innovation over every sample
+    step = design_envelope([np.stack([np.ones_like(s), s], axis=-1) for s in speeds], innovations, skip + 1)
     step[:, 0] = np.maximum(step[:, 0], 1e-9)
     qs = [np.asarray(Y)[:, :n] for Y, _ in runs]
     vs = [np.asarray(Y)[:, n:] for Y, _ in runs]
@@ -356,4 +373,5 @@ def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray,
     reach = window_reach(vs, T, skip, windows)
     amplitude = None if orders is None else identify_ripple(qs, vs, T, skew, orders, skip,
                                                             fallback=scales[:, int(np.argmin(windows)), 0])
-    return ConsistencyDesign(friction, envelope, skew, scales, step, gain, T, tuple(windows), reach, orders, amplitude)
+    return ConsistencyDesign(friction, envelope, skew, scales, step, gain, T, tuple(windows), reach, orders, amplitude,
+                             impulse_scale)
