@@ -105,7 +105,8 @@ class SchemeCalibration:
     scheme alike).
 
     ``design``: None, or ``design(model, inputs, settings, skip)`` → the scheme's design, learnt from the design
-    runs' diagnoser inputs (then the scheme's thresholds come from held-out runs the design never saw);
+    runs' diagnoser inputs (then the scheme's thresholds come from held-out runs the design never saw, and for a
+    false-alarm rate from the design runs too);
     ``thresholds``: "margin" (ρ_i = margin · max |r_i| over the runs, Caccavale & Villani Sec. 6) or
     "false_alarm_rate" (extreme-value thresholds for ``settings.consistency_false_alarm_rate`` per hour, and
     evidence levels for the discriminating rows: their largest fault-free value, at least 1);
