@@ -62,7 +62,8 @@ def extreme_value_thresholds(residuals: Sequence[np.ndarray], sample_time: float
     For Gaussian-like residuals the fitted Gumbel tail is conservative (measured: 5–10× fewer exceedances than
     λ, tests/test_decision.py); residuals dominated by motion-dependent model error are what it is for.
     ``residuals``: one (N_i, m) array per fault-free run, sampled every ``sample_time`` s; samples k < ``skip``
-    ignored. Needs at least 20 blocks in all."""
+    ignored. Needs at least 20 blocks in all. A component whose block maxima do not vary (0 on fault-free data)
+    gets that value."""
     from scipy.stats import gumbel_r
 
     if not (np.isfinite(rate_per_hour) and rate_per_hour > 0):
@@ -85,6 +86,10 @@ def extreme_value_thresholds(residuals: Sequence[np.ndarray], sample_time: float
     p = rate_per_hour * block / 3600.0
     out = np.empty(maxima.shape[1])
     for j in range(maxima.shape[1]):
-        loc, scale = gumbel_r.fit(maxima[:, j])
-        out[j] = max(float(gumbel_r.isf(p, loc, scale)), float(maxima[:, j].max()))
+        column = maxima[:, j]
+        if np.ptp(column) <= 1e-12 * max(1.0, float(column.max())):   # no spread (a row that is 0 fault-free)
+            out[j] = float(column.max())
+            continue
+        loc, scale = gumbel_r.fit(column)
+        out[j] = max(float(gumbel_r.isf(p, loc, scale)), float(column.max()))
     return np.maximum(out, THRESHOLD_FLOOR)
