@@ -11,7 +11,7 @@ from robofdi.decision import ThresholdDecision
 from robofdi.loop import Diagnosis, diagnose_record, diagnoser_inputs
 from robofdi.models.friction import JointFriction
 from robofdi.observers.arm_schemes import ArmSchemeSettings
-from robofdi.observers.consistency import ConsistencyDesign, ConsistencyResidual, design_consistency
+from robofdi.observers.consistency import STEP_HOLD, ConsistencyDesign, ConsistencyResidual, design_consistency
 from robofdi.observers.kinematic import (
     KinematicConsistency, design_window_scales, identify_ripple, identify_skew, kinematic_increments, ripple_orders,
 )
@@ -210,7 +210,11 @@ def test_velocity_bias_and_encoder_drift_are_told_apart_by_the_step_row(designed
     step = np.abs(tr.residual[:, 2 * n + j])
     assert step[(t > SKIP * 0.002) & (t < 1.0)].max() < 2.0
     if isolated.endswith("_vel"):       # ν = b on its own joint: 0.05 rad/s against ≈ 0.01 fault-free
-        assert step[(t >= 1.0) & (t < 1.01)].max() * design.step_scale[j, 0] == pytest.approx(0.05, rel=0.25)
+        bound = design.step_bound(np.asarray(sc.motion(1.0)[1]))[j]
+        assert step[(t >= 1.0) & (t < 1.01)].max() * bound == pytest.approx(0.05, rel=0.25)
+        # the onset's ν stays held: the increment −T·b that persists after it is a velocity offset, no position step
+        held = step[(t >= 1.0) & (t < 1.0 + STEP_HOLD - 0.01)]
+        assert np.all(held[int(np.argmax(held)):] == held.max())
     else:
         assert step[t >= 1.0].max() < 2.0
     time, got = _first_isolation(tr)
@@ -287,3 +291,29 @@ def test_bad_inputs_are_named():
         KinematicConsistency(0.002, np.zeros(2), np.ones((2, 4)))
     with pytest.raises(RobofdiError, match="reach"):
         KinematicConsistency(0.002, np.zeros(2), np.ones((2, 1, 3)), windows=(0.0,), reach=np.ones((2, 2, 2)))
+
+
+def test_the_velocity_innovation_is_one_joint_step_that_explains_the_impulse(designed):
+    """A velocity step b on joint j adds the impulse M_j b (column j of M(q)): the one-joint fit gives ν_j = b
+    exactly, on arm6's M(q) and on one whose joints 1 and 3 are nearly coaxial (M gains 500 kg·m² along
+    e1 + e3: each joint alone moves everything beyond it, their opposite motion almost nothing). There M⁻¹
+    turns a small impulse noise into large opposite steps on joints 1 and 3; the one-joint fit does not."""
+    _, _, model, _, _, design = designed
+    d = ConsistencyResidual(model, design)
+
+    def innovation(M, dr):
+        d.reset()
+        d.velocity_innovation(M, np.zeros(model.n))
+        return d.velocity_innovation(M, dr)
+
+    mass = model.mass_matrix(np.zeros(model.n))
+    v = np.zeros(model.n)
+    v[[0, 2]] = 1.0
+    coaxial = mass + 500.0 * np.outer(v, v)
+    for M in (mass, coaxial):
+        for j in range(model.n):
+            assert innovation(M, design.gain * M[:, j] * 0.05)[j] == pytest.approx(0.05, rel=1e-9)
+    noise = np.random.default_rng(0).normal(0.0, 1e-3, (200, model.n)) * design.gain      # 1 mN·m·s impulses
+    fit = np.array([innovation(coaxial, w) for w in noise])
+    inverse = np.array([np.linalg.solve(coaxial, w) / design.gain for w in noise])
+    assert np.abs(fit[:, [0, 2]]).max() < 0.2 * np.abs(inverse[:, [0, 2]]).max()
