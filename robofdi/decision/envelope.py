@@ -31,8 +31,15 @@ LOW_SPEED_VELOCITY = 0.15  # v_b [rad/s]: the Stribeck zone
 def envelope_features(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """(..., n, 4) features φ of the module docstring from torques u (..., n) [N·m] and velocities v [rad/s]."""
     u, v = np.asarray(u, dtype=float), np.asarray(v, dtype=float)
-    return np.stack([np.ones_like(u), np.abs(u), np.exp(-(v / REST_VELOCITY) ** 2),
-                     np.exp(-(v / LOW_SPEED_VELOCITY) ** 2)], axis=-1)
+    if u.shape != v.shape:          # np.stack names the mismatch
+        return np.stack([np.ones_like(u), np.abs(u), np.exp(-(v / REST_VELOCITY) ** 2),
+                         np.exp(-(v / LOW_SPEED_VELOCITY) ** 2)], axis=-1)
+    out = np.empty(u.shape + (4,))  # the rows np.stack makes, written in place (the same ufuncs on the same arrays)
+    out[..., 0] = 1.0
+    out[..., 1] = np.abs(u)
+    out[..., 2] = np.exp(-(v / REST_VELOCITY) ** 2)
+    out[..., 3] = np.exp(-(v / LOW_SPEED_VELOCITY) ** 2)
+    return out
 
 
 def design_envelope(features: Sequence[np.ndarray], residuals: Sequence[np.ndarray], skip: int = 0,

@@ -73,7 +73,7 @@ from robofdi.observers.kinematic import (
 )
 from robofdi.observers.momentum import MomentumObserver, identify_friction
 from robofdi.observers.payload import PayloadRegressor, payload_evidence
-from robofdi.observers.residual import Residual, check_measurement
+from robofdi.observers.residual import Residual, shared_measurement
 
 try:        # LAPACK's gesv as numpy.linalg.solve calls it, without its per-call checks (the same result bits)
     from numpy.linalg._umath_linalg import solve1 as _solve
@@ -210,8 +210,8 @@ class ConsistencyResidual:
     def update(self, y: np.ndarray, u: np.ndarray) -> Residual:
         """y = [q; q̇](k), u = ū(k−1)."""
         n = self.n
-        y = check_measurement(y, 2 * n, "y")
-        u = check_measurement(u, n, "u")
+        y = shared_measurement(y, 2 * n, "y")
+        u = shared_measurement(u, n, "u")
         r = self._momentum.update(y, u).r
         q, v = y[:n], y[n:]
         self.innovation = self.velocity_innovation(self._momentum.mass, r)   # M(q_k): the observer's, not again

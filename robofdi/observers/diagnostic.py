@@ -28,7 +28,7 @@ from robofdi import RobofdiError
 from robofdi.jit import kernel
 from robofdi.models.manipulator import ManipulatorModel
 from robofdi.observers.evaluations import evaluations
-from robofdi.observers.residual import Residual, check_measurement
+from robofdi.observers.residual import Residual, shared_measurement
 
 __all__ = [
     "EulerArmModel",
@@ -389,8 +389,8 @@ class DiagnosticObserver:
     def update(self, y: np.ndarray, u: np.ndarray) -> Residual:
         """One sample: y = x̄(k), u = ū(k−1). Returns r(k) and the identification candidates."""
         n = self.n
-        y = check_measurement(y, 2 * n, "y")
-        u = check_measurement(u, n, "u")
+        y = shared_measurement(y, 2 * n, "y")
+        u = shared_measurement(u, n, "u")
         x = self._state(y)
         if x is None or self._x_prev is None:
             if x is not None:
