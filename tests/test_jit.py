@@ -69,3 +69,22 @@ def test_interpreted_swaps_every_kernel_and_restores_it():
     assert kinematic._kinematic_step is before
     assert inside is not before or not jit.COMPILED
     assert not hasattr(inside, "py_func")
+
+
+def test_one_sample_fast_paths_equal_the_array_form(run):
+    """Friction torque, envelope features and the symmetric mass matrix of one sample (compiled arithmetic, NumPy's
+    tanh/exp) give the bits of their array form (the (N, n) path, NumPy throughout)."""
+    from robofdi.decision.envelope import envelope_features
+
+    record, model, _ = run
+    n = model.n
+    friction = JointFriction.from_coefficients(np.arange(4 * n, dtype=float).reshape(n, 4) / 7.0 - 1.0)
+    for y, u in zip(record.signals["y_meas"][::17], record.signals["u"][::17]):
+        v = y[n:]
+        assert friction.torque(v).tobytes() == friction.torque(v[None])[0].tobytes()
+        assert envelope_features(u, v).tobytes() == envelope_features(u[None], v[None])[0].tobytes()
+        M = model.mass_matrix(y[:n])
+        assert np.array_equal(M, M.T)
+        with jit.interpreted():
+            assert model.mass_matrix(y[:n]).tobytes() == M.tobytes()
+            assert friction.torque(v).tobytes() == friction.torque(v[None])[0].tobytes()

@@ -19,6 +19,7 @@ import numpy as np
 from scipy.optimize import linprog
 
 from robofdi.errors import RobofdiError
+from robofdi.jit import kernel
 
 __all__ = ["ENVELOPE_FEATURES", "envelope_features", "design_envelope"]
 
@@ -34,12 +35,30 @@ def envelope_features(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     if u.shape != v.shape:          # np.stack names the mismatch
         return np.stack([np.ones_like(u), np.abs(u), np.exp(-(v / REST_VELOCITY) ** 2),
                          np.exp(-(v / LOW_SPEED_VELOCITY) ** 2)], axis=-1)
+    if u.ndim == 1:                 # one sample (a diagnoser's hot path): the arithmetic compiled, exp NumPy's
+        out, arguments = np.empty(u.shape + (4,)), np.empty((2,) + u.shape)
+        _feature_rows(u, v, REST_VELOCITY, LOW_SPEED_VELOCITY, out, arguments)
+        out[:, 2] = np.exp(arguments[0])
+        out[:, 3] = np.exp(arguments[1])
+        return out
     out = np.empty(u.shape + (4,))  # the rows np.stack makes, written in place (the same ufuncs on the same arrays)
     out[..., 0] = 1.0
     out[..., 1] = np.abs(u)
     out[..., 2] = np.exp(-(v / REST_VELOCITY) ** 2)
     out[..., 3] = np.exp(-(v / LOW_SPEED_VELOCITY) ** 2)
     return out
+
+
+@kernel
+def _feature_rows(u, v, rest, low_speed, out, arguments):
+    """The constant and |τ| features into ``out`` (n, 4), the exp arguments −(q̇/v_r)², −(q̇/v_b)² into
+    ``arguments`` (2, n), entry by entry as the array form computes them."""
+    for i in range(u.shape[0]):
+        out[i, 0] = 1.0
+        out[i, 1] = abs(u[i])
+        x, y = v[i] / rest, v[i] / low_speed
+        arguments[0, i] = -(x * x)
+        arguments[1, i] = -(y * y)
 
 
 def design_envelope(features: Sequence[np.ndarray], residuals: Sequence[np.ndarray], skip: int = 0,

@@ -25,6 +25,7 @@ import numpy as np
 import pinocchio as pin
 
 from robofdi import RobofdiError
+from robofdi.jit import kernel
 from robofdi.mjcf import _JOINT_KINDS, VELOCITY_LIMIT, _name, compile_arm, gear_ratio, payload_point
 from robofdi.seeding import rng
 
@@ -208,7 +209,7 @@ class ManipulatorModel:
     def mass_matrix(self, q: np.ndarray) -> np.ndarray:
         """M̂(q) [kg·m²], symmetric, armature included."""
         M = pin.crba(self.model, self.data, self._q(q)).copy()   # crba fills the upper triangle only
-        M[self._lower] = M.T[self._lower]
+        _mirror_upper(M)
         return M
 
     def bias(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -230,3 +231,11 @@ class ManipulatorModel:
     def acceleration(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """q̈ = M̂⁻¹(τ − n̂) (forward dynamics with viscous friction) [rad/s²]."""
         return pin.aba(self.model, self.data, self._q(q), v, tau - self.damping * v)
+
+
+@kernel
+def _mirror_upper(M):
+    """Copy the upper triangle of the square ``M`` onto its lower one (crba fills the upper triangle only)."""
+    for i in range(M.shape[0]):
+        for j in range(i):
+            M[i, j] = M[j, i]

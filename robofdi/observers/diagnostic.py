@@ -24,6 +24,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+try:        # np.einsum's own C function, without its Python wrapper (the same call, the same result bits)
+    from numpy._core.multiarray import c_einsum as _einsum
+except ImportError:         # pragma: no cover - a NumPy without the private module
+    _einsum = np.einsum
+
 from robofdi import RobofdiError
 from robofdi.jit import kernel
 from robofdi.models.manipulator import ManipulatorModel
@@ -268,7 +273,7 @@ class Adaptive(_Estimating):
             return
         # Same update with Q diagonal: Z Zᵀ + Q is diagonal (|z_j|² + q_j), so Γ_θ acts row by row.
         G, theta = self._Z, np.empty(self.theta.shape[0])
-        _adaptive_step(self.theta, G, np.einsum("ij,ij->i", G, G), r, self._q, self.step, theta)
+        _adaptive_step(self.theta, G, _einsum("ij,ij->i", G, G), r, self._q, self.step, theta)
         self.theta = theta
 
 
@@ -292,6 +297,19 @@ def _observer_step(x, x_prev, x_hat, e_prev, acc, acc_hat, measured, eta_prev, T
         x_hat_out[i], x_hat_out[j] = q_base + ko_q + eta_prev[i], v_base + ko_v + eta_prev[j]   # eq. (23)
         e[i], e[j] = x[i] - x_hat_out[i], x[j] - x_hat_out[j]
         r[i], r[j] = e[i] - F[i] * e_prev[i], e[j] - F[j] * e_prev[j]              # eq. (26)
+
+
+@kernel
+def _output_rows(r_model, m_f, r, m_r, T, torque, estimate, out):
+    """The estimate [r₂₀ position rows; (M̂ f̂₂)/T] and, when ``torque``, the residual [r₁; (M̂ r₂)/T], given the
+    products M̂ f̂₂ (``m_f``) and M̂ r₂ (``m_r``), into ``estimate`` and ``out``."""
+    n = m_f.shape[0]
+    for i in range(n):
+        estimate[i] = r_model[i]
+        estimate[n + i] = m_f[i] / T
+        if torque:
+            out[i] = r[i]
+            out[n + i] = m_r[i] / T
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -377,7 +395,7 @@ class DiagnosticObserver:
     def _state(self, y: np.ndarray) -> np.ndarray | None:
         n = self.n
         if self.velocity == "measured":
-            return y.copy()
+            return y                # read-only (shared_measurement): kept as x̄(k−1) without a copy
         q = y[:n]
         if self._q_prev is None:
             self._q_prev = q.copy()
@@ -416,15 +434,11 @@ class DiagnosticObserver:
     def _output(self, x: np.ndarray, r: np.ndarray, f_hat: np.ndarray, r_model: np.ndarray) -> Residual:
         n, T = self.n, self.T
         M = self._evaluations.mass_matrix(x[:n])
+        # δτ̂ = (M̂/T) f̂₂ (Sec. 6, with M̂ for the unknown M); "torque": r_τ = (M̂/T) r₂ (the products NumPy's)
+        torque = self.residual_space == "torque"
         estimate = np.empty(2 * n)
-        estimate[:n] = r_model[:n]
-        estimate[n:] = M.dot(f_hat[n:]) / T     # δτ̂ = (M̂/T) f̂₂ (Sec. 6, with M̂ for the unknown M)
-        if self.residual_space == "torque":
-            out = np.empty(2 * n)
-            out[:n] = r[:n]
-            out[n:] = M.dot(r[n:]) / T
-        else:
-            out = r
+        out = np.empty(2 * n) if torque else r
+        _output_rows(r_model, M.dot(f_hat[n:]), r, M.dot(r[n:]) if torque else r, T, torque, estimate, out)
         # Position faults: f_s1(k) = δx1(k+1) − δx1(k) (eq. (19)), so the position rows of r₂₀ summed from the
         # isolation sample estimate δx1 (instead of x̄1 − x1d, which needs the reference; spec erratum 2–4).
         return Residual(out, estimate, state_residual=r)
