@@ -22,7 +22,7 @@ import contextlib
 import sys
 from collections.abc import Callable, Iterator
 
-__all__ = ["COMPILED", "kernel", "interpreted"]
+__all__ = ["COMPILED", "kernel", "interpreted", "einsum"]
 
 try:                                           # pragma: no cover - which branch runs depends on the install
     import numba
@@ -31,6 +31,12 @@ try:                                           # pragma: no cover - which branch
 except ImportError:                            # pragma: no cover
     numba = None
     COMPILED = False
+
+try:        # np.einsum's own C function, without its Python wrapper: what np.einsum calls (optimize=False, its
+    # default), so the same result bits; per-sample reductions that stay NumPy's use it
+    from numpy._core.multiarray import c_einsum as einsum
+except ImportError:                            # pragma: no cover - a NumPy without the private module
+    from numpy import einsum
 
 _KERNELS: list[tuple[str, str, Callable, Callable]] = []     # (module, name, compiled, python function)
 

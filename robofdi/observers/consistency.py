@@ -64,7 +64,7 @@ import numpy as np
 
 from robofdi.decision.envelope import design_envelope, envelope_features
 from robofdi.errors import RobofdiError, all_finite
-from robofdi.jit import kernel
+from robofdi.jit import einsum, kernel
 from robofdi.models.friction import JointFriction
 from robofdi.models.manipulator import ManipulatorModel
 from robofdi.observers.kinematic import (
@@ -195,7 +195,7 @@ class ConsistencyResidual:
 
     def bound(self) -> np.ndarray:
         """The current operating-point bound of the dynamic rows [N·m]."""
-        return np.maximum(np.einsum("nf,nf->n", self._features, self.design.envelope), 1e-12)
+        return np.maximum(einsum("nf,nf->n", self._features, self.design.envelope), 1e-12)
 
     def velocity_innovation(self, mass: np.ndarray, r: np.ndarray) -> np.ndarray:
         """ν_k = M(q_k)⁻¹ (r_k − r_{k−1}) / K_O [rad/s] (module docstring), given M(q_k); 0 at the first sample."""

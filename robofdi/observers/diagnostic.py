@@ -24,12 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-try:        # np.einsum's own C function, without its Python wrapper (the same call, the same result bits)
-    from numpy._core.multiarray import c_einsum as _einsum
-except ImportError:         # pragma: no cover - a NumPy without the private module
-    _einsum = np.einsum
-
 from robofdi import RobofdiError
+from robofdi.jit import einsum as _einsum
 from robofdi.jit import kernel
 from robofdi.models.manipulator import ManipulatorModel
 from robofdi.observers.evaluations import evaluations
@@ -300,6 +296,15 @@ def _observer_step(x, x_prev, x_hat, e_prev, acc, acc_hat, measured, eta_prev, T
 
 
 @kernel
+def _backward_state(q, q_prev, T, z):
+    """z = [q; (q − q_prev)/T] — eq. (43), entry by entry."""
+    n = q.shape[0]
+    for i in range(n):
+        z[i] = q[i]
+        z[n + i] = (q[i] - q_prev[i]) / T
+
+
+@kernel
 def _output_rows(r_model, m_f, r, m_r, T, torque, estimate, out):
     """The estimate [r₂₀ position rows; (M̂ f̂₂)/T] and, when ``torque``, the residual [r₁; (M̂ r₂)/T], given the
     products M̂ f̂₂ (``m_f``) and M̂ r₂ (``m_r``), into ``estimate`` and ``out``."""
@@ -396,12 +401,13 @@ class DiagnosticObserver:
         n = self.n
         if self.velocity == "measured":
             return y                # read-only (shared_measurement): kept as x̄(k−1) without a copy
-        q = y[:n]
+        q = y[:n]                   # read-only: kept without a copy
         if self._q_prev is None:
-            self._q_prev = q.copy()
+            self._q_prev = q
             return None
-        z = np.concatenate([q, (q - self._q_prev) / self.T])  # eq. (43)
-        self._q_prev = q.copy()
+        z = np.empty(2 * n)
+        _backward_state(q, self._q_prev, self.T, z)  # eq. (43)
+        self._q_prev = q
         return z
 
     def update(self, y: np.ndarray, u: np.ndarray) -> Residual:

@@ -93,5 +93,5 @@ def payload_evidence(rho: np.ndarray, y: np.ndarray) -> tuple[float, float]:
     if not yy > 1e-300:
         return 0.0, 0.0
     yr = float(y.dot(rho))
-    excess = yr * yr / yy - float(np.max(rho * rho))
+    excess = yr * yr / yy - float((rho * rho).max())
     return (float(np.sqrt(excess)) if excess > 0 else 0.0), -yr / yy
