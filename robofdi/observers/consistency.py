@@ -62,7 +62,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robofdi.decision.envelope import design_envelope, envelope_features
+from robofdi.decision.envelope import design_envelope, envelope_features, filtered_features
 from robofdi.errors import RobofdiError, all_finite
 from robofdi.jit import einsum, kernel
 from robofdi.models.friction import JointFriction
@@ -218,8 +218,8 @@ class ConsistencyResidual:
         if self._features is None:      # at rest before the start
             self._features = envelope_features(np.zeros(n), v)
         else:       # the residual's own first-order dynamics: a torque acting over (k−1, k] shows in r_k
-            self._features = (1 - self._a) * self._features + self._a * envelope_features(u, self._v_prev)
-            self._repeats = np.where(np.abs(v - self._v_prev) <= FROZEN_CHANGE, self._repeats + 1, 0.0)
+            self._features = filtered_features(self._features, self._a, u, self._v_prev)
+            self._repeats = _repeated(v, self._v_prev, self._repeats, FROZEN_CHANGE)
         self._v_prev = v
         kin, e = self._kinematic.update(q, v)
         z, estimate = np.empty(3 * n + 1), np.empty(3 * n + 1)
@@ -334,3 +334,12 @@ def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray,
     amplitude = None if orders is None else identify_ripple(qs, vs, T, skew, orders, skip,
                                                             fallback=scales[:, int(np.argmin(windows)), 0])
     return ConsistencyDesign(friction, envelope, skew, scales, step, gain, T, tuple(windows), reach, orders, amplitude)
+
+
+@kernel
+def _repeated(v, v_prev, repeats, change):
+    """repeats + 1 where |v − v_prev| <= change, else 0 (the np.where of the array form), as a new array."""
+    out = np.empty(v.shape[0])
+    for i in range(v.shape[0]):
+        out[i] = repeats[i] + 1.0 if abs(v[i] - v_prev[i]) <= change else 0.0
+    return out
