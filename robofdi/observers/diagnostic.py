@@ -423,10 +423,10 @@ class DiagnosticObserver:
         est = self.estimator
         est.prepare(self._x_prev, u)           # η̂(k−1) with x̄(k−1), ū(k−1)
         x_prev, m = self._x_prev, 2 * n
-        acc = self._evaluations.acceleration(x_prev[:n], x_prev[n:], u)      # the model term of eq. (20)
+        acc = self._evaluations.acceleration_at(x_prev, u)      # the model term of eq. (20), at x̄(k−1), ū(k−1)
         # eval_at "measured": A x̂ + h(x̄) + B(x̄)ū = A(x̂ − x̄) + predict(x̄); "estimate": predict(x̂), eq. (23)
         acc_hat = acc if self.eval_at == "measured" else self.model.acceleration(self.x_hat[:n], self.x_hat[n:], u)
-        r_model, x_hat, e, r = np.empty(m), np.empty(m), np.empty(m), np.empty(m)
+        r_model, x_hat, e, r = np.empty((4, m))     # four fresh rows (each kept or handed on as its own array)
         _observer_step(x, x_prev, self.x_hat, self._e_prev, acc, acc_hat, self.eval_at == "measured", est.eta_hat,
                        self.T, self.K1, self.K2, self.F, r_model, x_hat, e, r)
         self.x_hat = x_hat

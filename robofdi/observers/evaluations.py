@@ -70,6 +70,17 @@ class Evaluations:
         self._coriolis = (key, value)
         return value
 
+    def acceleration_at(self, x: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        """:meth:`acceleration` at the state x = [q; q̇] (the same memo: q and q̇'s bytes are x's)."""
+        key = _bytes(x) + _bytes(tau)
+        last = self._acceleration
+        if last[0] == key:
+            return last[1]
+        n = x.shape[0] // 2
+        value = _frozen(np.array(self.model.acceleration(x[:n], x[n:], tau), dtype=float))
+        self._acceleration = (key, value)
+        return value
+
     def acceleration(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """q̈ = M̂⁻¹(τ − n̂) [rad/s²]."""
         key = _bytes(q) + _bytes(v) + _bytes(tau)
