@@ -274,12 +274,12 @@ class Adaptive(_Estimating):
 
 
 @kernel
-def _observer_step(x, x_prev, x_hat, e_prev, acc, acc_hat, measured, eta_prev, T, K1, K2, F, r_model, x_hat_out,
-                   e, r):
+def _observer_step(x, x_prev, x_hat, e_prev, acc, acc_hat, measured, eta_prev, T, gains, out):
     """Eqs. (20), (23)–(26) for one sample, entry by entry in the order of operations of their array form, given
-    the forward dynamics q̈ at x̄(k−1) (``acc``) and at x̂(k−1) (``acc_hat``, used when not ``measured``):
-    r₂₀(k), x̂(k), e(k) and r(k) into ``r_model``, ``x_hat_out``, ``e``, ``r``."""
+    the forward dynamics q̈ at x̄(k−1) (``acc``) and at x̂(k−1) (``acc_hat``, used when not ``measured``) and
+    ``gains`` = [K1; K2; F] (4n): r₂₀(k), x̂(k), e(k) and r(k) into the rows of ``out`` (4, 2n)."""
     n = acc.shape[0]
+    r_model, x_hat_out, e, r = out[0], out[1], out[2], out[3]
     for i in range(n):
         j = n + i
         q_model, v_model = x_prev[i] + T * x_prev[j], x_prev[j] + T * acc[i]        # predict(x̄(k−1), ū)
@@ -289,10 +289,10 @@ def _observer_step(x, x_prev, x_hat, e_prev, acc, acc_hat, measured, eta_prev, T
             q_base, v_base = dq + T * dv + q_model, dv + v_model
         else:               # predict(x̂)
             q_base, v_base = x_hat[i] + T * x_hat[j], x_hat[j] + T * acc_hat[i]
-        ko_q, ko_v = K1[i] * e_prev[i] + T * e_prev[j], K2[i] * e_prev[j]           # K_o e, eq. (24)
+        ko_q, ko_v = gains[i] * e_prev[i] + T * e_prev[j], gains[n + i] * e_prev[j]   # K_o e, eq. (24)
         x_hat_out[i], x_hat_out[j] = q_base + ko_q + eta_prev[i], v_base + ko_v + eta_prev[j]   # eq. (23)
         e[i], e[j] = x[i] - x_hat_out[i], x[j] - x_hat_out[j]
-        r[i], r[j] = e[i] - F[i] * e_prev[i], e[j] - F[j] * e_prev[j]              # eq. (26)
+        r[i], r[j] = e[i] - gains[2 * n + i] * e_prev[i], e[j] - gains[2 * n + j] * e_prev[j]   # eq. (26)
 
 
 @kernel
@@ -368,6 +368,7 @@ class DiagnosticObserver:
             raise RobofdiError(f"DiagnosticObserver: field 'residual_space' must be 'state' or 'torque', got {residual_space!r}")
         self.K1, self.K2 = K1, K2
         self.F = np.concatenate([1.0 - K1, 1.0 - K2])          # F = blkdiag(I − K1, I − K2), eq. (25)
+        self._gains = np.concatenate([K1, K2, self.F])         # the kernel's [K1; K2; F]
         self.Ko = np.block([[np.diag(K1), T * np.eye(n)], [np.zeros((n, n)), np.diag(K2)]])  # eq. (24)
         self.estimator = estimator if estimator is not None else NoEstimate()
         self.freeze_threshold = None if freeze_threshold is None else np.asarray(freeze_threshold, dtype=float)
@@ -426,9 +427,10 @@ class DiagnosticObserver:
         acc = self._evaluations.acceleration_at(x_prev, u)      # the model term of eq. (20), at x̄(k−1), ū(k−1)
         # eval_at "measured": A x̂ + h(x̄) + B(x̄)ū = A(x̂ − x̄) + predict(x̄); "estimate": predict(x̂), eq. (23)
         acc_hat = acc if self.eval_at == "measured" else self.model.acceleration(self.x_hat[:n], self.x_hat[n:], u)
-        r_model, x_hat, e, r = np.empty((4, m))     # four fresh rows (each kept or handed on as its own array)
+        rows = np.empty((4, m))         # r₂₀, x̂, e, r: four fresh rows (each kept or handed on as its own array)
         _observer_step(x, x_prev, self.x_hat, self._e_prev, acc, acc_hat, self.eval_at == "measured", est.eta_hat,
-                       self.T, self.K1, self.K2, self.F, r_model, x_hat, e, r)
+                       self.T, self._gains, rows)
+        r_model, x_hat, e, r = rows
         self.x_hat = x_hat
         est.update(r, r_model, x_prev, u)
         self._x_prev, self._e_prev = x, e
