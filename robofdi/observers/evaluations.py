@@ -16,7 +16,11 @@ from robofdi.models.manipulator import ManipulatorModel
 __all__ = ["Evaluations", "evaluations"]
 
 
-def _frozen(a: np.ndarray) -> np.ndarray:
+def _frozen(a) -> np.ndarray:
+    """``a`` as a read-only float array of its own: ``a`` itself when it is a float array that owns its memory (a
+    fresh result: Pinocchio's are, checked), else a copy."""
+    if not (type(a) is np.ndarray and a.dtype is _FLOAT and a.base is None and a.flags.owndata):
+        a = np.array(a, dtype=float)
     a.flags.writeable = False
     return a
 
@@ -46,7 +50,7 @@ class Evaluations:
         last = self._mass
         if last[0] == key:
             return last[1]
-        value = _frozen(np.array(self.model.mass_matrix(q), dtype=float))
+        value = _frozen(self.model.mass_matrix(q))
         self._mass = (key, value)
         return value
 
@@ -56,7 +60,7 @@ class Evaluations:
         last = self._gravity
         if last[0] == key:
             return last[1]
-        value = _frozen(np.array(self.model.gravity(q), dtype=float))
+        value = _frozen(self.model.gravity(q))
         self._gravity = (key, value)
         return value
 
@@ -66,7 +70,7 @@ class Evaluations:
         last = self._coriolis
         if last[0] == key:
             return last[1]
-        value = _frozen(np.array(self.model.coriolis(q, v), dtype=float))
+        value = _frozen(self.model.coriolis(q, v))
         self._coriolis = (key, value)
         return value
 
@@ -77,7 +81,7 @@ class Evaluations:
         if last[0] == key:
             return last[1]
         n = x.shape[0] // 2
-        value = _frozen(np.array(self.model.acceleration(x[:n], x[n:], tau), dtype=float))
+        value = _frozen(self.model.acceleration(x[:n], x[n:], tau))
         self._acceleration = (key, value)
         return value
 
@@ -87,7 +91,7 @@ class Evaluations:
         last = self._acceleration
         if last[0] == key:
             return last[1]
-        value = _frozen(np.array(self.model.acceleration(q, v, tau), dtype=float))
+        value = _frozen(self.model.acceleration(q, v, tau))
         self._acceleration = (key, value)
         return value
 
