@@ -88,3 +88,22 @@ def test_one_sample_fast_paths_equal_the_array_form(run):
         with jit.interpreted():
             assert model.mass_matrix(y[:n]).tobytes() == M.tobytes()
             assert friction.torque(v).tobytes() == friction.torque(v[None])[0].tobytes()
+
+
+def test_computed_torque_kernels_equal_the_array_form(run):
+    """The controller's feedback and clip kernels give the bits of the NumPy expressions, compiled and not; a
+    reference given as lists takes the array form."""
+    record, model, _ = run
+    n = model.n
+    limit = np.full(n, 30.0)
+    ctrl = ComputedTorque(model, torque_limit=limit)
+    motion = Quintic(Q0, DQ, 1.0)
+    for t, y in zip(record.time[::13], record.truth_state[::13]):
+        qd, vd, ad = (np.asarray(x, dtype=float) for x in motion(t))
+        q, v = y[:n], y[n:]
+        a = ad + ctrl.kd * (vd - v) + ctrl.kp * (qd - q)
+        expected = np.minimum(np.maximum(model.inverse_dynamics(q, v, a), -limit), limit)
+        assert ctrl.update(y, (qd, vd, ad)).tobytes() == expected.tobytes()
+        assert ctrl.update(y, (list(qd), list(vd), list(ad))).tobytes() == expected.tobytes()
+        with jit.interpreted():
+            assert ctrl.update(y, (qd, vd, ad)).tobytes() == expected.tobytes()
