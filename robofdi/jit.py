@@ -22,7 +22,7 @@ import contextlib
 import sys
 from collections.abc import Callable, Iterator
 
-__all__ = ["COMPILED", "kernel", "interpreted", "einsum"]
+__all__ = ["COMPILED", "kernel", "interpreted"]
 
 try:                                           # pragma: no cover - which branch runs depends on the install
     import numba
@@ -36,7 +36,7 @@ try:        # np.einsum's own C function, without its Python wrapper: what np.ei
     # default), so the same result bits; per-sample reductions that stay NumPy's use it
     from numpy._core.multiarray import c_einsum as einsum
 except ImportError:                            # pragma: no cover - a NumPy without the private module
-    from numpy import einsum
+    from numpy import einsum  # noqa: F401 - used by the observers (not in __all__: NumPy's docstring)
 
 _KERNELS: list[tuple[str, str, Callable, Callable]] = []     # (module, name, compiled, python function)
 
