@@ -32,6 +32,12 @@ except ImportError:                            # pragma: no cover
     numba = None
     COMPILED = False
 
+try:        # np.einsum's own C function, without its Python wrapper: what np.einsum calls (optimize=False, its
+    # default), so the same result bits; per-sample reductions that stay NumPy's use it
+    from numpy._core.multiarray import c_einsum as einsum
+except ImportError:                            # pragma: no cover - a NumPy without the private module
+    from numpy import einsum  # noqa: F401 - used by the observers (not in __all__: NumPy's docstring)
+
 _KERNELS: list[tuple[str, str, Callable, Callable]] = []     # (module, name, compiled, python function)
 
 

@@ -70,3 +70,41 @@ def test_interpreted_swaps_every_kernel_and_restores_it():
     assert kinematic._kinematic_step is before
     assert inside is not before or not jit.COMPILED
     assert not hasattr(inside, "py_func")
+
+
+def test_one_sample_fast_paths_equal_the_array_form(run):
+    """Friction torque, envelope features and the symmetric mass matrix of one sample (compiled arithmetic, NumPy's
+    tanh/exp) give the bits of their array form (the (N, n) path, NumPy throughout)."""
+    from robofdi.decision.envelope import envelope_features
+
+    record, model, _ = run
+    n = model.n
+    friction = JointFriction.from_coefficients(np.arange(4 * n, dtype=float).reshape(n, 4) / 7.0 - 1.0)
+    for y, u in zip(record.signals["y_meas"][::17], record.signals["u"][::17]):
+        v = y[n:]
+        assert friction.torque(v).tobytes() == friction.torque(v[None])[0].tobytes()
+        assert envelope_features(u, v).tobytes() == envelope_features(u[None], v[None])[0].tobytes()
+        M = model.mass_matrix(y[:n])
+        assert np.array_equal(M, M.T)
+        with jit.interpreted():
+            assert model.mass_matrix(y[:n]).tobytes() == M.tobytes()
+            assert friction.torque(v).tobytes() == friction.torque(v[None])[0].tobytes()
+
+
+def test_computed_torque_kernels_equal_the_array_form(run):
+    """The controller's feedback and clip kernels give the bits of the NumPy expressions, compiled and not; a
+    reference given as lists takes the array form."""
+    record, model, _ = run
+    n = model.n
+    limit = np.full(n, 30.0)
+    ctrl = ComputedTorque(model, torque_limit=limit)
+    motion = Quintic(Q0, DQ, 1.0)
+    for t, y in zip(record.time[::13], record.truth_state[::13]):
+        qd, vd, ad = (np.asarray(x, dtype=float) for x in motion(t))
+        q, v = y[:n], y[n:]
+        a = ad + ctrl.kd * (vd - v) + ctrl.kp * (qd - q)
+        expected = np.minimum(np.maximum(model.inverse_dynamics(q, v, a), -limit), limit)
+        assert ctrl.update(y, (qd, vd, ad)).tobytes() == expected.tobytes()
+        assert ctrl.update(y, (list(qd), list(vd), list(ad))).tobytes() == expected.tobytes()
+        with jit.interpreted():
+            assert ctrl.update(y, (qd, vd, ad)).tobytes() == expected.tobytes()

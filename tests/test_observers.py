@@ -565,3 +565,23 @@ def test_huge_finite_measurements_are_not_taken_for_nan():
         np.testing.assert_array_equal(check_measurement(np.full(12, 1e308), 12, "y"), np.full(12, 1e308))
     with pytest.raises(RobofdiError, match=r"indices \[11\]"):
         check_measurement(np.r_[np.ones(11), np.inf], 12, "y")
+
+
+def test_shared_measurement_is_one_read_only_copy_per_values():
+    """The arm diagnosers' input check: the same values checked again under the same field give the same read-only
+    copy; new values (the caller's buffer changed in place) a new copy; bad input raises as check_measurement."""
+    from robofdi.observers.residual import shared_measurement
+
+    buf = np.arange(12.0)
+    a = shared_measurement(buf, 12, "y")
+    assert not a.flags.writeable and a is not buf
+    np.testing.assert_array_equal(a, buf)
+    assert shared_measurement(buf.copy(), 12, "y") is a
+    buf[3] = -1.0
+    b = shared_measurement(buf, 12, "y")
+    assert b is not a and b[3] == -1.0 and a[3] == 3.0
+    assert shared_measurement([1.0, 2.0], 2, "u").tolist() == [1.0, 2.0]
+    with pytest.raises(RobofdiError, match=r"indices \[11\]"):
+        shared_measurement(np.r_[np.ones(11), np.nan], 12, "y")
+    with pytest.raises(RobofdiError, match="must be a vector of 12"):
+        shared_measurement(np.ones(6), 12, "y")

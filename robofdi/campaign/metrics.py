@@ -14,6 +14,8 @@ Error rows (runs that raised) are counted and left out of every rate.
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pandas as pd
 from scipy.optimize import isotonic_regression
@@ -31,8 +33,15 @@ def clopper_pearson(k: int, n: int, confidence: float = 0.95) -> list[float] | N
     """Exact binomial interval for k successes in n trials — Clopper & Pearson, Biometrika 26(4), 1934."""
     if n == 0:
         return None
-    ci = binomtest(int(k), int(n)).proportion_ci(confidence, method="exact")
-    return [float(ci.low), float(ci.high)]
+    return list(_clopper_pearson(int(k), int(n), float(confidence)))
+
+
+@functools.lru_cache(maxsize=4096)
+def _clopper_pearson(k: int, n: int, confidence: float) -> tuple[float, float]:
+    """The interval of :func:`clopper_pearson`, computed once per (k, n, confidence): a campaign's analysis asks for
+    the same counts many times (per diagnoser, kind, target), and each is a root search."""
+    ci = binomtest(k, n).proportion_ci(confidence, method="exact")
+    return float(ci.low), float(ci.high)
 
 
 def _rate(k: int, n: int) -> dict:

@@ -11,7 +11,7 @@ import pandas as pd
 from robofdi.campaign.metrics import analyse, clopper_pearson, detection_curve
 from robofdi.campaign.runs import UNITS
 from robofdi.errors import RobofdiError
-from robofdi.evaluate.figures import save_figure
+from robofdi.evaluate.figures import fixed_grid, save_figure
 from robofdi.evaluate.summary import _jsonable
 
 __all__ = ["CampaignResult", "load", "write_outputs", "report_markdown"]
@@ -87,7 +87,7 @@ def _figures(result: CampaignResult, metrics: dict) -> list[str]:
     # delay CDFs and detection probability against size: small multiples, one panel per fault kind × diagnoser
     for what in ("delay_cdf", "detection_vs_size"):
         fig = outcome_grid(table, diagnosers, what, level=result.spec_dict["detection_level"])
-        path = save_figure(fig, folder / f"{what}.png")
+        path = save_figure(fig, folder / f"{what}.png", tight=False)     # a fixed layout (fixed_grid)
         written.append(path.name)
     return written
 
@@ -106,12 +106,12 @@ def outcome_grid(table: pd.DataFrame, diagnosers, what: str, level: float):
     """Small multiples of a campaign's outcomes: one row per fault kind, one column per diagnoser, shared axes;
     each panel draws its diagnoser's curve (the other diagnosers faint behind it, for comparison) and its n.
     ``what``: ``"delay_cdf"`` or ``"detection_vs_size"`` (with the detection level dotted and labelled)."""
-    import matplotlib.pyplot as plt
-
     kinds = sorted(set(table["kind"]))
     names = list(diagnosers)
-    fig, axes = plt.subplots(len(kinds), len(names), figsize=(1.2 + 2.1 * len(names), 0.9 + 1.75 * len(kinds)),
-                             sharex=True, sharey=True, squeeze=False)
+    # a fixed layout (no tight_layout at saving, which measured every tick label of every panel): shared axes, so
+    # only the outer panels carry tick labels; margins for the two-line row labels, the column titles, the title
+    fig, axes = fixed_grid(len(kinds), len(names), (1.9, 1.45), margins=(0.72, 0.12, 0.42, 0.5), gaps=(0.12, 0.12),
+                           sharex=True, sharey=True)
     for r, kind in enumerate(kinds):
         sub = table[table["kind"] == kind]
         curves = {n: _curve(sub[sub["diagnoser"] == n], what) for n in names}

@@ -4,6 +4,7 @@ from __future__ import annotations
 import numpy as np
 
 from robofdi import RobofdiError
+from robofdi.jit import kernel
 from robofdi.models.manipulator import ManipulatorModel
 
 __all__ = ["ComputedTorque"]
@@ -23,9 +24,41 @@ class ComputedTorque:
         n = self.model.n
         q, v = y[:n], y[n:]
         qd, vd, ad = reference
-        a = ad + self.kd * (vd - v) + self.kp * (qd - q)
+        if (type(qd) is np.ndarray and type(vd) is np.ndarray and type(ad) is np.ndarray and type(y) is np.ndarray
+                and qd.shape == vd.shape == ad.shape == (n,) and y.shape == (2 * n,)):
+            a = np.empty(n)               # the same numbers as the array form below, entry by entry (a kernel)
+            _feedback(_float(ad), _float(vd), _float(qd), _float(y), self.kd, self.kp, a)
+        else:
+            a = ad + self.kd * (vd - v) + self.kp * (qd - q)
         tau = self.model.inverse_dynamics(q, v, a)
         limit = self.torque_limit
-        if limit is not None:             # np.clip(tau, -limit, limit) without its Python wrapper (same numbers)
-            tau = np.minimum(np.maximum(tau, -limit), limit)
+        if limit is not None:             # np.clip(tau, -limit, limit) (the same numbers, a kernel)
+            if (type(tau) is np.ndarray and tau.shape == limit.shape and tau.dtype == np.float64
+                    and tau.base is None and tau.flags.owndata and tau.flags.writeable):      # a fresh result
+                _clip(tau, limit)
+            else:
+                tau = np.minimum(np.maximum(tau, -limit), limit)
         return tau
+
+
+def _float(a: np.ndarray) -> np.ndarray:
+    return a if a.dtype == np.float64 else a.astype(float)
+
+
+@kernel
+def _feedback(ad, vd, qd, y, kd, kp, a):
+    """q̈_d + K_D (q̇_d − q̇) + K_P (q_d − q) entry by entry, as the array form computes it; y = [q; q̇]."""
+    n = a.shape[0]
+    for i in range(n):
+        a[i] = ad[i] + kd * (vd[i] - y[n + i]) + kp * (qd[i] - y[i])
+
+
+@kernel
+def _clip(tau, limit):
+    """tau clipped to [−limit, limit] in place: np.minimum(np.maximum(tau, −limit), limit), NaN kept."""
+    for i in range(tau.shape[0]):
+        low = -limit[i]
+        if tau[i] < low:
+            tau[i] = low
+        if tau[i] > limit[i]:
+            tau[i] = limit[i]

@@ -19,8 +19,9 @@ import numpy as np
 from scipy.optimize import linprog
 
 from robofdi.errors import RobofdiError
+from robofdi.jit import kernel
 
-__all__ = ["ENVELOPE_FEATURES", "envelope_features", "design_envelope"]
+__all__ = ["ENVELOPE_FEATURES", "envelope_features", "filtered_features", "design_envelope"]
 
 #: Names of the features φ, in order.
 ENVELOPE_FEATURES = ("constant", "torque", "rest", "low_speed")
@@ -31,8 +32,66 @@ LOW_SPEED_VELOCITY = 0.15  # v_b [rad/s]: the Stribeck zone
 def envelope_features(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """(..., n, 4) features φ of the module docstring from torques u (..., n) [N·m] and velocities v [rad/s]."""
     u, v = np.asarray(u, dtype=float), np.asarray(v, dtype=float)
-    return np.stack([np.ones_like(u), np.abs(u), np.exp(-(v / REST_VELOCITY) ** 2),
-                     np.exp(-(v / LOW_SPEED_VELOCITY) ** 2)], axis=-1)
+    if u.shape != v.shape:          # np.stack names the mismatch
+        return np.stack([np.ones_like(u), np.abs(u), np.exp(-(v / REST_VELOCITY) ** 2),
+                         np.exp(-(v / LOW_SPEED_VELOCITY) ** 2)], axis=-1)
+    if u.ndim == 1:                 # one sample (a diagnoser's hot path): the arithmetic compiled, exp NumPy's
+        out, arguments = np.empty(u.shape + (4,)), np.empty((2,) + u.shape)
+        _feature_rows(u, v, REST_VELOCITY, LOW_SPEED_VELOCITY, out, arguments)
+        out[:, 2] = np.exp(arguments[0])
+        out[:, 3] = np.exp(arguments[1])
+        return out
+    out = np.empty(u.shape + (4,))  # the rows np.stack makes, written in place (the same ufuncs on the same arrays)
+    out[..., 0] = 1.0
+    out[..., 1] = np.abs(u)
+    out[..., 2] = np.exp(-(v / REST_VELOCITY) ** 2)
+    out[..., 3] = np.exp(-(v / LOW_SPEED_VELOCITY) ** 2)
+    return out
+
+
+def filtered_features(features: np.ndarray, a: float, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """(1 − a) ``features`` + a φ(u, v): one step of the first-order low pass LP of the features (module
+    docstring), a new (n, 4) array; for one sample the arithmetic is compiled, exp NumPy's (the bits of the array
+    form)."""
+    u, v = np.asarray(u, dtype=float), np.asarray(v, dtype=float)
+    if u.ndim != 1 or u.shape != v.shape or np.shape(features) != u.shape + (4,):
+        return (1 - a) * features + a * envelope_features(u, v)
+    arguments, out = np.empty((2,) + u.shape), np.empty(u.shape + (4,))
+    _feature_arguments(v, REST_VELOCITY, LOW_SPEED_VELOCITY, arguments)
+    _low_pass(np.asarray(features, dtype=float), float(a), u, np.exp(arguments[0]), np.exp(arguments[1]), out)
+    return out
+
+
+@kernel
+def _feature_arguments(v, rest, low_speed, arguments):
+    """The exp arguments −(q̇/v_r)², −(q̇/v_b)² of the features into ``arguments`` (2, n)."""
+    for i in range(v.shape[0]):
+        x, y = v[i] / rest, v[i] / low_speed
+        arguments[0, i] = -(x * x)
+        arguments[1, i] = -(y * y)
+
+
+@kernel
+def _low_pass(features, a, u, rest, low_speed, out):
+    """(1 − a) features + a φ entry by entry (φ = [1, |u|, rest, low_speed]), as the array form computes it."""
+    b = 1.0 - a
+    for i in range(u.shape[0]):
+        out[i, 0] = b * features[i, 0] + a * 1.0
+        out[i, 1] = b * features[i, 1] + a * abs(u[i])
+        out[i, 2] = b * features[i, 2] + a * rest[i]
+        out[i, 3] = b * features[i, 3] + a * low_speed[i]
+
+
+@kernel
+def _feature_rows(u, v, rest, low_speed, out, arguments):
+    """The constant and |τ| features into ``out`` (n, 4), the exp arguments −(q̇/v_r)², −(q̇/v_b)² into
+    ``arguments`` (2, n), entry by entry as the array form computes them."""
+    for i in range(u.shape[0]):
+        out[i, 0] = 1.0
+        out[i, 1] = abs(u[i])
+        x, y = v[i] / rest, v[i] / low_speed
+        arguments[0, i] = -(x * x)
+        arguments[1, i] = -(y * y)
 
 
 def design_envelope(features: Sequence[np.ndarray], residuals: Sequence[np.ndarray], skip: int = 0,

@@ -86,7 +86,15 @@ def _sample_label(record_time: np.ndarray, label: np.ndarray, t: np.ndarray, bef
 
 
 def _isolated_sets(trace: DiagnoserTrace) -> list[list[str]]:
-    return [[n for n in str(s).split("+") if n] for s in trace.isolated]
+    """The isolated hypotheses of every sample (read only: equal strings share one list, split once)."""
+    split: dict = {}
+    out = []
+    for s in trace.isolated:
+        names = split.get(s)
+        if names is None:
+            names = split[s] = [n for n in str(s).split("+") if n]
+        out.append(names)
+    return out
 
 
 def _check_trace(trace: DiagnoserTrace, name: str) -> None:

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from robofdi.errors import RobofdiError
+from robofdi.jit import kernel
 
 __all__ = ["JointFriction"]
 
@@ -73,6 +74,31 @@ class JointFriction:
 
     def torque(self, v: np.ndarray) -> np.ndarray:
         """τ_f(q̇) [N·m] at joint velocities v (..., n)."""
+        if type(v) is np.ndarray and v.shape == (self.n,) and v.dtype == np.float64:
+            # one sample (an observer's hot path): the arithmetic compiled (:func:`_friction_arguments`,
+            # :func:`_friction_sum`), tanh and exp NumPy's on the same arguments as below, so the same bits
+            arguments = np.empty((2, v.shape[0]))
+            _friction_arguments(v, self.smoothing, self.stribeck_velocity, arguments)
+            out = np.empty(v.shape[0])
+            _friction_sum(np.tanh(arguments[0]), np.exp(arguments[1]), v, self.coulomb, self.stribeck,
+                          self.viscous, self.offset, out)
+            return out
         sign = np.tanh(np.asarray(v, dtype=float) / self.smoothing)
         return ((self.coulomb + self.stribeck * np.exp(-(v / self.stribeck_velocity) ** 2)) * sign
                 + self.viscous * v + self.offset)
+
+
+@kernel
+def _friction_arguments(v, smoothing, stribeck_velocity, arguments):
+    """The arguments of :meth:`JointFriction.torque`'s tanh (q̇/ε) and exp (−(q̇/v_s)²), into ``arguments`` (2, n)."""
+    for i in range(v.shape[0]):
+        arguments[0, i] = v[i] / smoothing
+        x = v[i] / stribeck_velocity
+        arguments[1, i] = -(x * x)
+
+
+@kernel
+def _friction_sum(sign, bump, v, coulomb, stribeck, viscous, offset, out):
+    """(F_c + F_s exp(…)) tanh(…) + F_v q̇ + τ_0 entry by entry, in the order of operations of the array form."""
+    for i in range(v.shape[0]):
+        out[i] = (coulomb[i] + stribeck[i] * bump[i]) * sign[i] + viscous[i] * v[i] + offset[i]

@@ -25,10 +25,11 @@ import numpy as np
 import pinocchio as pin
 
 from robofdi import RobofdiError
+from robofdi.jit import kernel
 from robofdi.mjcf import _JOINT_KINDS, VELOCITY_LIMIT, _name, compile_arm, gear_ratio, payload_point
 from robofdi.seeding import rng
 
-__all__ = ["ModelMismatch", "ManipulatorModel", "pinocchio_model", "sensor_channel_names"]
+__all__ = ["ModelMismatch", "ManipulatorModel", "pinocchio_model", "sensor_channel_names", "mirror_upper"]
 
 
 def sensor_channel_names(joints: Sequence[str]) -> list[str]:
@@ -207,9 +208,7 @@ class ManipulatorModel:
 
     def mass_matrix(self, q: np.ndarray) -> np.ndarray:
         """M̂(q) [kg·m²], symmetric, armature included."""
-        M = pin.crba(self.model, self.data, self._q(q)).copy()   # crba fills the upper triangle only
-        M[self._lower] = M.T[self._lower]
-        return M
+        return mirror_upper(pin.crba(self.model, self.data, self._q(q)).copy())   # crba fills the upper triangle
 
     def bias(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """n̂(q, q̇) = C(q, q̇) q̇ + g(q) + D̂ q̇ [N·m]."""
@@ -230,3 +229,18 @@ class ManipulatorModel:
     def acceleration(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """q̈ = M̂⁻¹(τ − n̂) (forward dynamics with viscous friction) [rad/s²]."""
         return pin.aba(self.model, self.data, self._q(q), v, tau - self.damping * v)
+
+
+def mirror_upper(M: np.ndarray) -> np.ndarray:
+    """Copy the upper triangle of the square ``M`` onto its lower one, in place, and return ``M`` (Pinocchio's crba
+    fills the upper triangle only)."""
+    _mirror_upper(M)
+    return M
+
+
+@kernel
+def _mirror_upper(M):
+    """Copy the upper triangle of the square ``M`` onto its lower one (crba fills the upper triangle only)."""
+    for i in range(M.shape[0]):
+        for j in range(i):
+            M[i, j] = M[j, i]

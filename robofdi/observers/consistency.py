@@ -70,9 +70,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from robofdi.decision.envelope import design_envelope, envelope_features
+from robofdi.decision.envelope import design_envelope, envelope_features, filtered_features
 from robofdi.errors import RobofdiError
-from robofdi.jit import kernel
+from robofdi.jit import einsum, kernel
 from robofdi.models.friction import JointFriction
 from robofdi.models.manipulator import ManipulatorModel
 from robofdi.observers.kinematic import (
@@ -81,7 +81,7 @@ from robofdi.observers.kinematic import (
 )
 from robofdi.observers.momentum import MomentumObserver, identify_friction
 from robofdi.observers.payload import PayloadRegressor, payload_evidence
-from robofdi.observers.residual import Residual, check_measurement
+from robofdi.observers.residual import Residual, shared_measurement
 
 __all__ = ["ConsistencyDesign", "ConsistencyResidual", "design_consistency", "DEFAULT_GAIN", "STEP_HOLD",
            "FROZEN_CHANGE", "FROZEN_SAMPLES", "STEP_EVIDENCE_EXCEEDANCE"]
@@ -227,7 +227,7 @@ class ConsistencyResidual:
 
     def bound(self) -> np.ndarray:
         """The current operating-point bound of the dynamic rows [N·m]."""
-        return np.maximum(np.einsum("nf,nf->n", self._features, self.design.envelope), 1e-12)
+        return np.maximum(einsum("nf,nf->n", self._features, self.design.envelope), 1e-12)
 
     def velocity_innovation(self, mass: np.ndarray, r: np.ndarray) -> np.ndarray:
         """ν_k [rad/s] (module docstring) given M(q_k); 0 at the first sample. Joint j's entry is the velocity
@@ -242,13 +242,13 @@ class ConsistencyResidual:
         if previous is None:
             return np.zeros(self.n)
         weighted = self._impulse_weight[:, None] * mass
-        return (weighted.T @ (r - previous)) / np.einsum("ij,ij->j", weighted, mass) / self.design.gain
+        return (weighted.T @ (r - previous)) / einsum("ij,ij->j", weighted, mass) / self.design.gain
 
     def update(self, y: np.ndarray, u: np.ndarray) -> Residual:
         """y = [q; q̇](k), u = ū(k−1)."""
         n = self.n
-        y = check_measurement(y, 2 * n, "y")
-        u = check_measurement(u, n, "u")
+        y = shared_measurement(y, 2 * n, "y")
+        u = shared_measurement(u, n, "u")
         r = self._momentum.update(y, u).r
         q, v = y[:n], y[n:]
         r_prev = self._r_prev
@@ -256,8 +256,8 @@ class ConsistencyResidual:
         if self._features is None:      # at rest before the start
             self._features = envelope_features(np.zeros(n), v)
         else:       # the residual's own first-order dynamics: a torque acting over (k−1, k] shows in r_k
-            self._features = (1 - self._a) * self._features + self._a * envelope_features(u + r_prev, self._v_prev)
-            self._repeats = np.where(np.abs(v - self._v_prev) <= FROZEN_CHANGE, self._repeats + 1, 0.0)
+            self._features = filtered_features(self._features, self._a, u + r_prev, self._v_prev)
+            self._repeats = _repeated(v, self._v_prev, self._repeats, FROZEN_CHANGE)
         speed = np.abs(v) if self._v_prev is None else (np.abs(v) + np.abs(self._v_prev)) / 2
         self._v_prev = v
         kin, e = self._kinematic.update(q, v)
@@ -398,3 +398,12 @@ def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray,
                                                             fallback=scales[:, int(np.argmin(windows)), 0])
     return ConsistencyDesign(friction, envelope, skew, scales, step, gain, T, tuple(windows), reach, orders, amplitude,
                              impulse_scale, evidence)
+
+
+@kernel
+def _repeated(v, v_prev, repeats, change):
+    """repeats + 1 where |v − v_prev| <= change, else 0 (the np.where of the array form), as a new array."""
+    out = np.empty(v.shape[0])
+    for i in range(v.shape[0]):
+        out[i] = repeats[i] + 1.0 if abs(v[i] - v_prev[i]) <= change else 0.0
+    return out

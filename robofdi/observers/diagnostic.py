@@ -25,10 +25,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from robofdi import RobofdiError
+from robofdi.jit import einsum as _einsum
 from robofdi.jit import kernel
 from robofdi.models.manipulator import ManipulatorModel
 from robofdi.observers.evaluations import evaluations
-from robofdi.observers.residual import Residual, check_measurement
+from robofdi.observers.residual import Residual, shared_measurement
 
 __all__ = [
     "EulerArmModel",
@@ -268,17 +269,17 @@ class Adaptive(_Estimating):
             return
         # Same update with Q diagonal: Z Zᵀ + Q is diagonal (|z_j|² + q_j), so Γ_θ acts row by row.
         G, theta = self._Z, np.empty(self.theta.shape[0])
-        _adaptive_step(self.theta, G, np.einsum("ij,ij->i", G, G), r, self._q, self.step, theta)
+        _adaptive_step(self.theta, G, _einsum("ij,ij->i", G, G), r, self._q, self.step, theta)
         self.theta = theta
 
 
 @kernel
-def _observer_step(x, x_prev, x_hat, e_prev, acc, acc_hat, measured, eta_prev, T, K1, K2, F, r_model, x_hat_out,
-                   e, r):
+def _observer_step(x, x_prev, x_hat, e_prev, acc, acc_hat, measured, eta_prev, T, gains, out):
     """Eqs. (20), (23)–(26) for one sample, entry by entry in the order of operations of their array form, given
-    the forward dynamics q̈ at x̄(k−1) (``acc``) and at x̂(k−1) (``acc_hat``, used when not ``measured``):
-    r₂₀(k), x̂(k), e(k) and r(k) into ``r_model``, ``x_hat_out``, ``e``, ``r``."""
+    the forward dynamics q̈ at x̄(k−1) (``acc``) and at x̂(k−1) (``acc_hat``, used when not ``measured``) and
+    ``gains`` = [K1; K2; F] (4n): r₂₀(k), x̂(k), e(k) and r(k) into the rows of ``out`` (4, 2n)."""
     n = acc.shape[0]
+    r_model, x_hat_out, e, r = out[0], out[1], out[2], out[3]
     for i in range(n):
         j = n + i
         q_model, v_model = x_prev[i] + T * x_prev[j], x_prev[j] + T * acc[i]        # predict(x̄(k−1), ū)
@@ -288,10 +289,32 @@ def _observer_step(x, x_prev, x_hat, e_prev, acc, acc_hat, measured, eta_prev, T
             q_base, v_base = dq + T * dv + q_model, dv + v_model
         else:               # predict(x̂)
             q_base, v_base = x_hat[i] + T * x_hat[j], x_hat[j] + T * acc_hat[i]
-        ko_q, ko_v = K1[i] * e_prev[i] + T * e_prev[j], K2[i] * e_prev[j]           # K_o e, eq. (24)
+        ko_q, ko_v = gains[i] * e_prev[i] + T * e_prev[j], gains[n + i] * e_prev[j]   # K_o e, eq. (24)
         x_hat_out[i], x_hat_out[j] = q_base + ko_q + eta_prev[i], v_base + ko_v + eta_prev[j]   # eq. (23)
         e[i], e[j] = x[i] - x_hat_out[i], x[j] - x_hat_out[j]
-        r[i], r[j] = e[i] - F[i] * e_prev[i], e[j] - F[j] * e_prev[j]              # eq. (26)
+        r[i], r[j] = e[i] - gains[2 * n + i] * e_prev[i], e[j] - gains[2 * n + j] * e_prev[j]   # eq. (26)
+
+
+@kernel
+def _backward_state(q, q_prev, T, z):
+    """z = [q; (q − q_prev)/T] — eq. (43), entry by entry."""
+    n = q.shape[0]
+    for i in range(n):
+        z[i] = q[i]
+        z[n + i] = (q[i] - q_prev[i]) / T
+
+
+@kernel
+def _output_rows(r_model, m_f, r, m_r, T, torque, estimate, out):
+    """The estimate [r₂₀ position rows; (M̂ f̂₂)/T] and, when ``torque``, the residual [r₁; (M̂ r₂)/T], given the
+    products M̂ f̂₂ (``m_f``) and M̂ r₂ (``m_r``), into ``estimate`` and ``out``."""
+    n = m_f.shape[0]
+    for i in range(n):
+        estimate[i] = r_model[i]
+        estimate[n + i] = m_f[i] / T
+        if torque:
+            out[i] = r[i]
+            out[n + i] = m_r[i] / T
 
 
 # ----------------------------------------------------------------------------------------------------------
@@ -345,6 +368,7 @@ class DiagnosticObserver:
             raise RobofdiError(f"DiagnosticObserver: field 'residual_space' must be 'state' or 'torque', got {residual_space!r}")
         self.K1, self.K2 = K1, K2
         self.F = np.concatenate([1.0 - K1, 1.0 - K2])          # F = blkdiag(I − K1, I − K2), eq. (25)
+        self._gains = np.concatenate([K1, K2, self.F])         # the kernel's [K1; K2; F]
         self.Ko = np.block([[np.diag(K1), T * np.eye(n)], [np.zeros((n, n)), np.diag(K2)]])  # eq. (24)
         self.estimator = estimator if estimator is not None else NoEstimate()
         self.freeze_threshold = None if freeze_threshold is None else np.asarray(freeze_threshold, dtype=float)
@@ -377,20 +401,21 @@ class DiagnosticObserver:
     def _state(self, y: np.ndarray) -> np.ndarray | None:
         n = self.n
         if self.velocity == "measured":
-            return y.copy()
-        q = y[:n]
+            return y                # read-only (shared_measurement): kept as x̄(k−1) without a copy
+        q = y[:n]                   # read-only: kept without a copy
         if self._q_prev is None:
-            self._q_prev = q.copy()
+            self._q_prev = q
             return None
-        z = np.concatenate([q, (q - self._q_prev) / self.T])  # eq. (43)
-        self._q_prev = q.copy()
+        z = np.empty(2 * n)
+        _backward_state(q, self._q_prev, self.T, z)  # eq. (43)
+        self._q_prev = q
         return z
 
     def update(self, y: np.ndarray, u: np.ndarray) -> Residual:
         """One sample: y = x̄(k), u = ū(k−1). Returns r(k) and the identification candidates."""
         n = self.n
-        y = check_measurement(y, 2 * n, "y")
-        u = check_measurement(u, n, "u")
+        y = shared_measurement(y, 2 * n, "y")
+        u = shared_measurement(u, n, "u")
         x = self._state(y)
         if x is None or self._x_prev is None:
             if x is not None:
@@ -399,12 +424,13 @@ class DiagnosticObserver:
         est = self.estimator
         est.prepare(self._x_prev, u)           # η̂(k−1) with x̄(k−1), ū(k−1)
         x_prev, m = self._x_prev, 2 * n
-        acc = self._evaluations.acceleration(x_prev[:n], x_prev[n:], u)      # the model term of eq. (20)
+        acc = self._evaluations.acceleration_at(x_prev, u)      # the model term of eq. (20), at x̄(k−1), ū(k−1)
         # eval_at "measured": A x̂ + h(x̄) + B(x̄)ū = A(x̂ − x̄) + predict(x̄); "estimate": predict(x̂), eq. (23)
         acc_hat = acc if self.eval_at == "measured" else self.model.acceleration(self.x_hat[:n], self.x_hat[n:], u)
-        r_model, x_hat, e, r = np.empty(m), np.empty(m), np.empty(m), np.empty(m)
+        rows = np.empty((4, m))         # r₂₀, x̂, e, r: four fresh rows (each kept or handed on as its own array)
         _observer_step(x, x_prev, self.x_hat, self._e_prev, acc, acc_hat, self.eval_at == "measured", est.eta_hat,
-                       self.T, self.K1, self.K2, self.F, r_model, x_hat, e, r)
+                       self.T, self._gains, rows)
+        r_model, x_hat, e, r = rows
         self.x_hat = x_hat
         est.update(r, r_model, x_prev, u)
         self._x_prev, self._e_prev = x, e
@@ -416,15 +442,11 @@ class DiagnosticObserver:
     def _output(self, x: np.ndarray, r: np.ndarray, f_hat: np.ndarray, r_model: np.ndarray) -> Residual:
         n, T = self.n, self.T
         M = self._evaluations.mass_matrix(x[:n])
+        # δτ̂ = (M̂/T) f̂₂ (Sec. 6, with M̂ for the unknown M); "torque": r_τ = (M̂/T) r₂ (the products NumPy's)
+        torque = self.residual_space == "torque"
         estimate = np.empty(2 * n)
-        estimate[:n] = r_model[:n]
-        estimate[n:] = M.dot(f_hat[n:]) / T     # δτ̂ = (M̂/T) f̂₂ (Sec. 6, with M̂ for the unknown M)
-        if self.residual_space == "torque":
-            out = np.empty(2 * n)
-            out[:n] = r[:n]
-            out[n:] = M.dot(r[n:]) / T
-        else:
-            out = r
+        out = np.empty(2 * n) if torque else r
+        _output_rows(r_model, M.dot(f_hat[n:]), r, M.dot(r[n:]) if torque else r, T, torque, estimate, out)
         # Position faults: f_s1(k) = δx1(k+1) − δx1(k) (eq. (19)), so the position rows of r₂₀ summed from the
         # isolation sample estimate δx1 (instead of x̄1 − x1d, which needs the reference; spec erratum 2–4).
         return Residual(out, estimate, state_residual=r)

@@ -20,7 +20,7 @@ from robofdi.models.friction import JointFriction
 from robofdi.jit import kernel
 from robofdi.models.manipulator import ManipulatorModel
 from robofdi.observers.evaluations import evaluations
-from robofdi.observers.residual import Residual, check_measurement
+from robofdi.observers.residual import Residual, check_measurement, shared_measurement
 
 __all__ = ["MomentumObserver", "JointMomentumDiagnoser", "identify_friction", "observer_filter"]
 
@@ -64,8 +64,8 @@ class MomentumObserver:
     def update(self, y: np.ndarray, u: np.ndarray) -> Residual:
         """y = [q; q̇](k), u = ū(k−1)."""
         n, m = self.n, self.model
-        y = check_measurement(y, 2 * n, "y")
-        u = check_measurement(u, n, "u")
+        y = shared_measurement(y, 2 * n, "y")
+        u = shared_measurement(u, n, "u")
         q, v = y[:n], y[n:]
         ev = self._evaluations             # M̂, ĝ, Ĉ at this sample's arguments, shared with the other diagnosers
         self.mass = ev.mass_matrix(q)       # M(q_k) of this sample (read-only), for users of the momentum (consistency's ν)

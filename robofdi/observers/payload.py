@@ -22,7 +22,7 @@ import numpy as np
 import pinocchio as pin
 
 from robofdi import RobofdiError
-from robofdi.models.manipulator import ManipulatorModel
+from robofdi.models.manipulator import ManipulatorModel, mirror_upper
 from robofdi.observers.momentum import _momentum_step
 
 __all__ = ["unit_payload_model", "PayloadRegressor", "payload_evidence"]
@@ -69,8 +69,7 @@ class PayloadRegressor:
     def update(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         m, d = self.model, self.data
         qp = self._nominal._q(q)
-        M = pin.crba(m, d, qp).copy()
-        M[self._lower] = M.T[self._lower]
+        M = mirror_upper(pin.crba(m, d, qp).copy())
         p = M.dot(v)
         if self._prev is None:
             self._p0, self._integral = p, np.zeros(self.n)
@@ -94,5 +93,5 @@ def payload_evidence(rho: np.ndarray, y: np.ndarray) -> tuple[float, float]:
     if not yy > 1e-300:
         return 0.0, 0.0
     yr = float(y.dot(rho))
-    excess = yr * yr / yy - float(np.max(rho * rho))
+    excess = yr * yr / yy - float((rho * rho).max())
     return (float(np.sqrt(excess)) if excess > 0 else 0.0), -yr / yy
