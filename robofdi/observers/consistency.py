@@ -191,8 +191,8 @@ class ConsistencyResidual:
         self.estimate_components = names + [f"{j}_pos" for j in names] + [f"{j}_vel" for j in names] + ["payload"]
         self.estimate_modes = ["level"] * n + ["increment"] * n + ["level"] * n + ["level"]
         #: The rows that tell hypotheses apart (velocity sensor or encoder; payload or actuator) once another row
-        #: has alarmed: their evidence level is their largest fault-free value, not their false-alarm threshold
-        #: (ThresholdDecision).
+        #: has alarmed: their evidence level is below their false-alarm threshold (ThresholdDecision): the step
+        #: rows' from the design (:attr:`evidence_levels`), the payload row's its largest fault-free value.
         self.discriminating = [f"{j}_step" for j in names] + ["payload"]
         #: Per component, the level below which its alarm threshold never goes (NaN: none): a step row alarms
         #: only above its fault-free bound of |ν| (1), which its design set on every sample, whatever the
@@ -201,6 +201,9 @@ class ConsistencyResidual:
         nan = np.full(n, np.nan)
         self.threshold_floor = np.concatenate([nan, nan, np.ones(n), [np.nan]])
         evidence = nan if design.step_evidence is None else np.asarray(design.step_evidence, dtype=float)
+        if evidence.shape != (n,):
+            raise RobofdiError(f"ConsistencyResidual: field 'step_evidence' must be {n} levels, got shape "
+                               f"{evidence.shape}")
         self.evidence_levels = np.concatenate([nan, nan, evidence, [np.nan]])
         self.units = {"residual": ["1"] * (3 * n + 1), "estimate": ["N·m"] * n + ["rad"] * n + ["rad/s"] * n + ["kg"]}
         self.reset()
