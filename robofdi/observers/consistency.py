@@ -7,10 +7,12 @@ the design runs):
   friction identified from fault-free runs (:func:`~robofdi.observers.momentum.identify_friction`), divided by
   an operating-point bound (:mod:`robofdi.decision.envelope`). It estimates the unmodelled joint torque, so an
   actuator fault raises exactly its own joint, and no estimation runs inside it that could absorb a slow fault.
-  The bound's torque feature is the torque the motion needed, ū + r (the command and the residual's estimate of
-  what else acted, at the previous sample): a bound on the command alone grows as the controller answers an
-  actuator fault, and hid it (on robosuite's iiwa joint 7, |τ| weighs 0.3: an 11 N·m fault raised its own bound
-  by 3.5 N·m).
+  The bound's torque feature is the smaller of the command ū and the torque the motion took, ū + r (the
+  command and the residual's estimate of what else acted, at the previous sample), so that no actuator fault
+  inflates the bound that should reveal it: the command grows as the controller answers a slow fault (on
+  robosuite's iiwa joint 7, |τ| weighs 0.3: an 11 N·m fault raised its own bound by 3.5 N·m), and ū + r grows
+  with an abrupt one before the controller answers it (the median abrupt delay went from 1.5 to 3–3.5 samples
+  on panda and arm7).
 * ``joint<i>_kin`` — kinematic consistency between the joint's position and velocity sensors
   (:mod:`robofdi.observers.kinematic`), which no actuator fault can raise.
 * ``joint<i>_step`` — the velocity innovation ν_k [rad/s]: the velocity step on joint i alone that best explains
@@ -259,7 +261,9 @@ class ConsistencyResidual:
         if self._features is None:      # at rest before the start
             self._features = envelope_features(np.zeros(n), v)
         else:       # the residual's own first-order dynamics: a torque acting over (k−1, k] shows in r_k
-            self._features = filtered_features(self._features, self._a, u + r_prev, self._v_prev)
+            needed = u + r_prev          # the torque the motion took: the command and what else acted
+            torque = np.where(np.abs(needed) < np.abs(u), needed, u)     # the smaller of the two (docstring)
+            self._features = filtered_features(self._features, self._a, torque, self._v_prev)
             self._repeats = _repeated(v, self._v_prev, self._repeats, FROZEN_CHANGE)
         speed = np.abs(v) if self._v_prev is None else (np.abs(v) + np.abs(self._v_prev)) / 2
         self._v_prev = v
