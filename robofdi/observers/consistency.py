@@ -86,7 +86,7 @@ from robofdi.observers.payload import PayloadRegressor, payload_evidence
 from robofdi.observers.residual import Residual, shared_measurement
 
 __all__ = ["ConsistencyDesign", "ConsistencyResidual", "design_consistency", "DEFAULT_GAIN", "STEP_HOLD",
-           "FROZEN_CHANGE", "FROZEN_SAMPLES", "STEP_EVIDENCE_EXCEEDANCE"]
+           "FROZEN_CHANGE", "FROZEN_SAMPLES"]
 
 #: Momentum-observer bandwidth K_O [1/s] of the consistency residual: fast enough that an abrupt fault of twice
 #: the smallest detectable size crosses its bound within a few 2 ms samples.
@@ -100,9 +100,6 @@ STEP_HOLD = 0.1
 FROZEN_CHANGE = 1e-9
 #: Consecutive repeated velocity readings that make the step row 1 (its largest fault-free value, at least).
 FROZEN_SAMPLES = 2
-#: The fraction of fault-free samples whose |ν| exceeds a step row's evidence level: a position step, whose onset
-#: is one sample, is taken for a velocity step with about this probability.
-STEP_EVIDENCE_EXCEEDANCE = 1e-3
 
 
 @dataclass(frozen=True, eq=False)
@@ -118,10 +115,7 @@ class ConsistencyDesign:
     (:func:`~robofdi.observers.kinematic.ripple_orders`) with their identified per-sample errors
     ``ripple_amplitude`` (n, n_orders) [rad] (:func:`~robofdi.observers.kinematic.identify_ripple`; None: none),
     and ``impulse_scale`` (n,) [N·m·s], the fault-free spread of the torque impulse (r_k − r_{k−1}) / K_O per
-    joint that weighs the velocity innovation (:meth:`ConsistencyResidual.velocity_innovation`; None: equal),
-    and ``step_evidence`` (n,): the level of |ν| / :meth:`step_bound` that a fraction
-    :data:`STEP_EVIDENCE_EXCEEDANCE` of the fault-free samples exceed (the step rows' evidence; None: the
-    calibration's largest value)."""
+    joint that weighs the velocity innovation (:meth:`ConsistencyResidual.velocity_innovation`; None: equal)."""
 
     friction: JointFriction
     envelope: np.ndarray
@@ -135,10 +129,9 @@ class ConsistencyDesign:
     ripple_orders: np.ndarray | None = None
     ripple_amplitude: np.ndarray | None = None
     impulse_scale: np.ndarray | None = None
-    step_evidence: np.ndarray | None = None
 
     #: The optional arrays of :meth:`arrays` (absent when None).
-    OPTIONAL = ("reach", "ripple_orders", "ripple_amplitude", "impulse_scale", "step_evidence")
+    OPTIONAL = ("reach", "ripple_orders", "ripple_amplitude", "impulse_scale")
 
     def step_bound(self, speed: np.ndarray) -> np.ndarray:
         """(n,) bound [rad/s] of the fault-free |ν| at joint speeds ``speed`` (n,) [rad/s]: c₀ + c₁ |speed|."""
@@ -193,20 +186,9 @@ class ConsistencyResidual:
         self.estimate_components = names + [f"{j}_pos" for j in names] + [f"{j}_vel" for j in names] + ["payload"]
         self.estimate_modes = ["level"] * n + ["increment"] * n + ["level"] * n + ["level"]
         #: The rows that tell hypotheses apart (velocity sensor or encoder; payload or actuator) once another row
-        #: has alarmed: their evidence level is below their false-alarm threshold (ThresholdDecision): the step
-        #: rows' from the design (:attr:`evidence_levels`), the payload row's its largest fault-free value.
+        #: has alarmed: their evidence level is their largest fault-free value, not their false-alarm threshold
+        #: (ThresholdDecision).
         self.discriminating = [f"{j}_step" for j in names] + ["payload"]
-        #: Per component, the level below which its alarm threshold never goes (NaN: none): a step row alarms
-        #: only above its fault-free bound of |ν| (1), which its design set on every sample, whatever the
-        #: fault-free rows (ν at increment jumps only, mostly 0) show. And the evidence levels the design gives
-        #: (NaN: the calibration's largest fault-free value): the step rows' per-sample quantile.
-        nan = np.full(n, np.nan)
-        self.threshold_floor = np.concatenate([nan, nan, np.ones(n), [np.nan]])
-        evidence = nan if design.step_evidence is None else np.asarray(design.step_evidence, dtype=float)
-        if evidence.shape != (n,):
-            raise RobofdiError(f"ConsistencyResidual: field 'step_evidence' must be {n} levels, got shape "
-                               f"{evidence.shape}")
-        self.evidence_levels = np.concatenate([nan, nan, evidence, [np.nan]])
         self.units = {"residual": ["1"] * (3 * n + 1), "estimate": ["N·m"] * n + ["rad"] * n + ["rad/s"] * n + ["kg"]}
         self.reset()
 
@@ -298,10 +280,7 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, re
 
     A position step is an increment more than a velocity step of ν can make: a step b in q̇_k adds −(T/2 + τ_s) b
     to e_k (:mod:`~robofdi.observers.kinematic`), so |e_k| > 2 (T/2 + |τ_s|) |ν| + the single-sample scale (a
-    factor 2 for ν's own error) is a position step, held as |e_k| / scale. ν counts only where the increment
-    jumped by more than twice the single-sample scale (a velocity step b moves it by (T/2 + τ_s) b at once; the
-    noise of two increments moves it by less), so the held ν is one sample's, not a peak over the hold, and its
-    evidence level a per-sample quantile (:data:`STEP_EVIDENCE_EXCEEDANCE`). It clears the ν held from before it
+    factor 2 for ν's own error) is a position step, held as |e_k| / scale. It clears the ν held from before it
     only if the increment also *changed* by more than the velocity steps of this and the last sample can make
     (twice the single-sample scale for the two samples' own errors): a velocity offset b adds −(T/2 + τ_s) b to
     e_k at its onset and −T b to every e after it, each more than its ν ≈ 0 explains, but the increment persists,
@@ -314,7 +293,6 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, re
         position_step = increment > reach * abs(innovation[i]) + single_scale
         change = abs(e[i] - previous[0, i])
         changed = change > reach * (abs(innovation[i]) + abs(previous[1, i])) + 2 * single_scale
-        opened = change > 2 * single_scale      # the increment jumped: a sensor step may have happened here
         previous[0, i], previous[1, i] = e[i], innovation[i]
         if position_step and changed:       # no ν held from before the step but the previous sample's (see update)
             keep = steps[previous_row, i]
@@ -326,7 +304,7 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, re
         for h in range(1, hold):
             if jumps[h, i] > jump or jumps[h, i] != jumps[h, i]:
                 jump = jumps[h, i]
-        steps[row, i] = abs(innovation[i]) / step_bound[i] if opened and not jump > 0 else 0.0
+        steps[row, i] = 0.0 if jump > 0 else abs(innovation[i]) / step_bound[i]
         step = steps[0, i]
         for h in range(1, hold):
             if steps[h, i] > step or steps[h, i] != steps[h, i]:
@@ -389,9 +367,6 @@ def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray,
                    for M, w in zip(masses, impulses)]          # velocity_innovation over every sample
     step = design_envelope([np.stack([np.ones_like(s), s], axis=-1) for s in speeds], innovations, skip + 1)
     step[:, 0] = np.maximum(step[:, 0], 1e-9)
-    ratios = np.concatenate([np.abs(nu[skip + 1:]) / (step[:, 0] + step[:, 1] * s[skip + 1:])
-                             for nu, s in zip(innovations, speeds)])
-    evidence = np.quantile(ratios, 1.0 - STEP_EVIDENCE_EXCEEDANCE, axis=0)
     qs = [np.asarray(Y)[:, :n] for Y, _ in runs]
     vs = [np.asarray(Y)[:, n:] for Y, _ in runs]
     skew = identify_skew(qs, vs, T, skip)
@@ -404,7 +379,7 @@ def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray,
     amplitude = None if orders is None else identify_ripple(qs, vs, T, skew, orders, skip,
                                                             fallback=scales[:, int(np.argmin(windows)), 0])
     return ConsistencyDesign(friction, envelope, skew, scales, step, gain, T, tuple(windows), reach, orders, amplitude,
-                             impulse_scale, evidence)
+                             impulse_scale)
 
 
 @kernel

@@ -315,17 +315,11 @@ def calibrate(scenario: ArmScenario, records: dict[str, Record],
             diagnoser = arm_schemes(model, scheme_settings, theta0, [name], designs=designs)[name]
             residuals = [diagnose_record(rec, Diagnosis(diagnoser), rates, progress).residual for rec in runs]
             if rule.thresholds == "false_alarm_rate":       # a rate per hour, on held-out and design motions
-                m = len(diagnoser.components)
-                floor = np.asarray(getattr(diagnoser, "threshold_floor", np.full(m, np.nan)), dtype=float)
-                out[name] = np.fmax(extreme_value_thresholds(residuals, T, settings.consistency_false_alarm_rate,
-                                                             skip=skip), floor)
-                # discriminating rows: evidence from the level their design gives, else their largest fault-free
-                # value (designed: 1)
+                out[name] = extreme_value_thresholds(residuals, T, settings.consistency_false_alarm_rate, skip=skip)
+                # discriminating rows: evidence from their largest fault-free value, designed (1) or held out
                 largest = np.maximum(calibrate_thresholds(residuals, 1.0, skip), 1.0)
-                designed = np.asarray(getattr(diagnoser, "evidence_levels", np.full(m, np.nan)), dtype=float)
-                level = np.where(np.isnan(designed), largest, designed)
                 chosen = np.isin(diagnoser.components, getattr(diagnoser, "discriminating", ()))
-                evidence[name] = np.where(chosen, np.minimum(level, out[name]), out[name])
+                evidence[name] = np.where(chosen, np.minimum(largest, out[name]), out[name])
             else:
                 out[name] = calibrate_thresholds(residuals, scenario.threshold_margin, skip)
         return out
