@@ -307,7 +307,7 @@ def calibrate(scenario: ArmScenario, records: dict[str, Record],
         for name in names:
             rule = rules[name]
             runs = [records[k] for k in (held or records)] if rule.design else list(records.values())
-            if rule.design and rule.thresholds == "false_alarm_rate":
+            if rule.design and held and rule.thresholds == "false_alarm_rate":
                 # the design runs too: the design's bounds are tight on them (their largest value is 1), and the
                 # rare excursions they hold must stay below the threshold (held-out runs alone set robosuite iiwa's
                 # joint_1_step at 0.63 of the bound: 22 of 300 fault-free runs crossed it)
