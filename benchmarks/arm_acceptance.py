@@ -6,6 +6,11 @@
 A robot is a shipped asset name, an MJCF path, or the name of a robosuite 1.5 arm (``panda``, ``iiwa``,
 ``ur5e``, ``kinova3``: its raw ``robot.xml``, servos turned into torque motors; needs the robosuite extra).
 --speed sets the missions' speed ("normal" or "fast"; normal missions get two segments, fast ones three).
+--drive-inertia S2 gives every joint whose armature is below S2 × its torque limit that armature, in the plant and
+the belief alike (:func:`robofdi.mjcf.compile_arm`): the reflected rotor inertia of a geared drive, which
+robosuite's raw robot.xml files leave out (robosuite's own loader adds 5/(i+1) kg·m² to every joint instead).
+The default, "auto", is 0.002 s² for robosuite's arms (the smallest of robofdi's own drives) and 0 for the
+other files (their armature as written); 0 runs a robosuite arm's file as it is.
 Each (robot, speed) campaign is resumable: re-running the command continues it. Per diagnoser it prints the
 table of benchmarks/arm_quality.py (false-alarm runs with the 95 % Clopper–Pearson upper bound, detection and
 correct isolation at ≥ 2× the minimum detectable fault, the median abrupt delay in samples, incipient faults
@@ -39,6 +44,10 @@ from robofdi.campaign.results import load  # noqa: E402
 ROBOSUITE_ARMS = ("panda", "iiwa", "ur5e", "kinova3")
 
 
+#: The drive inertia [s²] "auto" gives robosuite's arms (--drive-inertia).
+ROBOSUITE_DRIVE_INERTIA = 0.002
+
+
 def robot_file(name: str) -> tuple[str, bool]:
     """(MJCF path or asset name, torque_motors) of ``name``: a robosuite arm's raw robot.xml, else the name."""
     if name in ROBOSUITE_ARMS:
@@ -48,6 +57,20 @@ def robot_file(name: str) -> tuple[str, bool]:
         path = Path(spec.submodule_search_locations[0]) / "models" / "assets" / "robots" / name / "robot.xml"
         return str(path), True
     return name, False
+
+
+def drive_inertia(option: str, name: str) -> float:
+    """The --drive-inertia of robot ``name`` [s²]: "auto" (module docstring) or a number >= 0."""
+    if option == "auto":
+        return ROBOSUITE_DRIVE_INERTIA if name in ROBOSUITE_ARMS else 0.0
+    try:
+        value = float(option)
+    except ValueError:
+        value = float("nan")
+    if not value >= 0:
+        raise SystemExit(f'--drive-inertia: expected "auto" or an armature per unit torque limit >= 0 s², '
+                         f"got {option!r}")
+    return value
 
 
 def eventually(table: pd.DataFrame) -> pd.DataFrame:
@@ -70,6 +93,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--robots", nargs="+", default=["arm6.xml", "arm7.xml"])
     ap.add_argument("--speed", choices=("normal", "fast"), default="fast")
+    ap.add_argument("--drive-inertia", default="auto",
+                    help='armature per unit torque limit [s²], or "auto" (module docstring)')
     ap.add_argument("--workers", type=int, default=None)
     ap.add_argument("--out", default="runs/arm-acceptance")
     ap.add_argument("--runs", type=int, default=None, help="only the first N runs (a prefix of the campaign)")
@@ -83,12 +108,18 @@ def main() -> None:
     for name in args.robots:
         robot, motors = robot_file(name)
         spec["system"]["robot"], spec["system"]["torque_motors"] = robot, motors
+        inertia = drive_inertia(args.drive_inertia, name)
+        if inertia:
+            spec["system"]["drive_inertia"] = inertia
+        else:                   # the file's armature as written (and the campaign's options as before the flag)
+            spec["system"].pop("drive_inertia", None)
         out = Path(args.out) / f"{Path(name).stem}-{args.speed}"
         t0 = time.perf_counter()
         run_campaign(spec, out, workers=args.workers, resume=(out / "runs.jsonl").is_file(), runs=args.runs,
                      progress=True)
         table = load(out).table
-        print(f"\n## {name}, {args.speed}: {table['index'].nunique()} runs, {time.perf_counter() - t0:.0f} s wall")
+        print(f"\n## {name}, {args.speed}, drive inertia {inertia} s²: "
+              f"{table['index'].nunique()} runs, {time.perf_counter() - t0:.0f} s wall")
         print(quality(table).to_string())
         print(eventually(table).to_string())
         if "consistency" in spec["diagnosers"]:
