@@ -220,3 +220,22 @@ def test_robosuite_jaco_with_a_drive_inertia_floor_diagnoses_a_step_on_its_secon
     assert result["false_alarms"] == 0
     (detection,) = result["detections"]
     assert detection["isolated"] == joint and 0 <= detection["delay"] < 0.1
+
+
+def test_campaign_sizes_a_continuous_joints_sensor_faults_on_one_turn():
+    """kinova3's continuous joints have no range: a sensor fault drawn as a fraction of the range is sized on one
+    turn there (2π rad) and on the range elsewhere, read here from the file with MuJoCo."""
+    from robofdi.campaign.spec import parse_spec
+
+    path = robosuite_arm("kinova3")
+    m = mujoco.MjModel.from_xml_path(str(path))
+    hinges = [j for j in range(m.njnt) if m.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE]
+    spans = {mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j):
+             float(np.diff(m.jnt_range[j])[0]) if m.jnt_limited[j] else 2 * np.pi for j in hinges}
+    assert any(not m.jnt_limited[j] for j in hinges) and any(m.jnt_limited[j] for j in hinges)
+    spec = parse_spec({"seed": 1, "fault_free_runs": 0, "faulty_runs": 1, "diagnosers": ["momentum"],
+                       "system": {"name": "arm", "robot": str(path), "torque_motors": True},
+                       "faults": [{"kind": "sensor_bias", "targets": ["*_pos"], "magnitude_fraction": [0.01, 0.02]}]})
+    (entry,) = spec.faults
+    for target, (limit, unit) in entry.limits.items():
+        assert unit == "rad" and limit == pytest.approx(spans[target.removesuffix("_pos")])

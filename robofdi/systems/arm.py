@@ -62,6 +62,9 @@ __all__ = ["ArmScenario", "ArmOptions", "ArmMissions", "ARM_MISMATCH", "arm_scen
 ACCOMMODATIONS = (None, "compensation")
 #: The diagnosers' belief of an arm by default: 2 % mass and inertia, 5 % damping errors (seeded per robot instance).
 ARM_MISMATCH = ModelMismatch(mass=0.02, inertia=0.02, damping=0.05)
+#: The span [rad] a continuous joint's (no range) position and velocity sensor faults are sized on in a campaign
+#: (``magnitude_fraction``): one turn.
+CONTINUOUS_JOINT_SPAN = 2 * np.pi
 #: Schemes whose thresholds are also calibrated in the book's state space (reported next to the book's).
 STATE_SPACE_SCHEMES = ("time_delayed", "recursive")
 
@@ -554,6 +557,8 @@ class ArmSystem(RobotInstances):
         sim, model, _ = self._base(options)
         n = sim.n
         width = sim.joint_range[:, 1] - sim.joint_range[:, 0]
+        # a continuous joint (no range: robosuite's kinova3) sizes its sensor faults on one turn
+        width = np.where(np.isfinite(width), width, CONTINUOUS_JOINT_SPAN)
         sensors = {ch: TargetLimit(float(width[i % n]), "rad" if i < n else "rad/s")
                    for i, ch in enumerate(sim.sensor_channels)}          # velocity channels: one range per second
         masses = {b: TargetLimit(m, "kg") for b, m in sim.link_masses.items()}
