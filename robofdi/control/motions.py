@@ -571,7 +571,7 @@ def _reach(model, limits: MotionLimits, centre: np.ndarray, i: int, end: float) 
     return best
 
 
-def _partial_sweeps(model, limits: MotionLimits, rng, least: float = 0.5, tries: int = 40):
+def _partial_sweeps(model, limits: MotionLimits, rng, least: float = 0.5, tries: int = 400):
     """Fallback of :func:`_top_speed` when no centre lets every joint sweep its whole usable range (self-collision
     or gravity in the way): from the first centre (the middle of the ranges, then random ones) where every joint
     can sweep at least ``least`` of its usable width, each joint sweeps as far as it can each way (in tenths)."""
