@@ -42,7 +42,7 @@ from robofdi.decision.isolation import startup_samples  # noqa: E402
 from robofdi.progress import Progress  # noqa: E402
 from robofdi.seeding import rng  # noqa: E402
 
-_SPEC = None
+_SPEC, _CALIBRATIONS = None, {}
 
 
 def acceptance_spec(robot: str, speed: str, inertia: str, diagnosers) -> dict:
@@ -72,7 +72,9 @@ def peak_ratios(data: dict, index: int) -> dict:
     system = spec.campaign_system
     keys = system.calibration_keys(spec.options)
     key = keys[index % len(keys)]
-    cal, _ = system.calibrate(spec.options, key, spec.diagnosers)
+    if key not in _CALIBRATIONS:         # once per worker: finding a cached one plans the calibration motions
+        _CALIBRATIONS[key] = system.calibrate(spec.options, key, spec.diagnosers)[0]
+    cal = _CALIBRATIONS[key]
     seed = run_seed(spec.seed, index)
     mission = system.mission(spec.options, key, rng(seed, "mission"))
     fault = draw_fault(spec, seed, mission.duration)[0] if faulty_indices(spec)[index] else None
