@@ -10,8 +10,11 @@ fault-free runs on robosuite's panda). This script re-runs the fault-free runs a
 of ``benchmarks/arm_acceptance.toml`` (the same seeds, missions, faults and calibrations as
 ``arm_acceptance.py``) and takes from every diagnoser's trace its peak ratio max_j |r_j| / threshold_j: over the
 whole run after the start-up blanking for a fault-free run, over [onset, end) for a faulty one. A diagnoser's
-*0-FA scale* is the smallest factor on all its thresholds at which no fault-free run crosses (1 when none did at
-its own thresholds); a fault is detected at that scale when its peak ratio exceeds it. (Only the thresholds are
+*0-FA scale* is its largest fault-free peak ratio: the factor on all its thresholds (above 1 or below) at which
+its fault-free runs are just all quiet. At that scale every diagnoser has the same empirical false-alarm rate,
+0 of the fault-free runs, and a fault counts as detected when its peak ratio exceeds it. (The scale is read off
+the same fault-free runs it is then applied to: a comparison of detection power at equal false-alarm rate, not
+a calibration.) (Only the thresholds are
 scaled; a scheme whose decision also holds evidence would isolate differently, not detect differently.)
 Prints per diagnoser: fault-free runs with an alarm at its own thresholds, its 0-FA scale, and incipient faults
 detected at its own thresholds and at its 0-FA scale.
@@ -103,7 +106,7 @@ def summary(rows: pd.DataFrame, diagnosers) -> pd.DataFrame:
         if disagree:
             print(f"note: {name}: on {disagree} runs the peak ratio and the decision's alarm disagree (an alarm "
                   f"is more than a threshold crossing there)")
-        scale = max(1.0, float(free[name].max()))
+        scale = float(free[name].max())
         table.append({"diagnoser": name,
                       "fault-free runs alarmed": f"{int((free[name] > 1).sum())}/{len(free)}",
                       "0-FA scale": f"{scale:.3f}",
@@ -121,8 +124,12 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=None, help="only the first N runs of the campaign")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--out", default=None, help="folder for one CSV of peak ratios per robot")
+    ap.add_argument("--from-csv", nargs="+", default=None, help="only summarise CSVs an earlier --out wrote")
     args = ap.parse_args()
-    for robot in args.robots:
+    for path in args.from_csv or ():
+        print(f"\n## {Path(path).stem}")
+        print(summary(pd.read_csv(path), args.diagnosers).to_string())
+    for robot in args.robots if not args.from_csv else ():
         data = acceptance_spec(robot, args.speed, args.drive_inertia, args.diagnosers)
         spec = parse_spec(data)
         system = spec.campaign_system
