@@ -127,6 +127,8 @@ def main() -> None:
     ap.add_argument("--from-csv", nargs="+", default=None, help="only summarise CSVs an earlier --out wrote")
     args = ap.parse_args()
     for path in args.from_csv or ():
+        if not Path(path).is_file():
+            raise SystemExit(f"--from-csv: no file {path!r} (expected a CSV an earlier --out wrote)")
         print(f"\n## {Path(path).stem}")
         print(summary(pd.read_csv(path), args.diagnosers).to_string())
     for robot in args.robots if not args.from_csv else ():
