@@ -73,6 +73,24 @@ def drive_inertia(option: str, name: str) -> float:
     return value
 
 
+def acceptance_spec(name: str, speed: str, inertia: str = "auto", seed: int | None = None,
+                    diagnosers=None) -> dict:
+    """benchmarks/arm_acceptance.toml for robot ``name`` at ``speed`` (normal missions get two segments, fast ones
+    three), with its --drive-inertia option, and optionally another seed or diagnosers."""
+    spec = tomllib.loads((HERE / "arm_acceptance.toml").read_text())
+    if seed is not None:
+        spec["seed"] = seed
+    if diagnosers is not None:
+        spec["diagnosers"] = list(diagnosers)
+    spec["system"]["speed"] = speed
+    spec["system"]["segments"] = 3 if speed == "fast" else 2
+    spec["system"]["robot"], spec["system"]["torque_motors"] = robot_file(name)
+    value = drive_inertia(inertia, name)
+    if value:           # else the file's armature as written (and the campaign's options as before the flag)
+        spec["system"]["drive_inertia"] = value
+    return spec
+
+
 def eventually(table: pd.DataFrame) -> pd.DataFrame:
     """Per diagnoser: faulty runs detected, correct at first isolation, correct at any time, and the median time
     from onset to the first correct isolation [ms]."""
@@ -100,19 +118,9 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=None, help="only the first N runs (a prefix of the campaign)")
     ap.add_argument("--seed", type=int, default=None, help="campaign seed (default: the TOML's)")
     args = ap.parse_args()
-    spec = tomllib.loads((HERE / "arm_acceptance.toml").read_text())
-    if args.seed is not None:
-        spec["seed"] = args.seed
-    spec["system"]["speed"] = args.speed
-    spec["system"]["segments"] = 3 if args.speed == "fast" else 2
     for name in args.robots:
-        robot, motors = robot_file(name)
-        spec["system"]["robot"], spec["system"]["torque_motors"] = robot, motors
-        inertia = drive_inertia(args.drive_inertia, name)
-        if inertia:
-            spec["system"]["drive_inertia"] = inertia
-        else:                   # the file's armature as written (and the campaign's options as before the flag)
-            spec["system"].pop("drive_inertia", None)
+        spec = acceptance_spec(name, args.speed, args.drive_inertia, args.seed)
+        inertia = spec["system"].get("drive_inertia", 0.0)
         out = Path(args.out) / f"{Path(name).stem}-{args.speed}"
         t0 = time.perf_counter()
         run_campaign(spec, out, workers=args.workers, resume=(out / "runs.jsonl").is_file(), runs=args.runs,

@@ -29,15 +29,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-try:
-    import tomllib
-except ModuleNotFoundError:        # Python 3.10
-    import tomli as tomllib
-
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from arm_acceptance import drive_inertia, robot_file  # noqa: E402
+from arm_acceptance import acceptance_spec, drive_inertia  # noqa: E402
 
 from robofdi.campaign.runs import draw_fault, faulty_indices, run_seed  # noqa: E402
 from robofdi.campaign.spec import parse_spec  # noqa: E402
@@ -46,20 +41,6 @@ from robofdi.progress import Progress  # noqa: E402
 from robofdi.seeding import rng  # noqa: E402
 
 _SPEC, _CALIBRATIONS = None, {}
-
-
-def acceptance_spec(robot: str, speed: str, inertia: str, diagnosers) -> dict:
-    """benchmarks/arm_acceptance.toml as arm_acceptance.py sets it for ``robot`` at ``speed``."""
-    spec = tomllib.loads((HERE / "arm_acceptance.toml").read_text())
-    spec["system"]["speed"] = speed
-    spec["system"]["segments"] = 3 if speed == "fast" else 2
-    path, motors = robot_file(robot)
-    spec["system"]["robot"], spec["system"]["torque_motors"] = path, motors
-    value = drive_inertia(inertia, robot)
-    if value:
-        spec["system"]["drive_inertia"] = value
-    spec["diagnosers"] = list(diagnosers)
-    return spec
 
 
 def _incipient(fault) -> bool:
@@ -132,7 +113,7 @@ def main() -> None:
         print(f"\n## {Path(path).stem}")
         print(summary(pd.read_csv(path), args.diagnosers).to_string())
     for robot in args.robots if not args.from_csv else ():
-        data = acceptance_spec(robot, args.speed, args.drive_inertia, args.diagnosers)
+        data = acceptance_spec(robot, args.speed, args.drive_inertia, diagnosers=args.diagnosers)
         spec = parse_spec(data)
         system = spec.campaign_system
         for key in system.calibration_keys(spec.options):      # once, before the workers load them
