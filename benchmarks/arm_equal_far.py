@@ -1,5 +1,5 @@
 """Incipient actuator faults at equal false-alarm rates: the acceptance campaign's runs, each diagnoser's thresholds
-raised until none of its fault-free runs alarms.
+scaled until its fault-free runs are just all quiet.
 
     python benchmarks/arm_equal_far.py --robots iiwa [--speed fast] [--drive-inertia auto] [--runs N]
                                        [--diagnosers momentum consistency] [--workers W]
@@ -14,8 +14,8 @@ whole run after the start-up blanking for a fault-free run, over [onset, end) fo
 its fault-free runs are just all quiet. At that scale every diagnoser has the same empirical false-alarm rate,
 0 of the fault-free runs, and a fault counts as detected when its peak ratio exceeds it. (The scale is read off
 the same fault-free runs it is then applied to: a comparison of detection power at equal false-alarm rate, not
-a calibration.) (Only the thresholds are
-scaled; a scheme whose decision also holds evidence would isolate differently, not detect differently.)
+a calibration. Only the thresholds are scaled: a scheme whose decision also holds evidence would isolate
+differently, not detect differently.)
 Prints per diagnoser: fault-free runs with an alarm at its own thresholds, its 0-FA scale, and incipient faults
 detected at its own thresholds and at its 0-FA scale.
 """
@@ -33,6 +33,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 from arm_acceptance import acceptance_spec, drive_inertia  # noqa: E402
+from arm_quality import _class  # noqa: E402
 
 from robofdi.campaign.runs import draw_fault, faulty_indices, run_seed  # noqa: E402
 from robofdi.campaign.spec import parse_spec  # noqa: E402
@@ -44,7 +45,9 @@ _SPEC, _CALIBRATIONS = None, {}
 
 
 def _incipient(fault) -> bool:
-    return fault is not None and fault.kind == "actuator_additive" and fault.profile.type_name == "exponential_rise"
+    """Whether ``fault`` is of the class arm_quality.py counts as "incipient detected"."""
+    return _class({"kind": fault.kind, "target": fault.target, "profile": fault.profile.type_name}) \
+        == "actuator_incipient"
 
 
 def peak_ratios(data: dict, index: int) -> dict:
