@@ -89,3 +89,19 @@ def test_arm_scenario_options_are_refused_at_construction(field, value, expected
 
     with pytest.raises(RobofdiError, match=expected):
         compose(ArmScenario, {"name": "t", "motion": Quintic((0.0,) * 6, (0.1,) * 6, 1.0), field: value})
+
+
+def test_a_campaign_sets_the_arm_diagnosers_settings_and_its_scenarios_carry_them():
+    from robofdi.systems import get_system
+
+    base = 'seed = 0\nfault_free_runs = 1\nfaulty_runs = 0\n[system]\nname = "arm"\n'
+    spec = load_spec(base + "consistency_gain = 50\nconsistency_windows = [0.0, 0.5]\n")
+    assert spec.options.settings.consistency_gain == 50 and spec.options.settings.consistency_windows == (0.0, 0.5)
+    arm = get_system("arm")
+    tuned = arm._scenario(spec.options, 3, ["consistency"])
+    default = arm._scenario(load_spec(base).options, 3, ["consistency"])
+    assert tuned.settings == spec.options.settings and default.settings.consistency_gain == 100
+    with pytest.raises(RobofdiError, match="system: field 'T' is not an option: the diagnosis sample time"):
+        load_spec(base + "T = 0.001\n")
+    with pytest.raises(RobofdiError, match=r"system\.settings: field 'consistency_gain' must be a finite number > 0"):
+        load_spec(base + "consistency_gain = -5\n")

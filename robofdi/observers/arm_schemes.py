@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from robofdi import RobofdiError
+from robofdi.checks import check_fields, is_int, is_number
 from robofdi.models.manipulator import ManipulatorModel
 from robofdi.observers.consistency import ConsistencyDesign, ConsistencyResidual, design_consistency
 from robofdi.observers.kinematic import RIPPLE_CYCLES, WINDOWS, ripple_orders
@@ -61,6 +62,23 @@ class ArmSchemeSettings:
     smo_substep: float = 2e-6
     smo_tau: float = 2e-5
     smo_filter: float = 0.02
+
+    def __post_init__(self):
+        positive = ("T", "K1", "K2", "momentum_gain", "adaptive_step", "consistency_gain",
+                    "consistency_false_alarm_rate", "smo_gain", "smo_substep", "smo_tau", "smo_filter")
+        for name in ("consistency_windows", "consistency_ripple_cycles"):
+            object.__setattr__(self, name, tuple(getattr(self, name)))
+        check_fields("ArmSchemeSettings", self, [
+            *((name, is_number(getattr(self, name)) and getattr(self, name) > 0, "a finite number > 0") for name in positive),
+            ("residual_space", self.residual_space in ("torque", "state"), "'torque' or 'state'"),
+            ("consistency_confirm", is_int(self.consistency_confirm, 1), "an integer >= 1 [samples]"),
+            ("consistency_release", is_number(self.consistency_release) and self.consistency_release >= 0,
+             "a time >= 0 s"),
+            ("consistency_windows", len(self.consistency_windows) > 0
+             and all(is_number(w) and w >= 0 for w in self.consistency_windows), "a non-empty list of times >= 0 s"),
+            ("consistency_ripple_cycles", all(is_number(c) and c > 0 for c in self.consistency_ripple_cycles),
+             "a list of periods per motor revolution > 0 (empty: none)"),
+        ])
 
     def gamma_eta(self, n: int) -> np.ndarray:
         return 0.1 * np.concatenate([np.full(n, 0.1), np.full(n - 1, 2.0), [3.0]])

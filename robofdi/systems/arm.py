@@ -30,7 +30,7 @@ import numpy as np
 
 from robofdi.calibration import cached
 from robofdi.checks import check_fields, check_robot_seeds, is_int, is_number
-from robofdi.config import compose, part
+from robofdi.config import check_not_set, compose, part
 from robofdi.control import ComputedTorque, MotionLimits, calibration_motions, random_point_to_point
 from robofdi.decision import (
     STARTUP_BLANKING,
@@ -503,19 +503,23 @@ class ArmOptions:
     """The arm system's configuration (a campaign's ``[system]`` table), composed of the simulator's
     configuration ``plant`` (:class:`~robofdi.sims.arm.ArmPlant`: robot file, default the shipped arm6.xml;
     joints, torque_motors, drive_inertia, ripple, sensors, payload), the nominal model's ``mismatch``
-    (:class:`~robofdi.models.ModelMismatch`) and the mission draw ``missions`` (:class:`ArmMissions`: speed,
-    segments, tail); fields are named flat or as nested tables (:mod:`robofdi.config`). robot_seeds: one robot
-    instance per seed (ripple phases, nominal-model errors), one calibration each, runs cycle through them;
-    injection: "online" | "offline"."""
+    (:class:`~robofdi.models.ModelMismatch`), the mission draw ``missions`` (:class:`ArmMissions`: speed,
+    segments, tail) and the diagnosers' ``settings`` (:class:`~robofdi.observers.arm_schemes.ArmSchemeSettings`,
+    e.g. ``consistency_gain``; every robot instance is calibrated with them); fields are named flat or as nested
+    tables (:mod:`robofdi.config`). robot_seeds: one robot instance per seed (ripple phases, nominal-model
+    errors), one calibration each, runs cycle through them; injection: "online" | "offline"."""
 
     plant: ArmPlant = part(ArmPlant)
     mismatch: ModelMismatch = part(ModelMismatch, lambda: ARM_MISMATCH)
     missions: ArmMissions = part(ArmMissions)
+    settings: ArmSchemeSettings = part(ArmSchemeSettings)
     robot_seeds: tuple = (0,)
     injection: str = ArmScenario.injection
 
     def __post_init__(self):
         check_robot_seeds(self)
+        check_not_set("system", self.settings, ArmSchemeSettings(), ["T"],
+                      "the diagnosis sample time follows the loop's diagnosis rate")
         check_fields("system", self, [("injection", self.injection in ("online", "offline"), "'online' or 'offline'")])
         if self.mismatch.seed:
             raise RobofdiError("system: field 'seed' is not an option of the arm: each robot instance's seed "
@@ -574,7 +578,7 @@ class ArmSystem(RobotInstances):
             motion = self.mission(options, key, rng(key, "campaign", "calibration-placeholder")).plan
         return ArmScenario("campaign-arm", motion=motion, duration=duration, faults=tuple(faults),
                            injection=options.injection, plant=replace(options.plant, joints=tuple(sim.joint_names)),
-                           mismatch=options.mismatch, seed=int(key), schemes=tuple(diagnosers),
+                           mismatch=options.mismatch, settings=options.settings, seed=int(key), schemes=tuple(diagnosers),
                            envelope_speed=options.missions.speed, envelope_segments=options.missions.segments)
 
     def calibrate(self, options, key, diagnosers):
