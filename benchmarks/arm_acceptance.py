@@ -1,7 +1,7 @@
 """Issue 24's acceptance campaigns: benchmarks/arm_acceptance.toml on the shipped arms and robosuite's arms.
 
     python benchmarks/arm_acceptance.py [--robots arm6.xml arm7.xml panda] [--speed fast] [--workers 2]
-                                        [--out runs/arm-acceptance] [--runs N] [--seed S]
+                                        [--out runs/arm-acceptance] [--runs N] [--seed S] [--set NAME=VALUE …]
 
 A robot is a shipped asset name, an MJCF path, or the name of a robosuite 1.5 arm (``panda``, ``iiwa``,
 ``ur5e``, ``kinova3``: its raw ``robot.xml``, servos turned into torque motors; needs the robosuite extra).
@@ -73,11 +73,28 @@ def drive_inertia(option: str, name: str) -> float:
     return value
 
 
+def settings_option(items) -> dict:
+    """--set NAME=VALUE … as [system] fields (e.g. the diagnosers' ``consistency_tail=exponential``): each VALUE
+    read as a TOML value, else as a string."""
+    out = {}
+    for item in items or ():
+        name, eq, value = item.partition("=")
+        if not eq or not name.strip():
+            raise SystemExit(f"--set: expected NAME=VALUE, got {item!r}")
+        try:
+            out[name.strip()] = tomllib.loads(f"v = {value}")["v"]
+        except tomllib.TOMLDecodeError:
+            out[name.strip()] = value
+    return out
+
+
 def acceptance_spec(name: str, speed: str, inertia: str = "auto", seed: int | None = None,
-                    diagnosers=None) -> dict:
+                    diagnosers=None, system: dict | None = None) -> dict:
     """benchmarks/arm_acceptance.toml for robot ``name`` at ``speed`` (normal missions get two segments, fast ones
-    three), with its --drive-inertia option, and optionally another seed or diagnosers."""
+    three), with its --drive-inertia option, and optionally another seed, diagnosers or more [system] fields
+    (``system``, e.g. from :func:`settings_option`)."""
     spec = tomllib.loads((HERE / "arm_acceptance.toml").read_text())
+    spec["system"].update(system or {})
     if seed is not None:
         spec["seed"] = seed
     if diagnosers is not None:
@@ -117,9 +134,11 @@ def main() -> None:
     ap.add_argument("--out", default="runs/arm-acceptance")
     ap.add_argument("--runs", type=int, default=None, help="only the first N runs (a prefix of the campaign)")
     ap.add_argument("--seed", type=int, default=None, help="campaign seed (default: the TOML's)")
+    ap.add_argument("--set", nargs="+", default=None, metavar="NAME=VALUE",
+                    help="more [system] fields, e.g. consistency_tail=exponential consistency_calibration_motions=24")
     args = ap.parse_args()
     for name in args.robots:
-        spec = acceptance_spec(name, args.speed, args.drive_inertia, args.seed)
+        spec = acceptance_spec(name, args.speed, args.drive_inertia, args.seed, system=settings_option(args.set))
         inertia = spec["system"].get("drive_inertia", 0.0)
         out = Path(args.out) / f"{Path(name).stem}-{args.speed}"
         t0 = time.perf_counter()

@@ -2,7 +2,7 @@
 scaled until its fault-free runs are just all quiet.
 
     python benchmarks/arm_equal_far.py --robots iiwa [--speed fast] [--drive-inertia auto] [--runs N]
-                                       [--diagnosers momentum consistency] [--workers W]
+                                       [--diagnosers momentum consistency] [--workers W] [--set NAME=VALUE …]
 
 Issue 24 asks that the consistency scheme detect incipient faults "at least as well as momentum at equal FAR".
 At their calibrated thresholds the two do not have equal false-alarm rates on every arm (momentum: 14 of 300
@@ -32,7 +32,7 @@ import pandas as pd
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from arm_acceptance import acceptance_spec, drive_inertia  # noqa: E402
+from arm_acceptance import acceptance_spec, drive_inertia, settings_option  # noqa: E402
 from arm_quality import _class  # noqa: E402
 
 from robofdi.campaign.runs import draw_fault, faulty_indices, run_seed  # noqa: E402
@@ -108,6 +108,7 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=None, help="only the first N runs of the campaign")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--out", default=None, help="folder for one CSV of peak ratios per robot")
+    ap.add_argument("--set", nargs="+", default=None, metavar="NAME=VALUE", help="more [system] fields, as in arm_acceptance.py")
     ap.add_argument("--from-csv", nargs="+", default=None, help="only summarise CSVs an earlier --out wrote")
     args = ap.parse_args()
     for path in args.from_csv or ():
@@ -116,7 +117,8 @@ def main() -> None:
         print(f"\n## {Path(path).stem}")
         print(summary(pd.read_csv(path), args.diagnosers).to_string())
     for robot in args.robots if not args.from_csv else ():
-        data = acceptance_spec(robot, args.speed, args.drive_inertia, diagnosers=args.diagnosers)
+        data = acceptance_spec(robot, args.speed, args.drive_inertia, diagnosers=args.diagnosers,
+                               system=settings_option(args.set))
         spec = parse_spec(data)
         system = spec.campaign_system
         for key in system.calibration_keys(spec.options):      # once, before the workers load them

@@ -179,7 +179,26 @@ def test_extreme_value_threshold_keeps_its_false_alarm_rate_on_fresh_data():
     assert np.all((rate <= 7.2) & (rate > 7.2 / 20)), rate
 
 
-@pytest.mark.parametrize("kwargs, field", [({"rate_per_hour": 0.0}, "rate_per_hour"), ({"block": 0.001}, "block")])
+def test_exponential_tail_follows_the_upper_maxima_where_the_bulk_spreads_from_zero():
+    """Half the calibration motions fit the bound tightly (residual ×0.05), half loosely (×1): the block maxima
+    spread from ≈ 0 to ≈ 4. The level that Gaussian maxima of 125 samples exceed with probability p (λ = 7.2 per
+    hour, 0.25 s blocks) is known exactly. The Gumbel fit lets the spread set its scale and lands ≈ 2× above it;
+    the exponential tail of the upper 30 % stays within 30 % above it (never below)."""
+    from scipy.optimize import brentq
+    from scipy.stats import norm
+
+    p = 7.2 * 0.25 / 3600
+    exact = brentq(lambda x: 1 - (1 - 2 * norm.sf(x)) ** 125 - p, 2.0, 10.0)
+    rng = np.random.default_rng(1)
+    calib = [s * rng.normal(0, 1, (2500, 2)) for s in (0.05, 1.0) * 8]
+    exponential = extreme_value_thresholds(calib, 0.002, rate_per_hour=7.2, tail="exponential")
+    gumbel = extreme_value_thresholds(calib, 0.002, rate_per_hour=7.2)
+    assert np.all((exponential >= exact) & (exponential <= 1.3 * exact)), exponential / exact
+    assert np.all(gumbel > 1.6 * exact), gumbel / exact
+
+
+@pytest.mark.parametrize("kwargs, field", [({"rate_per_hour": 0.0}, "rate_per_hour"), ({"block": 0.001}, "block"),
+                                           ({"tail": "pareto"}, "tail"), ({"tail_fraction": 1.0}, "tail_fraction")])
 def test_extreme_value_thresholds_reject_bad_input(kwargs, field):
     with pytest.raises(RobofdiError, match=field):
         extreme_value_thresholds([np.ones((1000, 1))], 0.002, **kwargs)

@@ -54,7 +54,8 @@ def calibrate_thresholds(residuals: Sequence[np.ndarray], margin: float = 1.2, s
 
 
 def extreme_value_thresholds(residuals: Sequence[np.ndarray], sample_time: float, rate_per_hour: float = 0.01,
-                             block: float = 0.25, skip: int = 0) -> np.ndarray:
+                             block: float = 0.25, skip: int = 0, tail: str = "gumbel",
+                             tail_fraction: float = 0.3) -> np.ndarray:
     """Thresholds for a target false-alarm rate λ [1/h] from fault-free residuals: the maxima of |r_j| over
     blocks of ``block`` s follow a Gumbel law (extreme-value theory, Coles 2001, *An Introduction to Statistical
     Modeling of Extreme Values*, Sec. 3.1–3.4); the threshold is the level a block maximum exceeds with
@@ -63,11 +64,21 @@ def extreme_value_thresholds(residuals: Sequence[np.ndarray], sample_time: float
     λ, tests/test_decision.py); residuals dominated by motion-dependent model error are what it is for.
     ``residuals``: one (N_i, m) array per fault-free run, sampled every ``sample_time`` s; samples k < ``skip``
     ignored. Needs at least 20 blocks in all. A component whose block maxima do not vary (0 on fault-free data)
-    gets that value."""
+    gets that value.
+    ``tail="exponential"`` fits only the largest ``tail_fraction`` of the block maxima instead of all of them: the
+    excesses over their (1 − ζ) quantile u follow an exponential law (the generalized Pareto law with shape 0,
+    Coles 2001 Sec. 4.2–4.3; σ̂ their mean), and the level is u + σ̂ ln(ζ/p) (Coles eq. 4.13, ξ = 0, with p the
+    exceedance probability per block). The Gumbel fit lets the bulk of the maxima set the tail; this one only
+    the upper part, which matters where the bulk spreads from 0 (a bound that fits some motions tightly and
+    others loosely). It needs more data to be safe: each component's tail comes from ζ of the blocks."""
     from scipy.stats import gumbel_r
 
     if not (np.isfinite(rate_per_hour) and rate_per_hour > 0):
         raise RobofdiError(f"rate_per_hour: expected a false-alarm rate > 0 per hour, got {rate_per_hour!r}")
+    if tail not in ("gumbel", "exponential"):
+        raise RobofdiError(f"tail: expected 'gumbel' or 'exponential', got {tail!r}")
+    if not (np.isfinite(tail_fraction) and 0 < tail_fraction < 1):
+        raise RobofdiError(f"tail_fraction: expected a fraction of the block maxima in (0, 1), got {tail_fraction!r}")
     if not (np.isfinite(sample_time) and sample_time > 0 and np.isfinite(block) and block >= sample_time):
         raise RobofdiError(f"block: expected a block length >= the sample time {sample_time!r} s, got {block!r}")
     size = int(round(block / sample_time))
@@ -90,6 +101,11 @@ def extreme_value_thresholds(residuals: Sequence[np.ndarray], sample_time: float
         if np.ptp(column) <= 1e-12 * max(1.0, float(column.max())):   # no spread (a row that is 0 fault-free)
             out[j] = float(column.max())
             continue
-        loc, scale = gumbel_r.fit(column)
-        out[j] = max(float(gumbel_r.isf(p, loc, scale)), float(column.max()))
+        if tail == "exponential":
+            u = float(np.quantile(column, 1.0 - tail_fraction))
+            excess = column[column > u] - u
+            level = u + float(excess.mean()) * float(np.log(tail_fraction / p)) if excess.size else u
+        else:
+            level = float(gumbel_r.isf(p, *gumbel_r.fit(column)))
+        out[j] = max(level, float(column.max()))
     return np.maximum(out, THRESHOLD_FLOOR)

@@ -41,7 +41,9 @@ class ArmSchemeSettings:
     window [samples] (:class:`robofdi.decision.ThresholdDecision` ``confirm``), the quiet time [s] after which an
     isolation may be revised (``release``), its kinematic windows [s] and the torque-ripple periods per motor
     revolution whose aliasing its kinematic rows cover (with the model's nominal gear ratios,
-    :func:`robofdi.observers.kinematic.ripple_orders`; () = none);
+    :func:`robofdi.observers.kinematic.ripple_orders`; () = none), the random calibration motions it needs (half
+    design it, half set its thresholds) and the tail law its thresholds extrapolate ("gumbel" or "exponential",
+    :func:`robofdi.decision.extreme_value_thresholds`);
     the sliding-mode scheme's switching gain Λ [rad/s²], integration sub-step [s], in-sample filter constant [s]
     and equivalent-control low-pass [s] at the diagnosis rate, by default the momentum baseline's bandwidth 1/K_O
     (:class:`robofdi.observers.sliding_mode_arm.ArmSlidingModeObserver`)."""
@@ -58,6 +60,8 @@ class ArmSchemeSettings:
     consistency_release: float = 0.5
     consistency_windows: tuple = WINDOWS
     consistency_ripple_cycles: tuple = RIPPLE_CYCLES
+    consistency_calibration_motions: int = 6
+    consistency_tail: str = "gumbel"
     smo_gain: float = 200.0
     smo_substep: float = 2e-6
     smo_tau: float = 2e-5
@@ -76,6 +80,9 @@ class ArmSchemeSettings:
              "a time >= 0 s"),
             ("consistency_windows", len(self.consistency_windows) > 0
              and all(is_number(w) and w >= 0 for w in self.consistency_windows), "a non-empty list of times >= 0 s"),
+            ("consistency_calibration_motions", is_int(self.consistency_calibration_motions, 2),
+             "an integer >= 2 (half of them held out)"),
+            ("consistency_tail", self.consistency_tail in ("gumbel", "exponential"), "'gumbel' or 'exponential'"),
             ("consistency_ripple_cycles", all(is_number(c) and c > 0 for c in self.consistency_ripple_cycles),
              "a list of periods per motor revolution > 0 (empty: none)"),
         ])
@@ -156,6 +163,6 @@ def scheme_calibration(name: str, settings: ArmSchemeSettings = ArmSchemeSetting
         raise RobofdiError(f"scheme_calibration: unknown scheme {name!r}; expected one of {list(ALL_SCHEMES)}")
     if name == "consistency":
         return SchemeCalibration(_design_consistency, "false_alarm_rate", settings.consistency_confirm,
-                                 random_motions=6, top_speed=True,
+                                 random_motions=settings.consistency_calibration_motions, top_speed=True,
                                  release=max(1, int(round(settings.consistency_release / settings.T))))
     return SchemeCalibration()

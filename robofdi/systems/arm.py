@@ -313,7 +313,8 @@ def calibrate(scenario: ArmScenario, records: dict[str, Record],
             diagnoser = arm_schemes(model, scheme_settings, theta0, [name], designs=designs)[name]
             residuals = [diagnose_record(rec, Diagnosis(diagnoser), rates, progress).residual for rec in runs]
             if rule.thresholds == "false_alarm_rate":       # a rate per hour, fitted on the held-out motions
-                out[name] = extreme_value_thresholds(residuals, T, settings.consistency_false_alarm_rate, skip=skip)
+                out[name] = extreme_value_thresholds(residuals, T, settings.consistency_false_alarm_rate, skip=skip,
+                                                     tail=settings.consistency_tail)
                 if rule.design and held:
                     # the design runs' largest value is a floor, not part of the fit: the rare excursions that set a
                     # bound are in them only (held-out runs alone put robosuite iiwa's joint_1_step at 0.63 of its
