@@ -105,3 +105,5 @@ def test_a_campaign_sets_the_arm_diagnosers_settings_and_its_scenarios_carry_the
         load_spec(base + "T = 0.001\n")
     with pytest.raises(RobofdiError, match=r"system\.settings: field 'consistency_gain' must be a finite number > 0"):
         load_spec(base + "consistency_gain = -5\n")
+    with pytest.raises(RobofdiError, match=r"consistency_tail' must be one of \['gumbel', 'exponential', 'exponent"):
+        load_spec(base + 'consistency_tail = "pareto"\n')

@@ -195,13 +195,16 @@ def test_exponential_tail_follows_the_upper_maxima_where_the_bulk_spreads_from_z
     gumbel = extreme_value_thresholds(calib, 0.002, rate_per_hour=7.2)
     assert np.all((exponential >= exact) & (exponential <= 1.3 * exact)), exponential / exact
     assert np.all(gumbel > 1.6 * exact), gumbel / exact
+    mixed = extreme_value_thresholds(calib, 0.002, rate_per_hour=7.2, tail=["exponential", "gumbel"])
+    assert mixed[0] == exponential[0] and mixed[1] == gumbel[1]
 
 
 @pytest.mark.parametrize("kwargs, field", [({"rate_per_hour": 0.0}, "rate_per_hour"), ({"block": 0.001}, "block"),
-                                           ({"tail": "pareto"}, "tail"), ({"tail_fraction": 1.0}, "tail_fraction")])
+                                           ({"tail": "pareto"}, "tail"), ({"tail": ["gumbel"] * 2}, "tail"),
+                                           ({"tail_fraction": 1.0}, "tail_fraction")])
 def test_extreme_value_thresholds_reject_bad_input(kwargs, field):
     with pytest.raises(RobofdiError, match=field):
-        extreme_value_thresholds([np.ones((1000, 1))], 0.002, **kwargs)
+        extreme_value_thresholds([np.ones((5000, 1))], 0.002, **kwargs)
     with pytest.raises(RobofdiError, match="20 blocks"):
         extreme_value_thresholds([np.ones((100, 1))], 0.002)
 

@@ -54,7 +54,7 @@ def calibrate_thresholds(residuals: Sequence[np.ndarray], margin: float = 1.2, s
 
 
 def extreme_value_thresholds(residuals: Sequence[np.ndarray], sample_time: float, rate_per_hour: float = 0.01,
-                             block: float = 0.25, skip: int = 0, tail: str = "gumbel",
+                             block: float = 0.25, skip: int = 0, tail: str | Sequence[str] = "gumbel",
                              tail_fraction: float = 0.3) -> np.ndarray:
     """Thresholds for a target false-alarm rate λ [1/h] from fault-free residuals: the maxima of |r_j| over
     blocks of ``block`` s follow a Gumbel law (extreme-value theory, Coles 2001, *An Introduction to Statistical
@@ -70,13 +70,15 @@ def extreme_value_thresholds(residuals: Sequence[np.ndarray], sample_time: float
     Coles 2001 Sec. 4.2–4.3; σ̂ their mean), and the level is u + σ̂ ln(ζ/p) (Coles eq. 4.13, ξ = 0, with p the
     exceedance probability per block). The Gumbel fit lets the bulk of the maxima set the tail; this one only
     the upper part, which matters where the bulk spreads from 0 (a bound that fits some motions tightly and
-    others loosely). It needs more data to be safe: each component's tail comes from ζ of the blocks."""
+    others loosely). It needs more data to be safe: each component's tail comes from ζ of the blocks. ``tail`` may
+    also name one law per component."""
     from scipy.stats import gumbel_r
 
     if not (np.isfinite(rate_per_hour) and rate_per_hour > 0):
         raise RobofdiError(f"rate_per_hour: expected a false-alarm rate > 0 per hour, got {rate_per_hour!r}")
-    if tail not in ("gumbel", "exponential"):
-        raise RobofdiError(f"tail: expected 'gumbel' or 'exponential', got {tail!r}")
+    tails = [tail] if isinstance(tail, str) else list(tail)
+    if not tails or any(t not in ("gumbel", "exponential") for t in tails):
+        raise RobofdiError(f"tail: expected 'gumbel' or 'exponential', or one of them per component, got {tail!r}")
     if not (np.isfinite(tail_fraction) and 0 < tail_fraction < 1):
         raise RobofdiError(f"tail_fraction: expected a fraction of the block maxima in (0, 1), got {tail_fraction!r}")
     if not (np.isfinite(sample_time) and sample_time > 0 and np.isfinite(block) and block >= sample_time):
@@ -94,6 +96,9 @@ def extreme_value_thresholds(residuals: Sequence[np.ndarray], sample_time: float
         raise RobofdiError(f"residuals: expected at least 20 blocks of {block} s of fault-free data, got "
                            f"{sum(m.shape[0] for m in maxima) if maxima else 0}")
     maxima = np.concatenate(maxima)
+    if len(tails) not in (1, maxima.shape[1]):
+        raise RobofdiError(f"tail: expected one law or one per component ({maxima.shape[1]}), got {len(tails)}")
+    tails = tails * maxima.shape[1] if len(tails) == 1 else tails
     p = rate_per_hour * block / 3600.0
     out = np.empty(maxima.shape[1])
     for j in range(maxima.shape[1]):
@@ -101,7 +106,7 @@ def extreme_value_thresholds(residuals: Sequence[np.ndarray], sample_time: float
         if np.ptp(column) <= 1e-12 * max(1.0, float(column.max())):   # no spread (a row that is 0 fault-free)
             out[j] = float(column.max())
             continue
-        if tail == "exponential":
+        if tails[j] == "exponential":
             u = float(np.quantile(column, 1.0 - tail_fraction))
             excess = column[column > u] - u
             level = u + float(excess.mean()) * float(np.log(tail_fraction / p)) if excess.size else u

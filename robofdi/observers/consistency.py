@@ -189,6 +189,7 @@ class ConsistencyResidual:
         #: has alarmed: their evidence level is their largest fault-free value, not their false-alarm threshold
         #: (ThresholdDecision).
         self.discriminating = [f"{j}_step" for j in names] + ["payload"]
+        self.kinematic = [f"{j}_kin" for j in names]       # rows scaled by a noise model, not by a learnt bound
         self.units = {"residual": ["1"] * (3 * n + 1), "estimate": ["N·m"] * n + ["rad"] * n + ["rad/s"] * n + ["kg"]}
         self.reset()
 

@@ -45,7 +45,8 @@ from robofdi.ftc import FaultCompensation
 from robofdi.loop import ORACLE, ClosedLoop, Diagnosis, Rates, diagnose_record, diagnoser_inputs
 from robofdi.models import ManipulatorModel, ModelMismatch
 from robofdi.observers import DiagnosticObserver
-from robofdi.observers.arm_schemes import ALL_SCHEMES, BOOK_SCHEMES, SCHEMES, ArmSchemeSettings, arm_schemes, scheme_calibration
+from robofdi.observers.arm_schemes import (ALL_SCHEMES, BOOK_SCHEMES, SCHEMES, ArmSchemeSettings, arm_schemes, row_tails,
+                                         scheme_calibration)
 from robofdi.observers.spectral import ripple_initial_parameters
 from robofdi.protocols import Mission, Parts, TargetLimit
 from robofdi.record import Record
@@ -314,7 +315,7 @@ def calibrate(scenario: ArmScenario, records: dict[str, Record],
             residuals = [diagnose_record(rec, Diagnosis(diagnoser), rates, progress).residual for rec in runs]
             if rule.thresholds == "false_alarm_rate":       # a rate per hour, fitted on the held-out motions
                 out[name] = extreme_value_thresholds(residuals, T, settings.consistency_false_alarm_rate, skip=skip,
-                                                     tail=settings.consistency_tail)
+                                                     tail=row_tails(settings.consistency_tail, diagnoser))
                 if rule.design and held:
                     # the design runs' largest value is a floor, not part of the fit: the rare excursions that set a
                     # bound are in them only (held-out runs alone put robosuite iiwa's joint_1_step at 0.63 of its
