@@ -118,3 +118,36 @@ def test_campaign_detection_vs_size_is_small_multiples_of_one_curve_each():
         faint = [ln for ln in ax.get_lines() if ln.get_color() == "0.85"]
         assert coloured and len(faint) == 3               # its own curve, the three others faint behind it
         assert any("n = 12" == s for s in _texts(ax)) and any("P = 0.9" == s for s in _texts(ax))
+
+
+def _residual_record() -> Record:
+    """Two diagnosers with the same 8-component layout and very different scales, and a third with 3 components."""
+    t = np.arange(0.0, 12.0, 0.01)
+    rng = np.random.default_rng(1)
+    traces = {}
+    for name, m, scale in (("big", 8, 1e3), ("small", 8, 1e-4), ("few", 3, 1.0)):
+        r = scale * rng.normal(0, 0.3, (t.size, m))
+        r[t >= 7.8, 1] += 3 * scale
+        thr = np.full(m, scale)
+        traces[name] = DiagnoserTrace(time=t, residual=r, threshold=thr, alarm=np.abs(r) > thr,
+                                      isolated=np.full(t.size, ""), estimate=np.zeros((t.size, 0)),
+                                      components=[f"c{i}" for i in range(m)])
+    return Record(system="arm", scenario="test", seed=0, rates={}, time=t, truth_state=np.zeros((t.size, 2)),
+                  diagnosers=traces, meta={"faults": [{"name": "f", "target": "c1", "onset": 7.8}]})
+
+
+def test_residual_figures_drawn_on_reused_axes_equal_figures_drawn_alone(tmp_path):
+    """plot_residual_figures draws the diagnosers of one panel layout on one set of axes: nothing of the one drawn
+    before may be left in the next (pixel for pixel the same PNG as drawn alone), and unused panels stay blank."""
+    from matplotlib.image import imread
+
+    from robofdi.evaluate.figures import decade_label, plot_residual_figures, plot_residuals
+
+    rec = _residual_record()
+    together = plot_residual_figures(rec, {d: tmp_path / f"together_{d}.png" for d in ("big", "small", "few")})
+    assert [p.name for p in together] == ["together_big.png", "together_small.png", "together_few.png"]
+    for d in ("small", "few"):
+        alone = imread(plot_residuals(rec, d, tmp_path / f"alone_{d}.png"))
+        assert np.array_equal(imread(tmp_path / f"together_{d}.png"), alone)
+    assert not np.array_equal(imread(tmp_path / "together_big.png"), imread(tmp_path / "alone_small.png"))
+    assert [decade_label(v) for v in (1e-5, 1e-3, 1.0, 100.0, 2.0)] == ["1e-5", "0.001", "1", "100", ""]

@@ -9,11 +9,11 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from matplotlib.ticker import LogLocator, MaxNLocator, NullLocator  # noqa: E402
+from matplotlib.ticker import FuncFormatter, LogLocator, MaxNLocator, NullLocator  # noqa: E402
 
 from robofdi.record import Record  # noqa: E402
 
-__all__ = ["plot_residuals", "plot_estimates"]
+__all__ = ["plot_residuals", "plot_residual_figures", "plot_estimates", "decade_label"]
 
 
 def save_figure(fig, path: str | Path, dpi: int = 110, tight: bool = True) -> Path:
@@ -42,47 +42,112 @@ def fixed_grid(rows: int, cols: int, axes_size: tuple[float, float], margins=(0.
     return fig, axes
 
 
-def _onsets(ax, faults, label: bool = False):
-    """Dotted lines at the true fault onsets; ``label``: each named (``<fault> on <target>``) at the panel's top."""
+def _onsets(ax, faults, label: bool = False) -> list:
+    """Dotted lines at the true fault onsets; ``label``: each named (``<fault> on <target>``) at the panel's top.
+    Returns the artists drawn."""
+    drawn = []
     for f in faults:
-        ax.axvline(f["onset"], color="0.5", lw=0.8, ls=":")
+        drawn.append(ax.axvline(f["onset"], color="0.5", lw=0.8, ls=":"))
         if label:
-            ax.text(f["onset"], 1.0, f" {f.get('name', 'fault')} on {f.get('target', '?')}", transform=ax.get_xaxis_transform(),
-                    fontsize=6, color="0.3", va="bottom", ha="left", clip_on=False)
+            drawn.append(ax.text(f["onset"], 1.0, f" {f.get('name', 'fault')} on {f.get('target', '?')}",
+                                 transform=ax.get_xaxis_transform(), fontsize=6, color="0.3", va="bottom", ha="left",
+                                 clip_on=False))
+    return drawn
+
+
+def decade_label(value: float, _position=None) -> str:
+    """A log axis' tick label at a power of ten ("0.01", "1", "100"; "1e-5", "1e4" beyond three decades), ""
+    elsewhere. Plain text, so the label needs no mathtext parse (matplotlib's default log labels are mathtext, a
+    large part of a panel's cost)."""
+    if not value > 0:
+        return ""
+    exponent = int(round(np.log10(value)))
+    if abs(value / 10.0 ** exponent - 1) > 1e-9:
+        return ""
+    return f"{10.0 ** exponent:g}" if -3 <= exponent <= 3 else f"1e{exponent}"
+
+
+class _ResidualPanels:
+    """The panels of residual figures of one layout (rows × cols, m components), drawn once and reused: each
+    figure of the layout draws its curves, saves, and removes them again, so the axes and their tick artists (most
+    of a panel's cost in matplotlib) are made once per layout, not once per figure."""
+
+    def __init__(self, rows: int, cols: int, m: int):
+        self.rows, self.cols, self.m = rows, cols, m
+        self.fig, self.axes = fixed_grid(rows, cols, (4.5, 0.95))
+        self.used = [self.axes[j % rows, j // rows] for j in range(m)]
+        for j in range(m, rows * cols):
+            self.axes[j % rows, j // rows].set_axis_off()
+        for j, ax in enumerate(self.used):
+            last = j % rows == rows - 1 or j == m - 1          # the lowest panel of its column: time labelled there
+            ax.xaxis.set_major_locator(MaxNLocator(5) if last else NullLocator())
+            if last:
+                ax.set_xlabel("time [s]")
+            ax.tick_params(labelsize=7)
+            ax.set_yscale("log")
+            ax.yaxis.set_major_locator(LogLocator(numticks=3))    # a few decades labelled, no minor ticks
+            ax.yaxis.set_minor_locator(NullLocator())
+            ax.yaxis.set_major_formatter(FuncFormatter(decade_label))
+        self.title = self.fig.suptitle("", fontsize=9)
+
+    def draw(self, record: Record, diagnoser: str, path: str | Path) -> Path:
+        tr = record.diagnosers[diagnoser]
+        faults = record.meta.get("faults", [])
+        span = tr.time[-1] - tr.time[0] if len(tr.time) > 1 else 1.0
+        units = tr.units.get("residual") or [""] * self.m
+        drawn = []
+        for j, (ax, comp) in enumerate(zip(self.used, tr.components)):
+            thr = tr.threshold[j] if np.isfinite(tr.threshold[j]) else np.max(np.abs(tr.residual[:, j])) + 1e-12
+            floor = thr * 1e-3
+            r = np.maximum(np.abs(tr.residual[:, j]), floor)
+            drawn += ax.plot(tr.time, r, lw=0.8, color="C0")
+            drawn.append(ax.axhline(tr.threshold[j], color="k", ls="--", lw=0.8))
+            hit = tr.alarm[:, j]
+            if hit.any():
+                drawn += ax.plot(tr.time[hit], r[hit], ".", ms=2, color="C3")
+            drawn += _onsets(ax, faults, label=j % self.rows == 0)
+            ax.set_ylabel(f"|{comp}| [{units[j]}]" if units[j] else comp, fontsize=7)
+            ax.set_xlim(tr.time[0] - 0.02 * span, tr.time[-1] + 0.02 * span)
+            ax.set_ylim(floor, max(r.max(), thr) * 2)
+        self.title.set_text(f"{record.scenario}: {diagnoser} residuals |r_i| vs thresholds (dashed); alarms in red; "
+                            "true fault onsets dotted")
+        path = Path(path)
+        self.fig.savefig(path, dpi=110)
+        for artist in drawn:
+            artist.remove()
+        return path
+
+    def close(self) -> None:
+        plt.close(self.fig)
+
+
+def _layout(record: Record, diagnoser: str) -> tuple[int, int, int]:
+    m = len(record.diagnosers[diagnoser].components)
+    cols = 2 if m > 6 else 1
+    return int(np.ceil(m / cols)), cols, m
+
+
+def plot_residual_figures(record: Record, paths) -> list[Path]:
+    """One residual figure per diagnoser (``paths``: diagnoser → file; see :func:`plot_residuals`), the diagnosers
+    of one panel layout drawn on one reused set of axes. Returns the paths written."""
+    panels: dict[tuple, _ResidualPanels] = {}
+    written = []
+    try:
+        for diagnoser, path in paths.items():
+            key = _layout(record, diagnoser)
+            if key not in panels:
+                panels[key] = _ResidualPanels(*key)
+            written.append(panels[key].draw(record, diagnoser, path))
+    finally:
+        for p in panels.values():
+            p.close()
+    return written
 
 
 def plot_residuals(record: Record, diagnoser: str, path: str | Path) -> Path:
-    """One panel per residual component: |r_i| (solid), threshold (dashed), alarm samples (red), fault onsets."""
-    tr = record.diagnosers[diagnoser]
-    m = len(tr.components)
-    cols = 2 if m > 6 else 1
-    rows = int(np.ceil(m / cols))
-    fig, axes = fixed_grid(rows, cols, (4.5, 0.95), sharex=True)
-    faults = record.meta.get("faults", [])
-    for j, comp in enumerate(tr.components):
-        ax = axes[j % rows, j // rows]
-        thr = tr.threshold[j] if np.isfinite(tr.threshold[j]) else np.max(np.abs(tr.residual[:, j])) + 1e-12
-        floor = thr * 1e-3
-        r = np.maximum(np.abs(tr.residual[:, j]), floor)
-        ax.plot(tr.time, r, lw=0.8, color="C0")
-        ax.axhline(tr.threshold[j], color="k", ls="--", lw=0.8)
-        hit = tr.alarm[:, j]
-        if hit.any():
-            ax.plot(tr.time[hit], r[hit], ".", ms=2, color="C3")
-        _onsets(ax, faults, label=j % rows == 0)
-        unit = (tr.units.get("residual") or [""] * m)[j]
-        ax.set_ylabel(f"|{comp}| [{unit}]" if unit else comp, fontsize=7)
-        ax.tick_params(labelsize=7)
-        ax.set_yscale("log")
-        ax.yaxis.set_major_locator(LogLocator(numticks=3))    # a few decades labelled, no minor ticks: cheap to draw
-        ax.yaxis.set_minor_locator(NullLocator())
-        ax.set_ylim(floor, max(r.max(), thr) * 2)
-    for ax in axes[-1]:
-        ax.set_xlabel("time [s]")
-    axes[0, 0].xaxis.set_major_locator(MaxNLocator(5))       # shared by every panel (sharex)
-    fig.suptitle(f"{record.scenario}: {diagnoser} residuals |r_i| vs thresholds (dashed); alarms in red; true fault "
-                 "onsets dotted", fontsize=9)
-    return save_figure(fig, path, tight=False)
+    """One panel per residual component: |r_i| (solid), threshold (dashed), alarm samples (red), fault onsets
+    (dotted). Two columns for more than six components; time is labelled on each column's lowest panel."""
+    return plot_residual_figures(record, {diagnoser: path})[0]
 
 
 def plot_estimates(record: Record, path: str | Path, diagnosers=None) -> Path:

@@ -6,7 +6,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from robofdi.errors import RobofdiError
-from robofdi.evaluate.figures import plot_estimates, plot_residuals
+from robofdi.evaluate.figures import plot_estimates, plot_residual_figures
 from robofdi.evaluate.headline import settle_lead
 from robofdi.evaluate.summary import write_summary
 from robofdi.record import Record
@@ -90,8 +90,7 @@ def write_run_folder(run_dir: Path, record: Record, summary: Mapping, others: Ma
     (run_dir / PARTIAL).unlink(missing_ok=True)
     figures = run_dir / "figures"
     figures.mkdir(exist_ok=True)
-    for d in record.diagnosers:
-        plot_residuals(record, d, figures / f"residuals_{d}.png")
+    plot_residual_figures(record, {d: figures / f"residuals_{d}.png" for d in record.diagnosers})
     plot_estimates(record, figures / "estimates.png")
     write = replay_writer() if replay else None
     if write is not None:
