@@ -36,7 +36,7 @@ except ModuleNotFoundError:        # Python 3.10
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from arm_quality import per_class, quality  # noqa: E402
+from arm_quality import per_class, quality, settings_option  # noqa: E402
 
 from robofdi.campaign import run_campaign  # noqa: E402
 from robofdi.campaign.results import load  # noqa: E402
@@ -71,21 +71,6 @@ def drive_inertia(option: str, name: str) -> float:
         raise SystemExit(f'--drive-inertia: expected "auto" or an armature per unit torque limit >= 0 s², '
                          f"got {option!r}")
     return value
-
-
-def settings_option(items) -> dict:
-    """--set NAME=VALUE … as [system] fields (e.g. the diagnosers' ``consistency_tail=exponential``): each VALUE
-    read as a TOML value, else as a string."""
-    out = {}
-    for item in items or ():
-        name, eq, value = item.partition("=")
-        if not eq or not name.strip():
-            raise SystemExit(f"--set: expected NAME=VALUE, got {item!r}")
-        try:
-            out[name.strip()] = tomllib.loads(f"v = {value}")["v"]
-        except tomllib.TOMLDecodeError:
-            out[name.strip()] = value
-    return out
 
 
 def acceptance_spec(name: str, speed: str, inertia: str = "auto", seed: int | None = None,

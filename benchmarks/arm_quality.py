@@ -2,6 +2,7 @@
 
     python benchmarks/arm_quality.py [--robots arm6.xml arm7.xml] [--workers 2] [--out runs/arm-quality]
                                      [--runs N] [--seed S] [--diagnosers momentum consistency]
+                                     [--set NAME=VALUE …]
 
 --seed draws another campaign of the same design (the robot instance and its calibration stay those of the TOML:
 the faults and motions are new), the check that nothing was tuned to the shipped campaign's seed.
@@ -129,6 +130,21 @@ def per_class(table: pd.DataFrame, diagnoser: str) -> pd.DataFrame:
                          "correct": g["correct"].sum(), "median size": g["size"].median()})
 
 
+def settings_option(items) -> dict:
+    """--set NAME=VALUE … as [system] fields (e.g. the diagnosers' ``consistency_tail=exponential``): each VALUE
+    read as a TOML value, else as a string."""
+    out = {}
+    for item in items or ():
+        name, eq, value = item.partition("=")
+        if not eq or not name.strip():
+            raise SystemExit(f"--set: expected NAME=VALUE, got {item!r}")
+        try:
+            out[name.strip()] = tomllib.loads(f"v = {value}")["v"]
+        except tomllib.TOMLDecodeError:
+            out[name.strip()] = value
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--robots", nargs="+", default=["arm6.xml", "arm7.xml"])
@@ -137,8 +153,11 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=None, help="only the first N runs (a prefix of the campaign)")
     ap.add_argument("--seed", type=int, default=None, help="campaign seed (default: the TOML's)")
     ap.add_argument("--diagnosers", nargs="+", default=None, help="a subset of the TOML's diagnosers")
+    ap.add_argument("--set", nargs="+", default=None, metavar="NAME=VALUE",
+                    help="more [system] fields, e.g. consistency_calibration_motions=6")
     args = ap.parse_args()
     spec = tomllib.loads((HERE / "arm_quality.toml").read_text())
+    spec["system"].update(settings_option(args.set))
     if args.seed is not None:
         spec["seed"] = args.seed
     if args.diagnosers:

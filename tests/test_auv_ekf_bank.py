@@ -60,3 +60,41 @@ def test_odin_bank_isolates_a_horizontal_thruster_without_accommodation():
                      faults=(Fault("thruster2_off", "actuator_float", "thruster2", onset=34.0),))
     cal = calibrate(sc)
     _check(run_scenario(sc, cal), sc)
+
+
+def test_the_process_noise_search_ends_where_plain_bisection_ends():
+    """calibrate_process_noise evaluates the bisection's next steps together (stacked nominal filters, one pass over
+    the runs for three steps): on a real fault-free AUV run it must return the q that bisection one level at a time
+    returns, and the stacked filters' NIS must be each filter's own to rounding."""
+    from robofdi.loop import diagnoser_inputs
+    from robofdi.observers.ekf_bank import _drives, _nominal_nis_of, calibrate_process_noise
+    from robofdi.decision import startup_samples
+    from robofdi.systems.auv import _ekf_bank, calibration_records
+
+    sc = AuvScenario(name="test-ekf-q", duration=20.0, variant="no_ftc", diagnosers=("ekf_bank",), calibration_runs=1,
+                     calibration_duration=20.0)
+    sim = sc.simulator()
+    model = sc.nominal_model(sim)
+    runs = [diagnoser_inputs(r) for r in calibration_records(sc)]
+    skip = startup_samples(sc.plant.control_dt, sc.blanking)
+
+    def make(q):
+        return _ekf_bank(sc, model, sim.sensor_channels, q)
+
+    drives = _drives(make(1.0), *runs[0])
+    qs = [1e-2, 0.3, 10.0]
+    stacked = _nominal_nis_of(make(qs[0]), drives, np.stack([make(q).Q for q in qs]))
+    alone = np.column_stack([_nominal_nis_of(make(q), drives) for q in qs])
+    np.testing.assert_allclose(stacked, alone, rtol=1e-12)
+    assert not np.allclose(alone[:, 0], alone[:, 2])         # the levels differ: the test sees which is which
+
+    def peak(q):
+        bank = make(q)
+        return float(_nominal_nis_of(bank, drives)[skip:].max()) / bank.bound
+
+    lo, hi = np.log(1e-3), np.log(1e4)
+    for _ in range(8):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if peak(np.exp(mid)) * sc.ekf_margin > 1 else (lo, mid)
+    for depth in (1, 3, 8):
+        assert calibrate_process_noise(runs, make, skip, sc.ekf_margin, depth=depth) == float(np.exp(hi))

@@ -235,33 +235,61 @@ def _drives(bank: EkfBank, y: np.ndarray, u: np.ndarray) -> list[tuple[np.ndarra
     return out
 
 
-def _nominal_nis_of(bank: EkfBank, drives) -> np.ndarray:
+def _nominal_nis_of(bank: EkfBank, drives, Q: np.ndarray | None = None) -> np.ndarray:
     """The nominal filter's windowed NIS from one run's (z, thrust) pairs (:func:`_drives`, computed once for every
-    process-noise level); ``bank`` keeps only its nominal filter."""
-    bank._mask = bank._mask[:1]
+    process-noise level); ``bank`` keeps only its nominal filter. With ``Q`` (k, 6, 6): k nominal filters, one per
+    process-noise matrix, stepped together (stacked, each filter's numbers as alone) → (samples, k)."""
+    bank._mask = bank._mask[:1] if Q is None else np.ones((len(Q), bank._mask.shape[1]))
+    if Q is not None:
+        bank.Q = Q
     bank.reset()
-    return np.array([bank._filter(z, thrust).r[0] for z, thrust in drives])
+    nis = np.array([bank._filter(z, thrust).r for z, thrust in drives])
+    return nis[:, 0] if Q is None else nis
+
+
+def _bisection_midpoints(lo: float, hi: float, depth: int) -> dict[tuple[float, float], float]:
+    """Every midpoint bisection on [lo, hi] can visit in its next ``depth`` steps, keyed by its interval, computed
+    as bisection computes it (0.5 (a + b)), so a search that evaluates them together ends where bisection ends."""
+    mids, level = {}, [(lo, hi)]
+    for _ in range(depth):
+        nxt = []
+        for a, b in level:
+            mids[(a, b)] = m = 0.5 * (a + b)
+            nxt += [(a, m), (m, b)]
+        level = nxt
+    return mids
 
 
 def calibrate_process_noise(runs, make_bank, skip: int, margin: float = 1.25, bounds=(1e-3, 1e4),
-                            iterations: int = 8) -> float:
+                            iterations: int = 8, depth: int = 3) -> float:
     """The force-mismatch level q [N²] of :class:`EkfBank` from fault-free runs ``runs`` = [(y, u), ...] (as
     :func:`robofdi.loop.diagnoser_inputs`): the smallest q (bisection in log q) for which the nominal filter's
-    windowed NIS stays below bound/margin on every run after ``skip`` samples. ``make_bank(q)`` builds the bank."""
+    windowed NIS stays below bound/margin on every run after ``skip`` samples. ``make_bank(q)`` builds the bank.
+    The bisection's next ``depth`` steps are evaluated in one pass over the runs (the 2^depth − 1 midpoints they can
+    visit, as stacked nominal filters), so ``iterations`` steps take ⌈iterations/depth⌉ passes, not ``iterations``;
+    the result is the bisection's."""
+    if not (isinstance(depth, int) and depth >= 1):
+        raise RobofdiError(f"calibrate_process_noise: field 'depth' must be an integer >= 1, got {depth!r}")
     drives = [_drives(make_bank(bounds[1]), y, u) for y, u in runs]
 
-    def peak(q):
-        bank = make_bank(q)
-        return max(float(_nominal_nis_of(bank, d)[skip:].max()) for d in drives) / bank.bound
+    def peaks(log_qs) -> dict[float, float]:
+        banks = [make_bank(np.exp(x)) for x in log_qs]
+        Q = np.stack([b.Q for b in banks])
+        worst = np.max([_nominal_nis_of(banks[0], d, Q)[skip:].max(axis=0) for d in drives], axis=0)
+        return dict(zip(log_qs, worst / banks[0].bound))
 
     lo, hi = np.log(bounds[0]), np.log(bounds[1])
-    if peak(np.exp(hi)) * margin > 1:
-        raise RobofdiError(f"calibrate_process_noise: even q = {bounds[1]:g} N² leaves the fault-free NIS above "
-                           "the χ² bound; the nominal model misses something")
-    for _ in range(iterations):
-        mid = 0.5 * (lo + hi)
-        if peak(np.exp(mid)) * margin > 1:
-            lo = mid
-        else:
-            hi = mid
+    for start in range(0, max(iterations, 1), depth):         # iterations = 0: the check of the upper bound only
+        steps = min(depth, iterations - start)
+        mids = _bisection_midpoints(lo, hi, steps)
+        peak = peaks(([hi] if start == 0 else []) + list(mids.values()))
+        if start == 0 and peak[hi] * margin > 1:
+            raise RobofdiError(f"calibrate_process_noise: even q = {bounds[1]:g} N² leaves the fault-free NIS above "
+                               "the χ² bound; the nominal model misses something")
+        for _ in range(steps):
+            mid = mids[(lo, hi)]
+            if peak[mid] * margin > 1:
+                lo = mid
+            else:
+                hi = mid
     return float(np.exp(hi))
