@@ -18,7 +18,8 @@ __all__ = ["plot_residuals", "plot_residual_figures", "plot_estimates", "decade_
 
 def save_figure(fig, path: str | Path, dpi: int = 110, tight: bool = True) -> Path:
     """Lay out (``tight``: ``tight_layout``; False for a figure made with a fixed layout, :func:`fixed_grid`),
-    write and close a figure (every robofdi figure goes through here); returns the path."""
+    write and close a figure (every robofdi figure goes through here, but the residual figures, whose reused axes
+    close once after the last of them: :func:`plot_residual_figures`); returns the path."""
     path = Path(path)
     if tight:
         fig.tight_layout()

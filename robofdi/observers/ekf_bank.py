@@ -238,7 +238,8 @@ def _drives(bank: EkfBank, y: np.ndarray, u: np.ndarray) -> list[tuple[np.ndarra
 def _nominal_nis_of(bank: EkfBank, drives, Q: np.ndarray | None = None) -> np.ndarray:
     """The nominal filter's windowed NIS from one run's (z, thrust) pairs (:func:`_drives`, computed once for every
     process-noise level); ``bank`` keeps only its nominal filter. With ``Q`` (k, 6, 6): k nominal filters, one per
-    process-noise matrix, stepped together (stacked, each filter's numbers as alone) → (samples, k)."""
+    process-noise matrix, stepped together → (samples, k); each column equals that filter alone to rounding (a
+    (W, k) window's mean sums row by row, a (W, 1) one pairwise)."""
     bank._mask = bank._mask[:1] if Q is None else np.ones((len(Q), bank._mask.shape[1]))
     if Q is not None:
         bank.Q = Q
@@ -267,7 +268,7 @@ def calibrate_process_noise(runs, make_bank, skip: int, margin: float = 1.25, bo
     windowed NIS stays below bound/margin on every run after ``skip`` samples. ``make_bank(q)`` builds the bank.
     The bisection's next ``depth`` steps are evaluated in one pass over the runs (the 2^depth − 1 midpoints they can
     visit, as stacked nominal filters), so ``iterations`` steps take ⌈iterations/depth⌉ passes, not ``iterations``;
-    the result is the bisection's."""
+    the midpoints and the decisions are the bisection's (the stacked NIS equal each filter's alone to rounding)."""
     if not (isinstance(depth, int) and depth >= 1):
         raise RobofdiError(f"calibrate_process_noise: field 'depth' must be an integer >= 1, got {depth!r}")
     drives = [_drives(make_bank(bounds[1]), y, u) for y, u in runs]
