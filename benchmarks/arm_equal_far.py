@@ -32,8 +32,8 @@ import pandas as pd
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from arm_acceptance import acceptance_spec, drive_inertia, settings_option  # noqa: E402
-from arm_quality import _class  # noqa: E402
+from arm_acceptance import acceptance_spec, drive_inertia  # noqa: E402
+from arm_quality import _class, settings_option  # noqa: E402
 
 from robofdi.campaign.runs import draw_fault, faulty_indices, run_seed  # noqa: E402
 from robofdi.campaign.spec import parse_spec  # noqa: E402

@@ -66,9 +66,9 @@ def test_the_process_noise_search_ends_where_plain_bisection_ends():
     """calibrate_process_noise evaluates the bisection's next steps together (stacked nominal filters, one pass over
     the runs for three steps): on a real fault-free AUV run it must return the q that bisection one level at a time
     returns, and the stacked filters' NIS must be each filter's own to rounding."""
+    from robofdi.decision import startup_samples
     from robofdi.loop import diagnoser_inputs
     from robofdi.observers.ekf_bank import _drives, _nominal_nis_of, calibrate_process_noise
-    from robofdi.decision import startup_samples
     from robofdi.systems.auv import _ekf_bank, calibration_records
 
     sc = AuvScenario(name="test-ekf-q", duration=20.0, variant="no_ftc", diagnosers=("ekf_bank",), calibration_runs=1,

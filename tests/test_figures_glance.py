@@ -138,7 +138,7 @@ def _residual_record() -> Record:
 
 def test_residual_figures_drawn_on_reused_axes_equal_figures_drawn_alone(tmp_path):
     """plot_residual_figures draws the diagnosers of one panel layout on one set of axes: nothing of the one drawn
-    before may be left in the next (pixel for pixel the same PNG as drawn alone), and unused panels stay blank."""
+    before may be left in the next (pixel for pixel the same PNG as drawn alone)."""
     from matplotlib.image import imread
 
     from robofdi.evaluate.figures import decade_label, plot_residual_figures, plot_residuals

@@ -74,7 +74,7 @@ class _ResidualPanels:
     of a panel's cost in matplotlib) are made once per layout, not once per figure."""
 
     def __init__(self, rows: int, cols: int, m: int):
-        self.rows, self.cols, self.m = rows, cols, m
+        self.rows, self.m = rows, m
         self.fig, self.axes = fixed_grid(rows, cols, (4.5, 0.95))
         self.used = [self.axes[j % rows, j // rows] for j in range(m)]
         for j in range(m, rows * cols):
