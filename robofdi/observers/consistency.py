@@ -78,8 +78,8 @@ from robofdi.jit import einsum, kernel
 from robofdi.models.friction import JointFriction
 from robofdi.models.manipulator import ManipulatorModel
 from robofdi.observers.kinematic import (
-    WINDOWS, KinematicConsistency, design_window_scales, identify_ripple, identify_skew, kinematic_increments,
-    window_reach,
+    WINDOWS, KinematicConsistency, design_window_scales, identify_noise_walk, identify_ripple, identify_skew,
+    kinematic_increments, window_reach,
 )
 from robofdi.observers.momentum import MomentumObserver, identify_friction
 from robofdi.observers.payload import PayloadRegressor, payload_evidence
@@ -114,8 +114,10 @@ class ConsistencyDesign:
     nominal ripple orders (n, n_orders) [cycles/rad] whose aliasing the kinematic rows cover
     (:func:`~robofdi.observers.kinematic.ripple_orders`) with their identified per-sample errors
     ``ripple_amplitude`` (n, n_orders) [rad] (:func:`~robofdi.observers.kinematic.identify_ripple`; None: none),
-    and ``impulse_scale`` (n,) [N·m·s], the fault-free spread of the torque impulse (r_k − r_{k−1}) / K_O per
-    joint that weighs the velocity innovation (:meth:`ConsistencyResidual.velocity_innovation`; None: equal)."""
+    ``impulse_scale`` (n,) [N·m·s], the fault-free spread of the torque impulse (r_k − r_{k−1}) / K_O per
+    joint that weighs the velocity innovation (:meth:`ConsistencyResidual.velocity_innovation`; None: equal),
+    and ``noise_walk`` (n,) [rad], the long-run standard deviation per sample of the kinematic increments' noise
+    that floors the window scales (:func:`~robofdi.observers.kinematic.identify_noise_walk`; None: not identified)."""
 
     friction: JointFriction
     envelope: np.ndarray
@@ -129,9 +131,10 @@ class ConsistencyDesign:
     ripple_orders: np.ndarray | None = None
     ripple_amplitude: np.ndarray | None = None
     impulse_scale: np.ndarray | None = None
+    noise_walk: np.ndarray | None = None
 
     #: The optional arrays of :meth:`arrays` (absent when None).
-    OPTIONAL = ("reach", "ripple_orders", "ripple_amplitude", "impulse_scale")
+    OPTIONAL = ("reach", "ripple_orders", "ripple_amplitude", "impulse_scale", "noise_walk")
 
     def step_bound(self, speed: np.ndarray) -> np.ndarray:
         """(n,) bound [rad/s] of the fault-free |ν| at joint speeds ``speed`` (n,) [rad/s]: c₀ + c₁ |speed|."""
@@ -371,7 +374,9 @@ def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray,
     qs = [np.asarray(Y)[:, :n] for Y, _ in runs]
     vs = [np.asarray(Y)[:, n:] for Y, _ in runs]
     skew = identify_skew(qs, vs, T, skip)
-    scales = design_window_scales([kinematic_increments(q, v, T, skew) for q, v in zip(qs, vs)], vs, T, skip, windows)
+    increments = [kinematic_increments(q, v, T, skew) for q, v in zip(qs, vs)]
+    walk = identify_noise_walk(increments, skip)
+    scales = design_window_scales(increments, vs, T, skip, windows, noise_walk=walk)
     orders = None if ripple_orders is None else np.asarray(ripple_orders, dtype=float)
     if orders is not None and (orders.ndim != 2 or orders.shape[0] != n):
         raise RobofdiError(f"design_consistency: field 'ripple_orders' must be an ({n}, n_orders) array "
@@ -380,7 +385,7 @@ def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray,
     amplitude = None if orders is None else identify_ripple(qs, vs, T, skew, orders, skip,
                                                             fallback=scales[:, int(np.argmin(windows)), 0])
     return ConsistencyDesign(friction, envelope, skew, scales, step, gain, T, tuple(windows), reach, orders, amplitude,
-                             impulse_scale)
+                             impulse_scale, walk)
 
 
 @kernel

@@ -14,6 +14,15 @@ bound over fault-free runs, :func:`robofdi.decision.envelope.design_envelope`), 
 max_W |Σ_W e| / σ_W is dimensionless and ≤ 1 on fault-free data where the scales were designed. Actuator
 faults cannot raise it: the relation is pure kinematics.
 
+The velocity noise, integrated. White velocity noise of σ_v makes the window sums a random walk: Σ_W e has a
+standard deviation of σ_n √W, with σ_n = T σ_v the long-run standard deviation of e's noise per sample (the
+trapezoid integrates the velocity noise; the encoder's quantisation telescopes out of a sum). Near rest σ_W is
+its constant a_W alone, and the tightest bound over the design runs is the largest of a few hundred window sums
+there, about 3 σ_n √W: a lucky low one that runs of an hour exceed by chance (arm7: a 0.5 s window at 4.9 σ_n √W
+as a joint came to rest, with the skew's share). So each window's constant is at least
+:data:`NOISE_WALK_SIGMAS` σ_n √W, with σ_n identified from the design runs' increments
+(:func:`identify_noise_walk`).
+
 The scales are valid over the operating envelope they were designed on: the largest mean_W |q̇| and
 |q̇_k − q̇_{k−W}| seen (``reach``). Outside it the bound is not extrapolated linearly: σ_W is multiplied by how
 far outside the point is (the product of the ratios over the reach, each at least 1), and the samples outside
@@ -53,7 +62,7 @@ from robofdi.jit import kernel
 
 __all__ = ["KinematicConsistency", "kinematic_increments", "identify_skew", "design_window_scales", "WINDOWS",
            "SKEW_INSTRUMENT", "window_reach", "ripple_orders", "identify_ripple", "RIPPLE_CYCLES", "ALIAS_BAND",
-           "ALIAS_SAMPLES"]
+           "ALIAS_SAMPLES", "identify_noise_walk", "NOISE_WALK_SIGMAS", "NOISE_WALK_LAGS"]
 
 #: Window lengths [s] of the accumulated inconsistency (0 = the single sample).
 WINDOWS = (0.0, 0.1, 0.5, 2.0, 4.0)
@@ -62,6 +71,14 @@ WINDOWS = (0.0, 0.1, 0.5, 2.0, 4.0)
 #: unseen motions: arm campaign, run 1 of seed 10); longer windows get at least this window's scale grown as a
 #: random walk, a_W >= a_L √(W/L), b_W >= b_L (the trapezoid and skew errors telescope in a sum: they do not grow).
 LEARNT_WINDOW = 0.5
+#: Standard deviations of the velocity noise's random walk that every window's constant covers: a_W >=
+#: κ σ_n √W (module docstring). A sum of white noise passes 4 σ with a probability of 6.3e-5 per window, and the
+#: calibrated threshold multiplies the scale again; the design's own constants were measured at 2.9–4.6 σ_n √W
+#: (arm7, robot instance 11), the lowest of them the window that alarmed.
+NOISE_WALK_SIGMAS = 4.0
+#: Lags of the autocovariance that :func:`identify_noise_walk` sums: e's noise is a moving average over two
+#: samples (the trapezoid, the skew term and the quantisation difference), with a little room for a drive's filter.
+NOISE_WALK_LAGS = 3
 
 
 #: Samples near an alias, for :func:`identify_ripple`: the ripple phase advance per sample within this fraction of
@@ -130,6 +147,26 @@ def identify_skew(qs: Sequence[np.ndarray], vs: Sequence[np.ndarray], T: float, 
     return num / den
 
 
+def identify_noise_walk(increments: Sequence[np.ndarray], skip: int = 0, lags: int = NOISE_WALK_LAGS) -> np.ndarray:
+    """(n,) long-run standard deviation σ_n [rad] per sample of the fault-free increments e (one (N, n) array per
+    run): √(γ₀ + 2 Σ_{l=1}^{L} γ_l), the autocovariances γ_l of e pooled over the runs (each run's mean removed,
+    samples k < ``skip`` left out), truncated at L = ``lags`` (the long-run variance, Newey & West 1987,
+    Econometrica 55(3)). A window sum of W samples of e's noise then has a standard deviation of σ_n √W; for a
+    drive's white velocity noise σ_v, σ_n = T σ_v."""
+    gamma, count = 0.0, 0
+    for e in increments:
+        e = np.asarray(e, dtype=float)[max(skip, 1):]
+        if e.shape[0] <= lags:
+            continue
+        e = e - e.mean(axis=0)
+        gamma = gamma + np.stack([(e[l:] * e[:e.shape[0] - l]).sum(axis=0) for l in range(lags + 1)])
+        count += e.shape[0]
+    if not count:
+        raise RobofdiError(f"identify_noise_walk: expected fault-free runs longer than skip + {lags} samples")
+    gamma = gamma / count
+    return np.sqrt(np.maximum(gamma[0] + 2 * gamma[1:].sum(axis=0), 0.0))
+
+
 def _window_samples(T: float, windows: Sequence[float]) -> list[int]:
     return [max(1, int(round(w / T))) for w in windows]
 
@@ -158,10 +195,12 @@ def _window_features(v: np.ndarray, sizes: Sequence[int]) -> tuple[np.ndarray, n
 
 
 def design_window_scales(increments: Sequence[np.ndarray], velocities: Sequence[np.ndarray], T: float,
-                         skip: int = 0, windows: Sequence[float] = WINDOWS) -> np.ndarray:
+                         skip: int = 0, windows: Sequence[float] = WINDOWS,
+                         noise_walk: np.ndarray | None = None) -> np.ndarray:
     """Scale coefficients (n, len(windows), 3) = (a_W, b_W, c_W) [rad, rad/(rad/s), s] of
     σ_W = a_W + b_W mean_W |q̇| + c_W |q̇_k − q̇_{k−W}|: the tightest such bound on |Σ_W e| over fault-free runs
-    (increments e and velocities: one (N, n) each)."""
+    (increments e and velocities: one (N, n) each), each constant at least :data:`NOISE_WALK_SIGMAS` σ_n √W given
+    the noise's long-run standard deviation ``noise_walk`` σ_n (n,) [rad] (:func:`identify_noise_walk`)."""
     if not increments or len(increments) != len(velocities):
         raise RobofdiError("design_window_scales: expected as many increment as velocity runs (>= 1)")
     sizes = _window_samples(T, windows)
@@ -173,6 +212,12 @@ def design_window_scales(increments: Sequence[np.ndarray], velocities: Sequence[
         coef[:, j] = design_envelope([_scale_features(f[0][..., j], f[1][..., j]) for f in feats],
                                      [s[..., j] for s in sums], skip)
     coef[..., 0] = np.maximum(coef[..., 0], 1e-9)      # a quantised, resting joint still gets a positive scale
+    if noise_walk is not None:                          # the velocity noise's random walk (module docstring)
+        walk = np.asarray(noise_walk, dtype=float)
+        if walk.shape != (n,) or not np.all(np.isfinite(walk) & (walk >= 0)):
+            raise RobofdiError(f"design_window_scales: field 'noise_walk' must be {n} finite values >= 0 [rad], "
+                               f"got {noise_walk!r}")
+        coef[..., 0] = np.maximum(coef[..., 0], NOISE_WALK_SIGMAS * walk[:, None] * np.sqrt(sizes)[None, :])
     learnt = [j for j, w in enumerate(windows) if w <= LEARNT_WINDOW]
     if learnt:
         base = max(learnt, key=lambda j: windows[j])
