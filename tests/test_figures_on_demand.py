@@ -69,6 +69,22 @@ def test_another_record_of_the_folder_gets_its_own_figure_folder(folders, tmp_pa
     assert not any((run / "figures").glob("*.png"))                     # the main record's figures untouched
 
 
+def test_a_new_run_in_the_folder_removes_the_figures_of_the_earlier_run_it_does_not_redraw(folders, tmp_path):
+    out, names, lead = folders
+    from robofdi.record import load
+
+    run = shutil.copytree(out["all"], tmp_path / "run")
+    assert main(["figures", str(run), "--record", "fault_free"]) == 0
+    record, fault_free = load(run / "record.h5"), load(run / "fault_free.h5")
+    write_run_folder(run, record, summarize(record, "ch3-actuator"), {"fault_free": fault_free}, replay=False)
+    assert sorted(p.relative_to(run).as_posix() for p in (run / "figures").rglob("*")) == \
+        ["figures/estimates.png", f"figures/residuals_{lead}.png"]
+    name = f"residuals_{lead}.png"
+    assert (run / "figures" / name).read_bytes() == (out["all"] / "figures" / name).read_bytes()
+    write_run_folder(run, record, summarize(record, "ch3-actuator"), replay=False, figures="none")
+    assert not any((run / "figures").iterdir())
+
+
 def test_the_setting_and_the_command_line_choose_the_figures(folders, tmp_path, capsys):
     out, names, lead = folders
     from robofdi.record import load

@@ -20,7 +20,7 @@ from robofdi.evaluate.summary import write_summary
 from robofdi.record import Record
 
 __all__ = ["prepare_run_dir", "write_run_folder", "keep_partial", "replay_writer", "PARTIAL", "FIGURE_CHOICES",
-           "check_figures", "figures_setting", "residual_figures_left", "draw_figures"]
+           "check_figures", "current_figures", "figures_setting", "residual_figures_left", "draw_figures"]
 
 #: what an interrupted or failed run recorded, in its run folder
 PARTIAL = "partial.h5"
@@ -118,7 +118,8 @@ def write_run_folder(run_dir: Path, record: Record, summary: Mapping, others: Ma
     (:func:`~robofdi.evaluate.headline.settle_lead`) and written into the summary and the record, so the printed
     table, the replay and the figure drawn lead with the same one. The summary is written first (small, and all a
     full disk should not cost); every file is written atomically; a stale ``partial.h5`` of an earlier interrupted
-    run in this folder is removed once the records are written."""
+    run in this folder is removed once the records are written, and so are the generic figures of an earlier run
+    that this one does not draw again."""
     figures = current_figures() if figures is None else check_figures("figures", figures)
     if isinstance(summary, dict):
         settle_lead(summary, record)
@@ -134,10 +135,15 @@ def write_run_folder(run_dir: Path, record: Record, summary: Mapping, others: Ma
     (run_dir / PARTIAL).unlink(missing_ok=True)
     folder = run_dir / "figures"
     folder.mkdir(exist_ok=True)
+    names = []
+    scored = summary.get("diagnosers") if isinstance(summary, Mapping) else None
     if figures != "none":
-        lead = record_lead(record, summary.get("diagnosers") if isinstance(summary, Mapping) else None)
+        lead = record_lead(record, scored)
         names = list(record.diagnosers) if figures == "all" else [lead] if lead in record.diagnosers else []
-        _draw(record, folder, names, estimates=True)
+    _clear_stale(folder, [f"residuals_{d}.png" for d in names] + ["estimates.png"] * (figures != "none"),
+                 list(others or {}))
+    if figures != "none":            # the estimates' colours in the summary's order, as robofdi figures draws them
+        _draw(record, folder, names, estimates=True, order=list(scored) if isinstance(scored, Mapping) else ())
     write = replay_writer() if replay else None
     if write is not None:
         write(record, run_dir / "replay.html")
@@ -155,6 +161,20 @@ def _draw(record: Record, folder: Path, names: Sequence[str], estimates: bool, o
     if estimates:
         written.append(plot_estimates(record, folder / "estimates.png", _ordered(record.diagnosers, order)))
     return written
+
+
+def _clear_stale(folder: Path, drawn: Sequence[str], others: Sequence[str]) -> None:
+    """Remove the generic figures of an earlier run in this folder that this run does not draw again (in
+    ``figures/`` but ``drawn``, and in ``figures/<record>/`` of the run's other records), so that every generic
+    figure in the folder is this run's: ``residuals_*.png`` and ``estimates.png``."""
+    for sub in [folder, *(folder / name for name in others)]:
+        if not sub.is_dir():
+            continue
+        for path in [*sub.glob("residuals_*.png"), sub / "estimates.png"]:
+            if not (sub == folder and path.name in drawn):
+                path.unlink(missing_ok=True)
+        if sub != folder and not any(sub.iterdir()):
+            sub.rmdir()
 
 
 def _ordered(names, order: Sequence[str]) -> list[str]:
