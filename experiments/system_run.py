@@ -4,7 +4,7 @@ For a system without an experiment of its own (a user's plug-in, or ``package.mo
 default options, the calibration of its first robot instance (cached, :mod:`robofdi.calibration`), one mission
 drawn from the seed (the same draw a campaign makes: :mod:`robofdi.campaign.runs`), the ``--fault`` specs
 checked against the system's fault targets, every diagnoser online. The run folder holds summary.json,
-record.h5 and the residual figures.
+record.h5 and the lead diagnoser's residual figure (``robofdi figures RUN`` draws the others).
 """
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""`robofdi list | run NAME | demo | view RUN | campaign SPEC | cache` — the command line.
+"""`robofdi list | run NAME | demo | view RUN | figures RUN | diagnose LOG | campaign SPEC | cache` — the command line.
 
 ``run NAME``: an experiment (:func:`robofdi.experiments.experiments`: the shipped ones and those of installed
 plug-ins), else a registered system (:mod:`robofdi.systems`, or ``package.module:attribute``) run once with the
@@ -56,11 +56,13 @@ def _is_system(name: str) -> bool:
 
 def _cmd_run(args) -> int:
     from robofdi.evaluate.headline import run_report
+    from robofdi.evaluate.run_folder import check_figures, figures_setting
     from robofdi.loop import RunAborted, RunInterrupted
     from robofdi.seeding import check_seed
 
     experiments = _experiments()
     check_seed("--seed", args.seed)
+    check_figures("--figures", args.figures)
     if args.name in experiments:
         _, mod = experiments[args.name]
     elif _is_system(args.name):
@@ -80,7 +82,8 @@ def _cmd_run(args) -> int:
         if not options["joints"]:
             raise RobofdiError(f"--joints: expected comma-separated joint names, got {args.joints!r}")
     try:
-        summary, run_dir = mod.run(args.name, args.out, args.seed, progress=not args.quiet, **options)
+        with figures_setting(args.figures, "--figures"):
+            summary, run_dir = mod.run(args.name, args.out, args.seed, progress=not args.quiet, **options)
     except RunInterrupted as exc:        # a calibration run, or a run whose partial record could not be saved
         where = f"recorded so far: {exc.partial_path}" if exc.partial_path else "nothing of it was saved"
         print(f"robofdi: {exc} ({where})", file=sys.stderr)
@@ -95,6 +98,31 @@ def _cmd_run(args) -> int:
         record = replay.parent / "record.h5"
         view = f", or `robofdi view {record}`" if record.is_file() else ""
         print(f"3-D replay: open {replay} in a browser{view}")
+    _figures_note(run_dir)
+    return 0
+
+
+def _figures_note(run_dir: Path) -> None:
+    """One line when the run folder's residual figures are not all drawn: how to draw the others."""
+    from robofdi.evaluate.run_folder import residual_figures_left
+
+    left = residual_figures_left(run_dir) if (run_dir / "figures").is_dir() else []
+    if left:
+        other = "other " if any((run_dir / "figures").glob("residuals_*.png")) else ""
+        whose = f"{other}diagnoser's" if len(left) == 1 else f"{len(left)} {other}diagnosers'"
+        print(f"figures: `robofdi figures {run_dir}` draws the {whose} residual figures ({', '.join(left)})")
+
+
+def _cmd_figures(args) -> int:
+    from robofdi.evaluate.run_folder import draw_figures
+
+    if args.all and args.diagnosers:
+        raise RobofdiError("--all and --diagnoser: give one (--all redraws every diagnoser's residual figure)")
+    written = draw_figures(args.run, diagnosers=args.diagnosers or (), every=args.all, record=args.record)
+    if not written:
+        print(f"nothing to draw: every residual figure of {args.run} is in its figures folder (--all redraws them)")
+    for path in written:
+        print(path)
     return 0
 
 
@@ -161,9 +189,10 @@ def _segment(text: str) -> tuple[float, float]:
 def _cmd_diagnose(args) -> int:
     import json
 
-    from robofdi.evaluate.run_folder import keep_partial, write_run_folder
+    from robofdi.evaluate.run_folder import check_figures, keep_partial, write_run_folder
     from robofdi.logs import LOG_SCHEMES, diagnose_log, print_table
 
+    check_figures("--figures", args.figures)
     columns = args.columns
     if columns and columns.endswith(".json"):
         try:
@@ -182,13 +211,19 @@ def _cmd_diagnose(args) -> int:
     run_dir = Path(args.out) / f"diagnose-{Path(args.log).name.split('.')[0]}"
     run_dir.mkdir(parents=True, exist_ok=True)
     with keep_partial(run_dir):
-        write_run_folder(run_dir, record, summary, replay=not args.no_replay)
+        write_run_folder(run_dir, record, summary, replay=not args.no_replay, figures=args.figures)
     print(print_table(summary))
     log = summary["log"]
     print(f"\nlog: {log['rows']} rows at {log['rate_hz']:g} Hz ({log['dropouts']} dropouts, longest "
           f"{1e3 * log['longest_gap_s']:.1f} ms; jitter {1e6 * log['jitter_s']:.0f} µs)\nrun folder: {run_dir}")
+    _figures_note(run_dir)
     return 0
 
+
+#: which generic figures a run folder draws (robofdi.evaluate.run_folder.FIGURE_CHOICES)
+FIGURES_HELP = ("lead (default): the lead diagnoser's residual figure and the estimates; all: every diagnoser's; "
+                "none: neither (an experiment's own figures are always drawn); `robofdi figures RUN` draws the others "
+                "later")
 
 #: progress: bars on a terminal, a few lines in a pipe or log (robofdi.progress; ROBOFDI_PROGRESS=bar|plain|off)
 QUIET_HELP = "no progress output (otherwise: a bar per stage on a terminal, a few lines in a pipe or a log)"
@@ -213,6 +248,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--out", default="runs", help="parent folder of the run folder (default: ./runs)")
     run.add_argument("--seed", type=int, default=0, help="the run's seed: the same seed gives the same results (default: 0)")
     run.add_argument("--quiet", action="store_true", help=QUIET_HELP)
+    run.add_argument("--figures", default="lead", metavar="{lead,all,none}", help=FIGURES_HELP)
     arm = run.add_argument_group("options of `run arm` (--fault also of `run robosuite-lift` and of systems)")
     arm.add_argument("--robot", help="the arm's MJCF or URDF file (default: the shipped arm6.xml)")
     arm.add_argument("--fault", dest="faults", action="append", metavar="SPEC",
@@ -229,6 +265,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--out", default="runs")
     demo.add_argument("--seed", type=int, default=0)
     demo.add_argument("--quiet", action="store_true", help=QUIET_HELP)
+    demo.add_argument("--figures", default="lead", metavar="{lead,all,none}", help=FIGURES_HELP)
     demo.set_defaults(func=_cmd_run, name="ch3-actuator", **dict.fromkeys(EXPERIMENT_OPTIONS))
     cache = sub.add_parser("cache", help="the calibration cache: list it, or clear it")
     cache.add_argument("action", nargs="?", choices=("list", "clear"), default="list")
@@ -241,6 +278,16 @@ def build_parser() -> argparse.ArgumentParser:
     view.add_argument("--rerun", nargs="?", const="", default=None, metavar="RRD",
                       help="write the run as a rerun recording instead (default RUN/run.rrd; needs robofdi[rerun])")
     view.set_defaults(func=_cmd_view)
+    figs = sub.add_parser("figures", help="draw a run folder's residual figures from its records (those a run left out)")
+    figs.add_argument("run", metavar="RUN", help="a run folder (or one of its .h5 records)")
+    figs.add_argument("--diagnoser", dest="diagnosers", action="append", metavar="NAME",
+                      help="draw (or redraw) this diagnoser's residual figure; repeatable (default: every one not drawn "
+                           "yet, and the estimates if missing)")
+    figs.add_argument("--all", action="store_true", help="redraw every diagnoser's residual figure and the estimates")
+    figs.add_argument("--record", default="record", metavar="NAME",
+                      help="which record of the folder: record (default: the scored run, figures into RUN/figures/) "
+                           "or another run, e.g. compensated or fault_free (figures into RUN/figures/NAME/)")
+    figs.set_defaults(func=_cmd_figures)
     diag = sub.add_parser("diagnose", help="diagnose a real robot's log (CSV, Parquet or ROS 2 bag of q, q̇, commanded τ)")
     diag.add_argument("log", metavar="LOG", help="a .csv, .csv.gz or .parquet file: time [s], <joint>_q [rad], "
                                                  "<joint>_qd [rad/s], <joint>_tau [N·m] (see --columns); or a ROS 2 "
@@ -258,6 +305,7 @@ def build_parser() -> argparse.ArgumentParser:
     diag.add_argument("--joints", metavar="J1,J2,...", help="the arm joints (default: every motor-driven joint)")
     diag.add_argument("--torque-motors", action="store_true", help="as for robofdi run arm")
     diag.add_argument("--drive-inertia", type=float, metavar="S2", help="as for robofdi run arm")
+    diag.add_argument("--figures", default="lead", metavar="{lead,all,none}", help=FIGURES_HELP)
     diag.add_argument("--out", default="runs", metavar="DIR")
     diag.add_argument("--no-replay", action="store_true", help="no Meshcat replay of the logged motion")
     diag.set_defaults(func=_cmd_diagnose)

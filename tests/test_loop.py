@@ -358,7 +358,8 @@ def test_cli_file_system_errors_are_one_line_naming_the_path(tmp_path):
 
 
 def test_cli_run_writes_the_run_folder(tmp_path):
-    """`robofdi run ch3-sensor`: table on stdout; summary.json (contract), record, figures, replay in the folder."""
+    """`robofdi run ch3-sensor`: table on stdout; summary.json (contract), record, the lead's figures, replay in the
+    folder."""
     out = _cli("run", "ch3-sensor", "--out", str(tmp_path), "--quiet", cwd=tmp_path)
     assert out.returncode == 0, out.stderr
     assert "joint5_pos" in out.stdout and "time_delayed" in out.stdout
@@ -371,6 +372,10 @@ def test_cli_run_writes_the_run_folder(tmp_path):
     assert det["x3"]["isolated"] == "joint3_pos" and det["x5"]["isolated"] == "joint5_pos"
     assert all(check["pass"] for check in summary["reproduction"])
     assert load(run_dir / "record.h5").diagnosers.keys() == summary["diagnosers"].keys()
+    # the lead's residual figure and the estimates; the printout says how to draw the other five
+    assert summary["lead"]["diagnoser"] == "adaptive"
+    assert sorted(p.name for p in (run_dir / "figures").iterdir()) == ["estimates.png", "residuals_adaptive.png"]
     assert (run_dir / "figures" / "residuals_adaptive.png").stat().st_size > 10_000
+    assert f"`robofdi figures {run_dir}` draws the 5 other diagnosers' residual figures" in out.stdout
     html = (run_dir / "replay.html").read_text()
     assert "<script" in html and "src=\"http" not in html
