@@ -74,7 +74,7 @@ LEARNT_WINDOW = 0.5
 #: Standard deviations of the velocity noise's random walk that every window's constant covers: a_W >=
 #: κ σ_n √W (module docstring). A sum of white noise passes 4 σ with a probability of 6.3e-5 per window, and the
 #: calibrated threshold multiplies the scale again; the design's own constants were measured at 2.9–4.6 σ_n √W
-#: (arm7, robot instance 11), the lowest of them the window that alarmed.
+#: (arm7, robot instance 11; joint 6's 0.5 s window, which alarmed on a fault-free run, at 3.0).
 NOISE_WALK_SIGMAS = 4.0
 #: Lags of the autocovariance that :func:`identify_noise_walk` sums: e's noise is a moving average over two
 #: samples (the trapezoid, the skew term and the quantisation difference), with a little room for a drive's filter.
