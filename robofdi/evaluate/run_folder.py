@@ -135,15 +135,19 @@ def write_run_folder(run_dir: Path, record: Record, summary: Mapping, others: Ma
     (run_dir / PARTIAL).unlink(missing_ok=True)
     folder = run_dir / "figures"
     folder.mkdir(exist_ok=True)
-    names = []
     scored = summary.get("diagnosers") if isinstance(summary, Mapping) else None
-    if figures != "none":
+    order = list(scored) if isinstance(scored, Mapping) else []   # the estimates' colours, as robofdi figures has them
+    if figures == "all":
+        names = list(record.diagnosers)
+    elif figures == "lead":
         lead = record_lead(record, scored)
-        names = list(record.diagnosers) if figures == "all" else [lead] if lead in record.diagnosers else []
-    _clear_stale(folder, [f"residuals_{d}.png" for d in names] + ["estimates.png"] * (figures != "none"),
-                 list(others or {}))
-    if figures != "none":            # the estimates' colours in the summary's order, as robofdi figures draws them
-        _draw(record, folder, names, estimates=True, order=list(scored) if isinstance(scored, Mapping) else ())
+        names = [lead] if lead in record.diagnosers else []
+    else:
+        names = []
+    draw = figures != "none"
+    _clear_stale(folder, [f"residuals_{d}.png" for d in names] + ["estimates.png"] * draw, list(others or {}))
+    if draw:
+        _draw(record, folder, names, estimates=True, order=order)
     write = replay_writer() if replay else None
     if write is not None:
         write(record, run_dir / "replay.html")
