@@ -223,13 +223,14 @@ def test_velocity_bias_and_encoder_drift_are_told_apart_by_the_step_row(designed
 
 
 def test_a_velocity_step_below_the_step_alarm_is_isolated_from_its_evidence(designed):
-    """A velocity bias of 1.8× the fault-free bound of ν at the joint's speed (ν at onset is b plus noise): its
-    step row stays below the alarm threshold (2), so without evidence levels only the kinematic row speaks and it
-    is called an encoder drift; counted as evidence from the fault-free bound (1) once the kinematic row has
-    alarmed, it is the velocity sensor."""
+    """A velocity bias of 1.3× the fault-free bound of ν at the joint's speed (ν at onset is b plus noise; the
+    increments' agreement T b over twice the single-sample scale is 1.7): its step row stays below the alarm
+    threshold (2), so without evidence levels only the kinematic row speaks and it is called an encoder drift;
+    counted as evidence from the fault-free bound (1) once the kinematic row has alarmed, it is the velocity
+    sensor. (At 1.8× the agreement alone crosses 2: the step row detects it.)"""
     _, _, model, rates, _, design = designed
     motion = arm_scenario("arm6.xml", seed=5, schemes=("momentum",)).motion
-    b = 1.8 * design.step_bound(np.asarray(motion(1.0)[1]))[4]     # the bound at the planned speed
+    b = 1.3 * design.step_bound(np.asarray(motion(1.0)[1]))[4]     # the bound at the planned speed
     sc = arm_scenario("arm6.xml", faults=[f"sensor_bias:joint5_vel:{b}@1.0"], seed=5, schemes=("momentum",))
     rec = run_scenario(sc, calibration(sc)[0])
     confirm = ArmSchemeSettings().consistency_confirm
@@ -241,6 +242,36 @@ def test_a_velocity_step_below_the_step_alarm_is_isolated_from_its_evidence(desi
     time, got = _first_isolation(graded)
     assert got == "joint5_vel" and time - 1.0 < 0.02
     assert graded.isolated[-1] == "joint5_vel"       # the encoder hypothesis is not added once ν has decayed
+
+
+@pytest.mark.parametrize("channel, isolated", [("vel", "joint6_vel"), ("pos", "joint6_pos")])
+def test_a_velocity_step_below_the_step_bound_is_told_from_an_encoder_drift_by_agreement(designed, channel,
+                                                                                       isolated):
+    """A wrist velocity bias at 0.75× the fault-free bound of ν at its speed, so ν alone is no evidence; its −T b
+    over two samples is 1.4× twice the single-sample kinematic scale, and ν at the step agrees with it: the step
+    row holds the agreement (> 1, the evidence level) and the velocity sensor is named. An encoder drift with
+    the kinematic signature of a velocity bias of twice the bound makes no ν: it stays an encoder fault. (The
+    choice is the nearer hypothesis, so near ν's noise it errs both ways: with the wrist's ν spread of about a
+    quarter of its bound, a drift of 0.75× the bound is called a velocity fault with a probability of ≈ 7 %.)"""
+    _, _, model, rates, _, design = designed
+    motion = arm_scenario("arm6.xml", seed=5, schemes=("momentum",)).motion
+    bound = design.step_bound(np.asarray(motion(1.0)[1]))[5]          # at the planned speed
+    single = design.window_scales[5, int(np.argmin(design.windows)), 0]
+    b = 0.75 * bound
+    assert design.T * b > 2.4 * single      # the precondition of the agreement, with room for noise
+    fault = f"sensor_bias:joint6_vel:{b}@1.0" if channel == "vel" else f"sensor_drift:joint6_pos:{-2 * bound}@1.0"
+    sc = arm_scenario("arm6.xml", faults=[fault], seed=5, schemes=("momentum",))
+    tr = _trace(run_scenario(sc, calibration(sc)[0]), model, design, rates,
+                confirm=ArmSchemeSettings().consistency_confirm, evidence=True)
+    n, t = model.n, tr.time
+    step = np.abs(tr.residual[:, 2 * n + 5])
+    assert step[(t > SKIP * 0.002) & (t < 1.0)].max() < 1.0
+    if channel == "vel":
+        assert step[(t >= 1.0) & (t < 1.01)].max() == pytest.approx(design.T * b / (2 * single), rel=0.3)
+    else:
+        assert step[(t >= 1.0) & (t < 1.2)].max() < 1.0
+    time, got = _first_isolation(tr)
+    assert got == isolated and time - 1.0 < 0.1
 
 
 def test_a_frozen_velocity_sensor_is_isolated_as_the_velocity_sensor(designed):

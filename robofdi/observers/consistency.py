@@ -205,7 +205,7 @@ class ConsistencyResidual:
         self._r_prev = None
         self._repeats = np.zeros(self.n)     # consecutive samples with an unchanged velocity reading
         self.innovation = np.zeros(self.n)      # ν of the last sample [rad/s]
-        self._previous = np.zeros((2, self.n))  # the last sample's kinematic increment e [rad] and ν [rad/s]
+        self._previous = np.zeros((3, self.n))  # the last sample's e [rad] and ν [rad/s], the e before it [rad]
         self._steps = np.zeros((self._hold, self.n))     # ring buffer of |ν| / scale over the hold
         self._jumps = np.zeros((self._hold, self.n))    # ring buffer of position-step ratios
         self._k = 0
@@ -280,7 +280,8 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, re
                previous, row, previous_row, T, z, estimate):
     """The rows of :meth:`ConsistencyResidual.update` after its momentum and kinematic parts, joint by joint in
     the order of operations of their array form: the residual ``z`` and the ``estimate``; the step and jump ring
-    buffers ``steps``/``jumps`` held at ``row``; ``previous`` (2, n) the last sample's e and ν, updated.
+    buffers ``steps``/``jumps`` held at ``row``; ``previous`` (3, n) the last sample's e and ν and the e before
+    it, updated.
 
     A position step is an increment more than a velocity step of ν can make: a step b in q̇_k adds −(T/2 + τ_s) b
     to e_k (:mod:`~robofdi.observers.kinematic`), so |e_k| > 2 (T/2 + |τ_s|) |ν| + the single-sample scale (a
@@ -288,7 +289,16 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, re
     only if the increment also *changed* by more than the velocity steps of this and the last sample can make
     (twice the single-sample scale for the two samples' own errors): a velocity offset b adds −(T/2 + τ_s) b to
     e_k at its onset and −T b to every e after it, each more than its ν ≈ 0 explains, but the increment persists,
-    so the onset's ν = b stays held."""
+    so the onset's ν = b stays held.
+
+    Agreement: a step b of the velocity reading moves the increments by −(T/2 + τ_s) b at its sample and by −T b
+    over that sample and the next, and makes ν = b at its sample. Where the increments changed by more than
+    two fault-free samples can (twice the single-sample scale) and ν is nearer the step they imply than 0
+    (|ν − b̂| < |b̂|/2: the likelihood ratio of a velocity step against an encoder change of the same size, under
+    equal noise), the step row holds at least the change over twice the single-sample scale. The increments
+    measure the step with the encoder's noise, ν with the dynamics' (1.4–3.5× more on a fast wrist), so a
+    velocity step below the step row's fault-free bound is still told from an encoder drift, which makes no ν.
+    Not over two samples while a position step is held: its increment returning looks like a step too."""
     n, hold = r.shape[0], steps.shape[0]
     for i in range(n):
         single_scale = scale[i, single]
@@ -297,6 +307,23 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, re
         position_step = increment > reach * abs(innovation[i]) + single_scale
         change = abs(e[i] - previous[0, i])
         changed = change > reach * (abs(innovation[i]) + abs(previous[1, i])) + 2 * single_scale
+        agreed = 0.0        # a step of the velocity reading that ν and the increments agree on (docstring)
+        onset = T / 2 + skew[i]
+        if change > 2 * single_scale and onset > 0:       # at this sample, from its own share of e
+            implied = (previous[0, i] - e[i]) / onset
+            if abs(innovation[i] - implied) < abs(implied) / 2:
+                agreed = change / (2 * single_scale)
+        span = abs(e[i] - previous[2, i])
+        if span > 2 * single_scale:        # at the last sample, from the whole −T b over two samples
+            implied = (previous[2, i] - e[i]) / T
+            held_step = 0.0         # a position step held from before this sample (its increments return)
+            for h in range(hold):
+                if h != row and jumps[h, i] > held_step:
+                    held_step = jumps[h, i]
+            if held_step == 0 and abs(previous[1, i] - implied) < abs(implied) / 2 \
+                    and span / (2 * single_scale) > steps[previous_row, i]:
+                steps[previous_row, i] = span / (2 * single_scale)
+        previous[2, i] = previous[0, i]
         previous[0, i], previous[1, i] = e[i], innovation[i]
         if position_step and changed:       # no ν held from before the step but the previous sample's (see update)
             keep = steps[previous_row, i]
@@ -308,7 +335,8 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, re
         for h in range(1, hold):
             if jumps[h, i] > jump or jumps[h, i] != jumps[h, i]:
                 jump = jumps[h, i]
-        steps[row, i] = 0.0 if jump > 0 else abs(innovation[i]) / step_bound[i]
+        ratio = abs(innovation[i]) / step_bound[i]
+        steps[row, i] = 0.0 if jump > 0 else (agreed if agreed > ratio else ratio)
         step = steps[0, i]
         for h in range(1, hold):
             if steps[h, i] > step or steps[h, i] != steps[h, i]:
