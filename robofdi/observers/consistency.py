@@ -291,14 +291,16 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, re
     e_k at its onset and −T b to every e after it, each more than its ν ≈ 0 explains, but the increment persists,
     so the onset's ν = b stays held.
 
-    Agreement: a step b of the velocity reading moves the increments by −(T/2 + τ_s) b at its sample and by −T b
-    over that sample and the next, and makes ν = b at its sample. Where the increments changed by more than
-    two fault-free samples can (twice the single-sample scale) and ν is nearer the step they imply than 0
-    (|ν − b̂| < |b̂|/2: the likelihood ratio of a velocity step against an encoder change of the same size, under
-    equal noise), the step row holds at least the change over twice the single-sample scale. The increments
-    measure the step with the encoder's noise, ν with the dynamics' (1.4–3.5× more on a fast wrist), so a
-    velocity step below the step row's fault-free bound is still told from an encoder drift, which makes no ν.
-    Not over two samples while a position step is held: its increment returning looks like a step too."""
+    Agreement: a step b of the velocity reading at sample k moves e by −T b over samples k and k+1, −(T/2 + τ_s) b
+    of it at k (a reading steps at a sample instant), and makes ν_k = b. One sample later, where e changed over
+    the two samples by more than two fault-free samples can (twice the single-sample scale), its share at k is
+    that of a reading's step (within the single-sample scale), and ν_k is nearer the step b̂ they imply than 0
+    (|ν_k − b̂| < |b̂|/2: the likelihood ratio of a velocity step against an encoder change of the same size,
+    under equal noise), the step row holds the change over twice the single-sample scale at sample k. The
+    increments measure the step with the encoder's noise, ν with the dynamics' (1.4–3.5× more on a fast wrist),
+    so a velocity step below the step row's fault-free bound is still told from an encoder drift, which makes no
+    ν and starts anywhere within a sample (its share at k is arbitrary). Not while a position step is held: its
+    increment returning looks like a step too."""
     n, hold = r.shape[0], steps.shape[0]
     for i in range(n):
         single_scale = scale[i, single]
@@ -307,22 +309,18 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, re
         position_step = increment > reach * abs(innovation[i]) + single_scale
         change = abs(e[i] - previous[0, i])
         changed = change > reach * (abs(innovation[i]) + abs(previous[1, i])) + 2 * single_scale
-        agreed = 0.0        # a step of the velocity reading that ν and the increments agree on (docstring)
-        onset = T / 2 + skew[i]
-        if change > 2 * single_scale and onset > 0:       # at this sample, from its own share of e
-            implied = (previous[0, i] - e[i]) / onset
-            if abs(innovation[i] - implied) < abs(implied) / 2:
-                agreed = change / (2 * single_scale)
-        span = abs(e[i] - previous[2, i])
-        if span > 2 * single_scale:        # at the last sample, from the whole −T b over two samples
-            implied = (previous[2, i] - e[i]) / T
+        span = e[i] - previous[2, i]        # a velocity-reading step at the last sample: −T b (docstring)
+        if abs(span) > 2 * single_scale:
+            share = previous[0, i] - previous[2, i] - (T / 2 + skew[i]) / T * span    # its sample's share, ≈ 0
+            implied = -span / T
             held_step = 0.0         # a position step held from before this sample (its increments return)
             for h in range(hold):
                 if h != row and jumps[h, i] > held_step:
                     held_step = jumps[h, i]
-            if held_step == 0 and abs(previous[1, i] - implied) < abs(implied) / 2 \
-                    and span / (2 * single_scale) > steps[previous_row, i]:
-                steps[previous_row, i] = span / (2 * single_scale)
+            agreed = abs(span) / (2 * single_scale)
+            if held_step == 0 and abs(share) < single_scale and abs(previous[1, i] - implied) < abs(implied) / 2 \
+                    and agreed > steps[previous_row, i]:
+                steps[previous_row, i] = agreed
         previous[2, i] = previous[0, i]
         previous[0, i], previous[1, i] = e[i], innovation[i]
         if position_step and changed:       # no ν held from before the step but the previous sample's (see update)
@@ -335,8 +333,7 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, re
         for h in range(1, hold):
             if jumps[h, i] > jump or jumps[h, i] != jumps[h, i]:
                 jump = jumps[h, i]
-        ratio = abs(innovation[i]) / step_bound[i]
-        steps[row, i] = 0.0 if jump > 0 else (agreed if agreed > ratio else ratio)
+        steps[row, i] = 0.0 if jump > 0 else abs(innovation[i]) / step_bound[i]
         step = steps[0, i]
         for h in range(1, hold):
             if steps[h, i] > step or steps[h, i] != steps[h, i]:
