@@ -133,41 +133,43 @@ class OutcomePanels:
     def draw(self, what: str, level: float):
         """The figure of outcome ``what`` (``"delay_cdf"`` or ``"detection_vs_size"``) on these panels."""
         self._clear()
-        table, kinds, names, drawn = self.table, self.kinds, self.names, self._drawn
-        for r, kind in enumerate(kinds):
-            sub = table[table["kind"] == kind]
-            curves = {n: _curve(sub[sub["diagnoser"] == n], what) for n in names}
-            for c, name in enumerate(names):
-                ax = self.axes[r, c]
-                for other, (x, y) in curves.items():
-                    if other != name:
-                        drawn += ax.step(x, y, where="post", color="0.85", lw=0.7)
-                x, y = curves[name]
-                drawn += ax.step(x, y, where="post", color=f"C{c}", lw=1.6)
-                if what == "detection_vs_size":
-                    drawn += ax.plot(x, y, ".", ms=3, color=f"C{c}")
-                    drawn.append(ax.axhline(level, color="k", lw=0.6, ls=":"))
-                    drawn.append(ax.text(0.98, level, f"P = {level:g}", transform=ax.get_yaxis_transform(), fontsize=6,
-                                         ha="right", va="bottom", color="0.3"))
-                n = int((sub["diagnoser"] == name).sum())
-                drawn.append(ax.text(0.02, 0.97, f"n = {n}", transform=ax.transAxes, fontsize=6.5, va="top",
-                                     color="0.3"))
-                ax.set_ylim(-0.03, 1.03)
-                ax.grid(alpha=0.3)
-                ax.tick_params(labelsize=7)
-                if r == 0:
-                    ax.set_title(name, fontsize=8, color=f"C{c}")
-                if c == 0:
-                    ax.set_ylabel(f"{kind}\n" + ("detected [fraction]" if what == "delay_cdf" else "P(detect)"),
-                                  fontsize=7)
-                if r == len(kinds) - 1:
-                    ax.set_xlabel("detection delay [s]" if what == "delay_cdf" else "fault size [fraction of limit]",
-                                  fontsize=7)
+        for r, kind in enumerate(self.kinds):
+            sub = self.table[self.table["kind"] == kind]
+            curves = {n: _curve(sub[sub["diagnoser"] == n], what) for n in self.names}
+            for c, name in enumerate(self.names):
+                self._panel(r, c, curves, int((sub["diagnoser"] == name).sum()), what, level)
         self.fig.suptitle(("fraction of faults detected within a delay" if what == "delay_cdf" else
                            "detection probability against fault size (isotonic fit)")
                           + ": one panel per fault kind (rows) and diagnoser (columns); other diagnosers faint",
                           fontsize=9)
         return self.fig
+
+    def _panel(self, r: int, c: int, curves: dict, n: int, what: str, level: float) -> None:
+        """Panel (kind r, diagnoser c): its curve over the other diagnosers' (faint), its ``n`` faults, the detection
+        level for ``"detection_vs_size"``; the column's title on the top row, the row's label on the left, the
+        outcome's axis label on the bottom row."""
+        ax, name, drawn = self.axes[r, c], self.names[c], self._drawn
+        for other, (x, y) in curves.items():
+            if other != name:
+                drawn += ax.step(x, y, where="post", color="0.85", lw=0.7)
+        x, y = curves[name]
+        drawn += ax.step(x, y, where="post", color=f"C{c}", lw=1.6)
+        if what == "detection_vs_size":
+            drawn += ax.plot(x, y, ".", ms=3, color=f"C{c}")
+            drawn.append(ax.axhline(level, color="k", lw=0.6, ls=":"))
+            drawn.append(ax.text(0.98, level, f"P = {level:g}", transform=ax.get_yaxis_transform(), fontsize=6,
+                                 ha="right", va="bottom", color="0.3"))
+        drawn.append(ax.text(0.02, 0.97, f"n = {n}", transform=ax.transAxes, fontsize=6.5, va="top", color="0.3"))
+        ax.set_ylim(-0.03, 1.03)
+        ax.grid(alpha=0.3)
+        ax.tick_params(labelsize=7)
+        if r == 0:
+            ax.set_title(name, fontsize=8, color=f"C{c}")
+        if c == 0:
+            ax.set_ylabel(f"{self.kinds[r]}\n" + ("detected [fraction]" if what == "delay_cdf" else "P(detect)"),
+                          fontsize=7)
+        if r == len(self.kinds) - 1:
+            ax.set_xlabel("detection delay [s]" if what == "delay_cdf" else "fault size [fraction of limit]", fontsize=7)
 
     def _clear(self) -> None:
         """Remove the previous outcome's curves and texts; the data limits start afresh (as on new axes)."""
