@@ -33,3 +33,27 @@ def test_a_small_prefix_is_flagged():
 def test_a_full_campaign_reads_plainly():
     text = report_markdown(_summary(100, 100, (100, 100), 20))
     assert "Read with care" not in text and "⚠" not in text
+
+
+def test_the_confusion_counts_are_the_crosstab_cells_in_its_order():
+    """campaign.json's confusion per kind: the non-zero cells of pd.crosstab(true target, what was said), true
+    targets and columns in crosstab's sorted order (json keeps that order)."""
+    import numpy as np
+    import pandas as pd
+
+    from robofdi.campaign.metrics import MISSED, UNISOLATED, _confusion
+
+    rng = np.random.default_rng(7)
+    targets = ["joint10", "joint2", "joint1_pos", "joint1", "payload"]
+    said = [*targets, "joint2+joint3", "", None]
+    rows = pd.DataFrame({"target": pd.array(rng.choice(targets, 300), dtype="string"),
+                         "detected": pd.array(rng.choice([True, False, None], 300), dtype="boolean"),
+                         "isolated": pd.array([said[i] for i in rng.integers(len(said), size=300)], dtype="string")})
+    truth = rows["target"].astype(str)
+    detected = rows["detected"].fillna(False).astype(bool)
+    isolated = rows["isolated"].astype(object).where(rows["isolated"].notna(), UNISOLATED)
+    matrix = pd.crosstab(truth, pd.Series(np.where(detected, isolated.astype(str), MISSED), index=rows.index))
+    expected = {t: {c: int(v) for c, v in matrix.loc[t].items() if v} for t in matrix.index}
+    got = _confusion(rows)
+    assert got == expected
+    assert list(got) == list(expected) and all(list(got[t]) == list(expected[t]) for t in got)

@@ -151,3 +151,31 @@ def test_residual_figures_drawn_on_reused_axes_equal_figures_drawn_alone(tmp_pat
         assert np.array_equal(imread(tmp_path / f"together_{d}.png"), alone)
     assert not np.array_equal(imread(tmp_path / "together_big.png"), imread(tmp_path / "alone_small.png"))
     assert [decade_label(v) for v in (1e-5, 1e-3, 1.0, 100.0, 2.0)] == ["1e-5", "0.001", "1", "100", ""]
+
+
+def test_outcome_figures_on_reused_panels_are_the_pngs_of_fresh_panels(tmp_path):
+    """The campaign draws both outcome figures on one OutcomePanels: the second, drawn after the first was removed,
+    is byte for byte the PNG that panels made for it alone give."""
+    from robofdi.campaign.results import OUTCOMES, OutcomePanels, outcome_grid
+    from robofdi.evaluate.figures import save_figure
+
+    rng = np.random.default_rng(3)
+    rows = []
+    names = [f"d{i}" for i in range(3)]
+    for kind in ("actuator_additive", "sensor_bias", "sensor_drift"):
+        for _ in range(9):
+            size = float(rng.uniform(0.01, 0.5))
+            for j, name in enumerate(names):
+                detected = size > 0.05 * (j + 1)
+                rows.append({"kind": kind, "diagnoser": name, "size": size, "detected": detected,
+                             "delay": float(rng.uniform(0.005, 0.4)) if detected else np.nan})
+    table = pd.DataFrame(rows)
+    panels = OutcomePanels(table, names)
+    try:
+        reused = [save_figure(panels.draw(what, 0.9), tmp_path / f"reused-{what}.png", tight=False, close=False)
+                  for what in OUTCOMES]
+    finally:
+        panels.close()
+    fresh = [save_figure(outcome_grid(table, names, what, 0.9), tmp_path / f"fresh-{what}.png", tight=False)
+             for what in OUTCOMES]
+    assert [p.read_bytes() for p in reused] == [p.read_bytes() for p in fresh]

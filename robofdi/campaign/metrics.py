@@ -15,6 +15,7 @@ Error rows (runs that raised) are counted and left out of every rate.
 from __future__ import annotations
 
 import functools
+from collections import Counter
 
 import numpy as np
 import pandas as pd
@@ -94,12 +95,15 @@ def _fault_metrics(rows: pd.DataFrame) -> dict:
 
 
 def _confusion(rows: pd.DataFrame) -> dict:
-    truth = rows["target"].astype(str)
+    """True target → {what was said: the isolated target, "unknown" or "missed" → faults}, the counts that are not
+    zero, both levels in sorted order (the cells of ``pd.crosstab(truth, said)``, counted without building it)."""
+    truth = rows["target"].astype(str).tolist()
     detected = rows["detected"].fillna(False).astype(bool)
     isolated = rows["isolated"].astype(object).where(rows["isolated"].notna(), UNISOLATED)
-    said = np.where(detected, isolated.astype(str), MISSED)
-    matrix = pd.crosstab(truth, pd.Series(said, index=rows.index, name="isolated"))
-    return {t: {c: int(v) for c, v in matrix.loc[t].items() if v} for t in matrix.index}
+    said = np.where(detected, isolated.astype(str), MISSED).tolist()
+    counts = Counter(zip(truth, said))
+    columns = sorted(set(said))
+    return {t: {c: counts[t, c] for c in columns if counts[t, c]} for t in sorted(set(truth))}
 
 
 def analyse(table: pd.DataFrame, detection_level: float = 0.9, diagnosers=None) -> dict:

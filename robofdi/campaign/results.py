@@ -85,10 +85,14 @@ def _figures(result: CampaignResult, metrics: dict) -> list[str]:
         path = save_figure(fig, folder / f"confusion_{name}.png")
         written.append(path.name)
     # delay CDFs and detection probability against size: small multiples, one panel per fault kind × diagnoser
-    for what in ("delay_cdf", "detection_vs_size"):
-        fig = outcome_grid(table, diagnosers, what, level=result.spec_dict["detection_level"])
-        path = save_figure(fig, folder / f"{what}.png", tight=False)     # a fixed layout (fixed_grid)
-        written.append(path.name)
+    panels = OutcomePanels(table, diagnosers)
+    try:
+        for what in OUTCOMES:
+            fig = panels.draw(what, result.spec_dict["detection_level"])
+            path = save_figure(fig, folder / f"{what}.png", tight=False, close=False)     # a fixed layout
+            written.append(path.name)
+    finally:
+        panels.close()
     return written
 
 
@@ -106,43 +110,82 @@ def outcome_grid(table: pd.DataFrame, diagnosers, what: str, level: float):
     """Small multiples of a campaign's outcomes: one row per fault kind, one column per diagnoser, shared axes;
     each panel draws its diagnoser's curve (the other diagnosers faint behind it, for comparison) and its n.
     ``what``: ``"delay_cdf"`` or ``"detection_vs_size"`` (with the detection level dotted and labelled)."""
-    kinds = sorted(set(table["kind"]))
-    names = list(diagnosers)
-    # a fixed layout (no tight_layout at saving, which measured every tick label of every panel): shared axes, so
-    # only the outer panels carry tick labels; margins for the two-line row labels, the column titles, the title
-    fig, axes = fixed_grid(len(kinds), len(names), (1.9, 1.45), margins=(0.72, 0.12, 0.42, 0.5), gaps=(0.12, 0.12),
-                           sharex=True, sharey=True)
-    for r, kind in enumerate(kinds):
-        sub = table[table["kind"] == kind]
-        curves = {n: _curve(sub[sub["diagnoser"] == n], what) for n in names}
-        for c, name in enumerate(names):
-            ax = axes[r, c]
-            for other, (x, y) in curves.items():
-                if other != name:
-                    ax.step(x, y, where="post", color="0.85", lw=0.7)
-            x, y = curves[name]
-            ax.step(x, y, where="post", color=f"C{c}", lw=1.6)
-            if what == "detection_vs_size":
-                ax.plot(x, y, ".", ms=3, color=f"C{c}")
-                ax.axhline(level, color="k", lw=0.6, ls=":")
-                ax.text(0.98, level, f"P = {level:g}", transform=ax.get_yaxis_transform(), fontsize=6, ha="right",
-                        va="bottom", color="0.3")
-            n = int((sub["diagnoser"] == name).sum())
-            ax.text(0.02, 0.97, f"n = {n}", transform=ax.transAxes, fontsize=6.5, va="top", color="0.3")
-            ax.set_ylim(-0.03, 1.03)
-            ax.grid(alpha=0.3)
-            ax.tick_params(labelsize=7)
-            if r == 0:
-                ax.set_title(name, fontsize=8, color=f"C{c}")
-            if c == 0:
-                ax.set_ylabel(f"{kind}\n" + ("detected [fraction]" if what == "delay_cdf" else "P(detect)"), fontsize=7)
-            if r == len(kinds) - 1:
-                ax.set_xlabel("detection delay [s]" if what == "delay_cdf" else "fault size [fraction of limit]",
-                              fontsize=7)
-    fig.suptitle(("fraction of faults detected within a delay" if what == "delay_cdf" else
-                  "detection probability against fault size (isotonic fit)")
-                 + ": one panel per fault kind (rows) and diagnoser (columns); other diagnosers faint", fontsize=9)
-    return fig
+    return OutcomePanels(table, diagnosers).draw(what, level)
+
+
+#: The outcome figures of a campaign, drawn on one :class:`OutcomePanels`.
+OUTCOMES = ("delay_cdf", "detection_vs_size")
+
+
+class OutcomePanels:
+    """The panels of :func:`outcome_grid` for one results table, made once and drawn with each outcome in turn
+    (:meth:`draw` removes what the previous outcome drew): both outcome figures have this layout, so the axes and
+    their tick artists (most of a panel's cost in matplotlib) are made once, not once per figure."""
+
+    def __init__(self, table: pd.DataFrame, diagnosers):
+        self.table, self.kinds, self.names = table, sorted(set(table["kind"])), list(diagnosers)
+        # a fixed layout (no tight_layout at saving, which measured every tick label of every panel): shared axes,
+        # so only the outer panels carry tick labels; margins for the two-line row labels, the column titles, the title
+        self.fig, self.axes = fixed_grid(len(self.kinds), len(self.names), (1.9, 1.45), margins=(0.72, 0.12, 0.42, 0.5),
+                                         gaps=(0.12, 0.12), sharex=True, sharey=True)
+        self._drawn: list = []
+
+    def draw(self, what: str, level: float):
+        """The figure of outcome ``what`` (``"delay_cdf"`` or ``"detection_vs_size"``) on these panels."""
+        self._clear()
+        for r, kind in enumerate(self.kinds):
+            sub = self.table[self.table["kind"] == kind]
+            curves = {n: _curve(sub[sub["diagnoser"] == n], what) for n in self.names}
+            for c, name in enumerate(self.names):
+                self._panel(r, c, curves, int((sub["diagnoser"] == name).sum()), what, level)
+        self.fig.suptitle(("fraction of faults detected within a delay" if what == "delay_cdf" else
+                           "detection probability against fault size (isotonic fit)")
+                          + ": one panel per fault kind (rows) and diagnoser (columns); other diagnosers faint",
+                          fontsize=9)
+        return self.fig
+
+    def _panel(self, r: int, c: int, curves: dict, n: int, what: str, level: float) -> None:
+        """Panel (kind r, diagnoser c): its curve over the other diagnosers' (faint), its ``n`` faults, the detection
+        level for ``"detection_vs_size"``; the column's title on the top row, the row's label on the left, the
+        outcome's axis label on the bottom row."""
+        ax, name, drawn = self.axes[r, c], self.names[c], self._drawn
+        for other, (x, y) in curves.items():
+            if other != name:
+                drawn += ax.step(x, y, where="post", color="0.85", lw=0.7)
+        x, y = curves[name]
+        drawn += ax.step(x, y, where="post", color=f"C{c}", lw=1.6)
+        if what == "detection_vs_size":
+            drawn += ax.plot(x, y, ".", ms=3, color=f"C{c}")
+            drawn.append(ax.axhline(level, color="k", lw=0.6, ls=":"))
+            drawn.append(ax.text(0.98, level, f"P = {level:g}", transform=ax.get_yaxis_transform(), fontsize=6,
+                                 ha="right", va="bottom", color="0.3"))
+        drawn.append(ax.text(0.02, 0.97, f"n = {n}", transform=ax.transAxes, fontsize=6.5, va="top", color="0.3"))
+        ax.set_ylim(-0.03, 1.03)
+        ax.grid(alpha=0.3)
+        ax.tick_params(labelsize=7)
+        if r == 0:
+            ax.set_title(name, fontsize=8, color=f"C{c}")
+        if c == 0:
+            ax.set_ylabel(f"{self.kinds[r]}\n" + ("detected [fraction]" if what == "delay_cdf" else "P(detect)"),
+                          fontsize=7)
+        if r == len(self.kinds) - 1:
+            ax.set_xlabel("detection delay [s]" if what == "delay_cdf" else "fault size [fraction of limit]", fontsize=7)
+
+    def _clear(self) -> None:
+        """Remove the previous outcome's curves and texts; the data limits start afresh (as on new axes)."""
+        if not self._drawn:
+            return
+        for artist in self._drawn:
+            artist.remove()
+        self._drawn.clear()
+        for ax in self.axes.flat:
+            ax.relim()
+            ax.autoscale_view()
+
+    def close(self) -> None:
+        import matplotlib.pyplot as plt
+
+        plt.close(self.fig)
 
 
 def _pct(rate: dict) -> str:

@@ -16,15 +16,17 @@ from robofdi.record import Record  # noqa: E402
 __all__ = ["plot_residuals", "plot_residual_figures", "plot_estimates", "decade_label"]
 
 
-def save_figure(fig, path: str | Path, dpi: int = 110, tight: bool = True) -> Path:
+def save_figure(fig, path: str | Path, dpi: int = 110, tight: bool = True, close: bool = True) -> Path:
     """Lay out (``tight``: ``tight_layout``; False for a figure made with a fixed layout, :func:`fixed_grid`),
     write and close a figure (every robofdi figure goes through here, but the residual figures, whose reused axes
-    close once after the last of them: :func:`plot_residual_figures`); returns the path."""
+    close once after the last of them: :func:`plot_residual_figures`; ``close`` False keeps a figure whose axes
+    are drawn again); returns the path."""
     path = Path(path)
     if tight:
         fig.tight_layout()
     fig.savefig(path, dpi=dpi)
-    plt.close(fig)
+    if close:
+        plt.close(fig)
     return path
 
 
