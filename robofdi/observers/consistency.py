@@ -60,7 +60,9 @@ faults of the joints it loads.
 The step rows' alarm threshold carries the false-alarm rate, so it sits 1.4–3.5× above the fault-free bound of
 |ν|; a velocity bias of 0.02–0.05 rad/s then left its step row below it and was isolated as an encoder drift. As
 evidence, once a kinematic row has alarmed, a step row counts from its fault-free bound (1; ``discriminating``;
-:class:`~robofdi.decision.ThresholdDecision`'s ``evidence``).
+:class:`~robofdi.decision.ThresholdDecision`'s ``evidence``). A step below that bound still counts when the
+kinematic increments confirm it: they measure the same velocity step with the encoder's noise, and ν decides
+only which of a velocity step and an encoder change it is nearer (``_step_rows``' agreement).
 
 Everything it needs from fault-free data is one :class:`ConsistencyDesign`, computed once per robot by
 :func:`design_consistency` from a motion suite.
@@ -206,7 +208,7 @@ class ConsistencyResidual:
         self._repeats = np.zeros(self.n)     # consecutive samples with an unchanged velocity reading
         self.innovation = np.zeros(self.n)      # ν of the last sample [rad/s]
         self._previous = np.zeros((3, self.n))  # the last sample's e [rad] and ν [rad/s], the e before it [rad]
-        self._steps = np.zeros((self._hold, self.n))     # ring buffer of |ν| / scale over the hold
+        self._steps = np.zeros((self._hold, self.n))     # ring buffer of |ν| / scale (or agreement) over the hold
         self._jumps = np.zeros((self._hold, self.n))    # ring buffer of position-step ratios
         self._k = 0
 
@@ -297,7 +299,7 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, re
     that of a reading's step (within the single-sample scale), and ν_k is nearer the step b̂ they imply than 0
     (|ν_k − b̂| < |b̂|/2: the likelihood ratio of a velocity step against an encoder change of the same size,
     under equal noise), the step row holds the change over twice the single-sample scale at sample k. The
-    increments measure the step with the encoder's noise, ν with the dynamics' (1.4–3.5× more on a fast wrist),
+    increments measure the step with the encoder's noise, ν with the dynamics' (2.5–4× more on arm6 and arm7),
     so a velocity step below the step row's fault-free bound is still told from an encoder drift, which makes no
     ν and starts anywhere within a sample (its share at k is arbitrary). Not while a position step is held: its
     increment returning looks like a step too."""
