@@ -11,7 +11,9 @@ from robofdi.decision import ThresholdDecision
 from robofdi.loop import Diagnosis, diagnose_record, diagnoser_inputs
 from robofdi.models.friction import JointFriction
 from robofdi.observers.arm_schemes import ArmSchemeSettings
-from robofdi.observers.consistency import STEP_HOLD, ConsistencyDesign, ConsistencyResidual, design_consistency
+from robofdi.observers.consistency import (
+    STEP_HOLD, ConsistencyDesign, ConsistencyResidual, _step_rows, design_consistency,
+)
 from robofdi.observers.kinematic import (
     NOISE_WALK_SIGMAS, KinematicConsistency, design_window_scales, identify_noise_walk, identify_ripple, identify_skew,
     kinematic_increments, ripple_orders,
@@ -364,6 +366,23 @@ def test_skew_is_identified_when_the_instrument_is_anti_correlated():
     dv, z = np.diff(vs[:, 0])[3:], vs[2:-2, 0] - vs[:-4, 0]
     assert (dv * z).sum() < 0                                # the case: the instrument is anti-correlated
     np.testing.assert_allclose(identify_skew([qs], [vs], T), h / 2, rtol=1e-6)
+
+
+@pytest.mark.parametrize("moved, counted", [(1.0, True), (1.3, True), (0.0, False), (0.2, False), (2.0, False)])
+def test_the_step_row_counts_nu_only_where_the_increments_do_not_refute_a_readings_step(moved, counted):
+    """A reading's step of ν at a sample moves the kinematic increment by m = −(T/2 + τ_s) ν at once; a real
+    velocity change (a torque) leaves it where it was. ν = 5× its bound: counted when e moved by ``moved`` × m
+    within |m|/2 plus twice the single-sample scale (here 100 µrad ± 70 µrad), else the row holds nothing."""
+    T, skew, single, nu, bound = 0.002, 0.001, 10e-6, 0.05, 0.01
+    made = -(T / 2 + skew) * nu                       # −100 µrad
+    hold = 50
+    steps, jumps, previous = np.zeros((hold, 1)), np.zeros((hold, 1)), np.zeros((3, 1))
+    z, estimate = np.empty(4), np.empty(4)
+    _step_rows(np.zeros(1), np.array([nu]), np.zeros(1), np.array([moved * made]), np.ones(1),
+               np.array([[single, 1.0]]), 0, np.array([skew]), np.array([bound]), np.zeros(1), 2.0, steps, jumps,
+               previous, 3, 2, T, z, estimate)
+    assert z[2] == (pytest.approx(nu / bound) if counted else 0.0)
+    assert z[1] == 0.0                                # no position step: |e| is within what ν makes
 
 
 def test_kinematic_stepping_matches_the_offline_sums():
