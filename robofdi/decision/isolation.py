@@ -99,7 +99,10 @@ class ThresholdDecision:
     its dynamic row). When nothing persisted, nothing is isolated ("unknown") and the next alarm opens a new
     window. Alarms are not delayed. With ``latch``, a confirmed fault keeps explaining its components: later alarms
     add a fault only for components it cannot raise (a velocity fault isolated from its step row is not joined
-    by the encoder fault its kinematic row alone would suggest, once the step row has decayed).
+    by the encoder fault its kinematic row alone would suggest, once the step row has decayed). Such a fault is
+    chosen over every alarmed component, and it replaces an isolated fault whose required components it requires
+    too: evidence that arrives later overturns the hypothesis it refines (an encoder fault, its kinematic row
+    alone, becomes a velocity fault once the step row alarms).
 
     Revision: with ``release`` = R > 0 samples (and ``confirm``), an isolation is a decision the evidence can
     overturn. Once no component has alarmed for R samples the alarm episode that led to it is over, and the next
@@ -257,7 +260,21 @@ class ThresholdDecision:
             return Alarms(alarm=alarm, isolated=tuple(self._isolated), new=new)
         if self.confirm and self.latch and self._isolated:      # a confirmed fault keeps explaining its components
             alarm_new = alarm & ~self._explained_mask()
-            picks = self._isolate(ratio, alarm_new)
+            if not alarm_new.any():
+                return Alarms(alarm=alarm, isolated=tuple(self._isolated))
+            # a component no isolated fault explains: a hypothesis that explains it together with components
+            # already explained replaces the faults whose evidence it requires too (a velocity fault, kinematic and
+            # step rows, replaces the encoder fault its kinematic row alone had suggested: evidence overturns it)
+            previous = list(self._isolated)
+            unexplained = {c for c, a in zip(self.components, alarm_new) if a}
+            picks = [f for f in self._isolate(ratio, alarm) if self._by_fault[f].explains & unexplained]
+            if not picks:
+                picks = self._isolate(ratio, alarm_new)
+            required = frozenset().union(*(self._by_fault[f].required for f in picks)) if picks else frozenset()
+            kept = [f for f in previous if not self._by_fault[f].required <= required]
+            self._isolated = kept + [f for f in picks if f not in kept]
+            new = tuple(f for f in self._isolated if f not in previous)
+            return Alarms(alarm=alarm, isolated=tuple(self._isolated), new=new)
         else:
             picks = self._isolate(ratio, alarm)
         previous = list(self._isolated)

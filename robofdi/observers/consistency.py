@@ -74,8 +74,9 @@ Everything it needs from fault-free data is one :class:`ConsistencyDesign`, comp
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -93,7 +94,8 @@ from robofdi.observers.payload import PayloadRegressor, payload_evidence
 from robofdi.observers.residual import Residual, shared_measurement
 
 __all__ = ["ConsistencyDesign", "ConsistencyResidual", "design_consistency", "DEFAULT_GAIN", "STEP_HOLD",
-           "FROZEN_CHANGE", "FROZEN_SAMPLES"]
+           "FROZEN_CHANGE", "FROZEN_SAMPLES", "GAIN_WINDOW",
+           "GAIN_FLOOR", "GAIN_MARGIN"]
 
 #: Momentum-observer bandwidth K_O [1/s] of the consistency residual: fast enough that an abrupt fault of twice
 #: the smallest detectable size crosses its bound within a few 2 ms samples.
@@ -103,6 +105,14 @@ DEFAULT_GAIN = 150.0
 #: velocity innovation in ``joint<i>_step`` (a velocity step the step row sees is large enough for the kinematic
 #: row to alarm within a few samples: the hold only has to reach into the confirmation window).
 STEP_HOLD = 0.1
+#: Time constant [s] of the exponential window over which the step row compares a gain with a drift
+#: (:func:`_step_rows`' gain evidence).
+GAIN_WINDOW = 0.2
+#: The smallest fault-free gain evidence a design takes: a joint its runs never moved sets no smaller one.
+GAIN_FLOOR = 0.1
+#: The gain scale is this many times the design runs' largest gain evidence: unseen fault-free motion reached
+#: 1.4× it on arm6 (three motions), an encoder drift that starts as its joint accelerates 1.2×.
+GAIN_MARGIN = 2.0
 #: A velocity reading that changed by at most this [rad/s or m/s] from the previous sample is a repeat (held).
 FROZEN_CHANGE = 1e-9
 #: Consecutive repeated velocity readings that make the step row 1 (its largest fault-free value, at least).
@@ -124,7 +134,9 @@ class ConsistencyDesign:
     ``impulse_scale`` (n,) [N·m·s], the fault-free spread of the torque impulse (r_k − r_{k−1}) / K_O per
     joint that weighs the velocity innovation (:meth:`ConsistencyResidual.velocity_innovation`; None: equal),
     and ``noise_walk`` (n,) [rad], the long-run standard deviation per sample of the kinematic increments' noise
-    that floors the window scales (:func:`~robofdi.observers.kinematic.identify_noise_walk`; None: not identified)."""
+    that floors the window scales (:func:`~robofdi.observers.kinematic.identify_noise_walk`; None: not identified),
+    and ``gain_scale`` (n,), the largest fault-free gain evidence per joint (dimensionless, :func:`_gain_evidence`;
+    None: no gain evidence)."""
 
     friction: JointFriction
     envelope: np.ndarray
@@ -139,9 +151,10 @@ class ConsistencyDesign:
     ripple_amplitude: np.ndarray | None = None
     impulse_scale: np.ndarray | None = None
     noise_walk: np.ndarray | None = None
+    gain_scale: np.ndarray | None = None
 
     #: The optional arrays of :meth:`arrays` (absent when None).
-    OPTIONAL = ("reach", "ripple_orders", "ripple_amplitude", "impulse_scale", "noise_walk")
+    OPTIONAL = ("reach", "ripple_orders", "ripple_amplitude", "impulse_scale", "noise_walk", "gain_scale")
 
     def step_bound(self, speed: np.ndarray) -> np.ndarray:
         """(n,) bound [rad/s] of the fault-free |ν| at joint speeds ``speed`` (n,) [rad/s]: c₀ + c₁ |speed|."""
@@ -189,6 +202,9 @@ class ConsistencyResidual:
         self._a = design.gain * design.T
         self._hold = max(1, int(round(STEP_HOLD / design.T)))
         self._single = int(np.argmin(design.windows))       # the single-sample kinematic window
+        self._gain_scale = (np.zeros(n) if design.gain_scale is None
+                            else np.asarray(design.gain_scale, dtype=float))   # 0: no gain evidence
+        self._gain_lambda = 1.0 - design.T / GAIN_WINDOW
         names = list(model.joint_names)
         self.inputs = names
         self.measurements = [f"{j}_pos" for j in names] + [f"{j}_vel" for j in names]
@@ -215,6 +231,8 @@ class ConsistencyResidual:
         self._previous = np.zeros((3, self.n))  # the last sample's e [rad] and ν [rad/s], the e before it [rad]
         self._steps = np.zeros((self._hold, self.n))     # ring buffer of |ν| / scale (or agreement) over the hold
         self._jumps = np.zeros((self._hold, self.n))    # ring buffer of position-step ratios
+        self._gain_sums = np.zeros((10, self.n))    # the gain evidence's weighted sums, the last two readings
+        self.gain_evidence = np.zeros(self.n)       # its last value (dimensionless)
         self._k = 0
 
     @property
@@ -265,7 +283,8 @@ class ConsistencyResidual:
         bound = self.bound()
         _step_rows(r, self.innovation, kin, e, bound, self._kinematic.scale, self._single, self.design.skew,
                    self.design.step_bound(speed), self._repeats, FROZEN_SAMPLES, self._steps, self._jumps,
-                   self._previous, self._k % self._hold, (self._k - 1) % self._hold, self.T, z, estimate)
+                   self._previous, self._k % self._hold, (self._k - 1) % self._hold, self.T, z, estimate,
+                   v, self._gain_sums, self._gain_lambda, self._gain_scale, self.gain_evidence)
         z[3 * n], estimate[3 * n] = payload_evidence(z[:n], self._payload.update(q, v) / bound)
         self._k += 1
         return Residual(z, estimate)
@@ -284,7 +303,7 @@ class ConsistencyResidual:
 
 @kernel
 def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, repeats, frozen_samples, steps, jumps,
-               previous, row, previous_row, T, z, estimate):
+               previous, row, previous_row, T, z, estimate, v, gain_sums, lam, gain_scale, gain):
     """The rows of :meth:`ConsistencyResidual.update` after its momentum and kinematic parts, joint by joint in
     the order of operations of their array form: the residual ``z`` and the ``estimate``; the step and jump ring
     buffers ``steps``/``jumps`` held at ``row``; ``previous`` (3, n) the last sample's e and ν and the e before
@@ -353,11 +372,59 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, re
         for h in range(1, hold):
             if steps[h, i] > step or steps[h, i] != steps[h, i]:
                 step = steps[h, i]
+        # the reading two samples back: e_k holds the noise of v_k and v_{k−1}, which would explain itself
+        gain[i] = _gain_evidence(gain_sums, i, e[i], T * gain_sums[9, i], not (position_step and changed), lam)
+        gain_sums[9, i], gain_sums[8, i] = gain_sums[8, i], v[i]
+        if gain_scale[i] > 0 and gain[i] / gain_scale[i] > step:
+            step = gain[i] / gain_scale[i]
         held = repeats[i] / frozen_samples
         z[i] = r[i] / bound[i]
         z[n + i] = jump if jump > kin[i] or jump != jump else kin[i]
         z[2 * n + i] = held if held > step or held != held else step
         estimate[i], estimate[n + i], estimate[2 * n + i] = r[i], e[i], -e[i] / T
+
+
+@kernel
+def _gain_evidence(sums, i, e, x, add, lam):
+    """The gain evidence of joint i (dimensionless): how much more of the kinematic increments e [rad] a
+    velocity-gain error explains (e ∝ x = T q̇, the reading two samples back) than an encoder drift that may start
+    inside the window (a constant and a trend), against what neither explains: √(max(0, SS_gain − SS_drift) /
+    (Σw e² − max(SS_gain, SS_drift))), with SS the explained sums of squares of the weighted least-squares fits
+    over an exponential window of weight λ per sample — a likelihood ratio's statistic, so a noisier sensor
+    raises no evidence by its noise alone. ``sums`` (10, n): Σw, Σw·a, Σw·a², Σw·e, Σw·a·e, Σw·x², Σw·x·e, Σw·e²
+    (a: the sample's age), updated in place when ``add`` (not at a position step's sample: an encoder offset's
+    one-sample spike is no gain's; rows 8–9 hold the last two readings). 0 until the window holds half its
+    weight."""
+    if not add:
+        return _gain_fit(sums, i, lam)
+    sums[2, i] = lam * (sums[2, i] + 2.0 * sums[1, i] + sums[0, i])
+    sums[1, i] = lam * (sums[1, i] + sums[0, i])
+    sums[0, i] = lam * sums[0, i] + 1.0
+    sums[4, i] = lam * (sums[4, i] + sums[3, i])
+    sums[3, i] = lam * sums[3, i] + e
+    sums[5, i] = lam * sums[5, i] + x * x
+    sums[6, i] = lam * sums[6, i] + x * e
+    sums[7, i] = lam * sums[7, i] + e * e
+    return _gain_fit(sums, i, lam)
+
+
+@kernel
+def _gain_fit(sums, i, lam):
+    """:func:`_gain_evidence`'s statistic from its sums."""
+    w, wa, waa, we, wae, wxx, wxe = sums[0, i], sums[1, i], sums[2, i], sums[3, i], sums[4, i], sums[5, i], sums[6, i]
+    if w < 0.5 / (1.0 - lam):       # half a window's weight: a fit to fewer samples explains anything
+        return 0.0
+    det = w * waa - wa * wa
+    if det > 1e-12 * w * waa:
+        drift = (waa * we * we - 2.0 * wa * we * wae + w * wae * wae) / det
+    else:
+        drift = we * we / w
+    explained = wxe * wxe / wxx if wxx > 0 else 0.0
+    excess = explained - drift
+    left = sums[7, i] - (explained if explained > drift else drift)
+    if excess <= 0:
+        return 0.0
+    return math.sqrt(excess / left) if left > 1e-300 else math.inf
 
 
 def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray, np.ndarray]], T: float,
@@ -424,8 +491,16 @@ def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray,
     reach = window_reach(vs, T, skip, windows)
     amplitude = None if orders is None else identify_ripple(qs, vs, T, skew, orders, skip,
                                                             fallback=scales[:, int(np.argmin(windows)), 0])
-    return ConsistencyDesign(friction, envelope, skew, scales, step, gain, T, tuple(windows), reach, orders, amplitude,
-                             impulse_scale, walk)
+    design = ConsistencyDesign(friction, envelope, skew, scales, step, gain, T, tuple(windows), reach, orders,
+                               amplitude, impulse_scale, walk)
+    evidence = np.zeros(n)          # the gain evidence's largest fault-free value
+    for Y, U in runs:
+        d = ConsistencyResidual(model, design)
+        for k, (y, u) in enumerate(zip(Y, U)):
+            d.update(y, u)
+            if k >= skip:
+                np.maximum(evidence, d.gain_evidence, out=evidence)
+    return replace(design, gain_scale=GAIN_MARGIN * np.maximum(evidence, GAIN_FLOOR))
 
 
 @kernel
