@@ -8,6 +8,7 @@ import pytest
 from robofdi import RobofdiError
 from robofdi.control import Quintic
 from robofdi.decision import ThresholdDecision
+from robofdi.faults.spec import parse_fault_spec
 from robofdi.loop import Diagnosis, diagnose_record, diagnoser_inputs
 from robofdi.models.friction import JointFriction
 from robofdi.observers.arm_schemes import ArmSchemeSettings
@@ -274,6 +275,25 @@ def test_a_velocity_step_below_the_step_bound_is_told_from_an_encoder_drift_by_a
         assert step[(t >= 1.0) & (t < 1.2)].max() < 1.0
     time, got = _first_isolation(tr)
     assert got == isolated and time - 1.0 < 0.1
+
+
+@pytest.mark.parametrize("fault, isolated", [("sensor_scale:joint3_vel:0.15@0.4", "joint3_vel"),
+                                             ("sensor_scale:joint3_vel:-0.08@0.4", "joint3_vel"),
+                                             ("sensor_drift:joint3_pos:0.005@0.4", "joint3_pos"),
+                                             ("sensor_drift:joint3_pos:0.0005@0.9", "joint3_pos")])
+def test_a_velocity_gain_error_that_starts_at_rest_is_named_from_the_motion_that_follows(designed, fault, isolated):
+    """A gain error set while its joint rests has no step at onset; once the joint moves (at 0.8 s), the increments
+    follow the velocity, which no encoder drift does — also one that starts as the joint accelerates (0.9 s)."""
+    base, _, model, rates, _, design = designed
+    q0 = (np.pi / 2, -2 * np.pi / 3, np.pi / 6, -np.pi / 2, np.pi / 2, -2.4)
+    sc = replace(base, motion=Quintic(q0, (0, 0, 1.0, 0, 0, 0), 1.5, start=0.8), faults=(parse_fault_spec(fault),),
+                 duration=2.6)
+    tr = _trace(run_scenario(sc, calibration(sc)[0]), model, design, rates,
+                confirm=ArmSchemeSettings().consistency_confirm, evidence=True)
+    t = tr.time
+    assert np.abs(tr.residual[(t > SKIP * 0.002) & (t < 0.4)]).max() < 1.0
+    time, got = _first_isolation(tr)
+    assert tr.isolated[-1] == isolated and time < 1.5, (time, got, tr.isolated[-1])
 
 
 def test_a_frozen_velocity_sensor_is_isolated_as_the_velocity_sensor(designed):
