@@ -120,8 +120,9 @@ GAIN_WINDOW = 0.2
 #: The smallest fault-free gain evidence a design takes: a joint its runs never moved sets no smaller one.
 GAIN_FLOOR = 0.1
 #: The gain scale is this many times the design runs' largest gain evidence: unseen fault-free motion reached
-#: 1.4× it on arm6 (three motions), an encoder drift that starts as its joint accelerates 1.2×.
-GAIN_MARGIN = 2.0
+#: 1.4× it on arm6 (three motions), an encoder drift that starts as its joint accelerates 1.2× (arm6) and 4×
+#: (arm7 at 1–6 rad/s).
+GAIN_MARGIN = 4.0
 #: A velocity reading that changed by at most this [rad/s or m/s] from the previous sample is a repeat (held).
 FROZEN_CHANGE = 1e-9
 #: Consecutive repeated velocity readings that make the step row 1 (its largest fault-free value, at least).
@@ -240,7 +241,8 @@ class ConsistencyResidual:
         self._previous = np.zeros((3, self.n))  # the last sample's e [rad] and ν [rad/s], the e before it [rad]
         self._steps = np.zeros((self._hold, self.n))     # ring buffer of |ν| / scale (or agreement) over the hold
         self._jumps = np.zeros((self._hold, self.n))    # ring buffer of position-step ratios
-        self._gain_sums = np.zeros((10, self.n))    # the gain evidence's weighted sums, the last two readings
+        self._gain_sums = np.full((11, self.n), np.nan)    # the gain evidence's weighted sums, the last readings
+        self._gain_sums[:10] = 0.0
         self.gain_evidence = np.zeros(self.n)       # its last value (dimensionless)
         self._k = 0
 
@@ -293,7 +295,7 @@ class ConsistencyResidual:
         _step_rows(r, self.innovation, kin, e, bound, self._kinematic.scale, self._single, self.design.skew,
                    self.design.step_bound(speed), self._repeats, FROZEN_SAMPLES, self._steps, self._jumps,
                    self._previous, self._k % self._hold, (self._k - 1) % self._hold, self.T, z, estimate,
-                   v, self._gain_sums, self._gain_lambda, self._gain_scale, self.gain_evidence)
+                   q, v, self._gain_sums, self._gain_lambda, self._gain_scale, self.gain_evidence)
         z[3 * n], estimate[3 * n] = payload_evidence(z[:n], self._payload.update(q, v) / bound)
         self._k += 1
         return Residual(z, estimate)
@@ -312,7 +314,7 @@ class ConsistencyResidual:
 
 @kernel
 def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, repeats, frozen_samples, steps, jumps,
-               previous, row, previous_row, T, z, estimate, v, gain_sums, lam, gain_scale, gain):
+               previous, row, previous_row, T, z, estimate, q, v, gain_sums, lam, gain_scale, gain):
     """The rows of :meth:`ConsistencyResidual.update` after its momentum and kinematic parts, joint by joint in
     the order of operations of their array form: the residual ``z`` and the ``estimate``; the step and jump ring
     buffers ``steps``/``jumps`` held at ``row``; ``previous`` (3, n) the last sample's e and ν and the e before
@@ -382,8 +384,12 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, re
             if steps[h, i] > step or steps[h, i] != steps[h, i]:
                 step = steps[h, i]
         # the reading two samples back: e_k holds the noise of v_k and v_{k−1}, which would explain itself
-        gain[i] = _gain_evidence(gain_sums, i, e[i], T * gain_sums[9, i], not (position_step and changed), lam)
-        gain_sums[9, i], gain_sums[8, i] = gain_sums[8, i], v[i]
+        # not at a position step (an offset's one-sample spike) nor where the encoder repeated its reading (held,
+        # e = −T q̇ follows the velocity exactly: a frozen encoder; at rest the reading carries no gain anyway)
+        moved = not abs(q[i] - gain_sums[10, i]) <= FROZEN_CHANGE       # a held reading's last bits may move
+        gain[i] = _gain_evidence(gain_sums, i, e[i], T * gain_sums[9, i], moved and not (position_step and changed),
+                                 lam)
+        gain_sums[9, i], gain_sums[8, i], gain_sums[10, i] = gain_sums[8, i], v[i], q[i]
         if gain_scale[i] > 0 and gain[i] / gain_scale[i] > step:
             step = gain[i] / gain_scale[i]
         held = repeats[i] / frozen_samples
@@ -401,9 +407,8 @@ def _gain_evidence(sums, i, e, x, add, lam):
     (Σw e² − max(SS_gain, SS_drift))), with SS the explained sums of squares of the weighted least-squares fits
     over an exponential window of weight λ per sample — a likelihood ratio's statistic, so a noisier sensor
     raises no evidence by its noise alone. ``sums`` (10, n): Σw, Σw·a, Σw·a², Σw·e, Σw·a·e, Σw·x², Σw·x·e, Σw·e²
-    (a: the sample's age), updated in place when ``add`` (not at a position step's sample: an encoder offset's
-    one-sample spike is no gain's; rows 8–9 hold the last two readings). 0 until the window holds half its
-    weight."""
+    (a: the sample's age), updated in place when ``add`` (see :func:`_step_rows`; rows 8–10 hold the last two
+    velocity readings and the last position reading). 0 until the window holds half its weight."""
     if not add:
         return _gain_fit(sums, i, lam)
     sums[2, i] = lam * (sums[2, i] + 2.0 * sums[1, i] + sums[0, i])
