@@ -11,7 +11,7 @@ from robofdi.decision import ThresholdDecision
 from robofdi.faults.spec import parse_fault_spec
 from robofdi.loop import Diagnosis, diagnose_record, diagnoser_inputs
 from robofdi.models.friction import JointFriction
-from robofdi.observers.arm_schemes import ArmSchemeSettings
+from robofdi.observers.arm_schemes import ArmSchemeSettings, scheme_calibration
 from robofdi.observers.consistency import (
     STEP_HOLD, ConsistencyDesign, ConsistencyResidual, _step_rows, design_consistency,
 )
@@ -41,14 +41,15 @@ def designed():
 MARGIN = 2.0   # the bound's margin for motions the design never saw
 
 
-def _trace(record, model, design, rates, confirm=0, evidence=False):
+def _trace(record, model, design, rates, confirm=0, evidence=False, overturn=0):
     """The scheme with a uniform threshold of MARGIN (and the first alarm isolated at once unless ``confirm``);
-    with ``evidence``, its discriminating rows count as evidence from their design maximum (1), as calibrated."""
+    with ``evidence``, its discriminating rows count as evidence from their design maximum (1), as calibrated;
+    ``overturn``: the decision's (0: a later alarm never overturns)."""
     d = ConsistencyResidual(model, design)
     threshold = np.full(len(d.components), MARGIN)
     levels = np.where(np.isin(d.components, d.discriminating), 1.0, MARGIN) if evidence else None
     decision = ThresholdDecision(d.components, threshold, d.signatures(), blanking=SKIP, confirm=confirm,
-                                 evidence=levels)
+                                 evidence=levels, overturn=overturn)
     return diagnose_record(record, Diagnosis(d, decision), rates)
 
 
@@ -283,13 +284,14 @@ def test_a_velocity_step_below_the_step_bound_is_told_from_an_encoder_drift_by_a
                                              ("sensor_drift:joint3_pos:0.0005@0.9", "joint3_pos")])
 def test_a_velocity_gain_error_that_starts_at_rest_is_named_from_the_motion_that_follows(designed, fault, isolated):
     """A gain error set while its joint rests has no step at onset; once the joint moves (at 0.8 s), the increments
-    follow the velocity, which no encoder drift does — also one that starts as the joint accelerates (0.9 s)."""
+    follow the velocity, which no encoder drift does — also one that starts as the joint accelerates (0.9 s). The
+    first call is the encoder (nothing else has spoken yet); the gain evidence overturns it within the run."""
     base, _, model, rates, _, design = designed
     q0 = (np.pi / 2, -2 * np.pi / 3, np.pi / 6, -np.pi / 2, np.pi / 2, -2.4)
     sc = replace(base, motion=Quintic(q0, (0, 0, 1.0, 0, 0, 0), 1.5, start=0.8), faults=(parse_fault_spec(fault),),
                  duration=2.6)
-    tr = _trace(run_scenario(sc, calibration(sc)[0]), model, design, rates,
-                confirm=ArmSchemeSettings().consistency_confirm, evidence=True)
+    rule = scheme_calibration("consistency")
+    tr = _trace(run_scenario(sc, calibration(sc)[0]), model, design, rates, rule.confirm, True, rule.overturn)
     t = tr.time
     assert np.abs(tr.residual[(t > SKIP * 0.002) & (t < 0.4)]).max() < 1.0
     time, got = _first_isolation(tr)

@@ -285,18 +285,24 @@ def test_revision_keeps_a_hypothesis_its_evidence_still_supports():
 
 def test_a_later_row_overturns_the_hypothesis_it_refines_while_alarmed():
     """An encoder fault confirmed on its kinematic row alone becomes a velocity fault when the step row alarms later
-    in the same episode (a velocity-gain error's evidence accumulates after its onset): the velocity hypothesis
-    requires the encoder hypothesis's evidence and more. A later sensor fault of another joint joins an actuator
-    fault and does not replace it: it requires none of its rows."""
+    in the same episode for ``overturn`` samples in a row (a velocity-gain error's evidence accumulates after its
+    onset): the velocity hypothesis requires the encoder hypothesis's evidence and more. A later sensor fault of
+    another joint joins an actuator fault and does not replace it: it requires none of its rows."""
     comps = ["j1", "j2", "j1_kin", "j1_step", "j2_kin"]
     sigs = [Signature("j1", {"j1"}, {"j1_step"}), Signature("j2", {"j2"}),
             Signature("j1_pos", {"j1_kin"}, {"j1", "j2"}), Signature("j1_vel", {"j1_kin", "j1_step"}, {"j1", "j2"}),
             Signature("j2_pos", {"j2_kin"}, {"j1", "j2"})]
-    d = ThresholdDecision(comps, np.ones(5), sigs, confirm=3)
+    d = ThresholdDecision(comps, np.ones(5), sigs, confirm=3, overturn=4)
     assert _episode(d, [0, 0, 2, 0, 0], 10)[-1].isolated == ("j1_pos",)
-    out = _episode(d, [0, 0, 2, 3, 0], 3)
-    assert out[0].isolated == ("j1_vel",) and out[0].new == ("j1_vel",)
+    assert _episode(d, [0, 0, 2, 3, 0], 3)[-1].isolated == ("j1_pos",)       # not yet: 3 of 4 samples
+    _episode(d, [0, 0, 2, 0, 0], 1)
+    out = _episode(d, [0, 0, 2, 3, 0], 5)
+    assert [a.isolated for a in out[:3]] == [("j1_pos",)] * 3
+    assert out[3].isolated == ("j1_vel",) and out[3].new == ("j1_vel",)
     assert _episode(d, [0, 0, 2, 0, 0], 3)[-1].isolated == ("j1_vel",)       # latched once the step row decays
     d.reset()
     assert _episode(d, [3, 0, 0, 0, 0], 10)[-1].isolated == ("j1",)
+    assert d.overturn == 4 and ThresholdDecision(comps, np.ones(5), sigs).overturn == 0
+    with pytest.raises(RobofdiError, match="overturn"):
+        ThresholdDecision(comps, np.ones(5), sigs, overturn=-1)
     assert _episode(d, [3, 0, 0, 0, 2], 5)[-1].isolated == ("j1", "j2_pos")

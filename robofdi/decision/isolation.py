@@ -99,10 +99,11 @@ class ThresholdDecision:
     its dynamic row). When nothing persisted, nothing is isolated ("unknown") and the next alarm opens a new
     window. Alarms are not delayed. With ``latch``, a confirmed fault keeps explaining its components: later alarms
     add a fault only for components it cannot raise (a velocity fault isolated from its step row is not joined
-    by the encoder fault its kinematic row alone would suggest, once the step row has decayed). Such a fault is
-    chosen over every alarmed component, and it replaces an isolated fault whose required components it requires
-    too: evidence that arrives later overturns the hypothesis it refines (an encoder fault, its kinematic row
-    alone, becomes a velocity fault once the step row alarms).
+    by the encoder fault its kinematic row alone would suggest, once the step row has decayed). With ``overturn``
+    = N > 0, once such components have alarmed for N samples in a row, the new fault is chosen over every
+    alarmed component, and it replaces an isolated fault whose required components it requires too: evidence
+    that persists overturns the hypothesis it refines (an encoder fault, its kinematic row alone, becomes a
+    velocity fault once the step row has alarmed for N samples).
 
     Revision: with ``release`` = R > 0 samples (and ``confirm``), an isolation is a decision the evidence can
     overturn. Once no component has alarmed for R samples the alarm episode that led to it is over, and the next
@@ -130,6 +131,7 @@ class ThresholdDecision:
     confirm: int = 0
     evidence: np.ndarray | None = None
     release: int = 0
+    overturn: int = 0
     _isolated: list[str] = field(default_factory=list, init=False, repr=False)
 
     def __post_init__(self):
@@ -173,7 +175,7 @@ class ThresholdDecision:
                     f"signature {sig.fault!r}: component {unknown[0]!r} is not a residual component; "
                     f"expected one of {list(self.components)}"
                 )
-        for name in ("blanking", "confirm", "release"):
+        for name in ("blanking", "confirm", "release", "overturn"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
                 raise RobofdiError(f"{name}: expected an integer number of samples >= 0, got {value!r}")
@@ -190,6 +192,7 @@ class ThresholdDecision:
         self._quiet_for = None      # the isolated tuple _quiet was made for
         self._since_alarm = 0       # samples since the last alarm (revision: release)
         self._revising = False      # a confirmation window is open to revise an isolation
+        self._unexplained_for = 0   # consecutive samples with an alarm no isolated fault explains (overturn)
         self._shape = (len(self.components),)
 
     def _quiet(self) -> Alarms:
@@ -261,13 +264,18 @@ class ThresholdDecision:
         if self.confirm and self.latch and self._isolated:      # a confirmed fault keeps explaining its components
             alarm_new = alarm & ~self._explained_mask()
             if not alarm_new.any():
+                self._unexplained_for = 0
                 return Alarms(alarm=alarm, isolated=tuple(self._isolated))
-            # a component no isolated fault explains: a hypothesis that explains it together with components
-            # already explained replaces the faults whose evidence it requires too (a velocity fault, kinematic and
-            # step rows, replaces the encoder fault its kinematic row alone had suggested: evidence overturns it)
+            self._unexplained_for += 1
+            # a component no isolated fault explains, for ``overturn`` samples in a row: a hypothesis that explains
+            # it together with components already explained replaces the faults whose evidence it requires too (a
+            # velocity fault, kinematic and step rows, replaces the encoder fault its kinematic row alone had
+            # suggested: evidence that persists overturns it)
             previous = list(self._isolated)
             unexplained = {c for c, a in zip(self.components, alarm_new) if a}
-            picks = [f for f in self._isolate(ratio, alarm) if self._by_fault[f].explains & unexplained]
+            picks = []
+            if self.overturn and self._unexplained_for >= self.overturn:
+                picks = [f for f in self._isolate(ratio, alarm) if self._by_fault[f].explains & unexplained]
             if not picks:
                 picks = self._isolate(ratio, alarm_new)
             required = frozenset().union(*(self._by_fault[f].required for f in picks)) if picks else frozenset()

@@ -12,7 +12,7 @@ import numpy as np
 from robofdi import RobofdiError
 from robofdi.checks import check_fields, is_int, is_number
 from robofdi.models.manipulator import ManipulatorModel
-from robofdi.observers.consistency import ConsistencyDesign, ConsistencyResidual, design_consistency
+from robofdi.observers.consistency import STEP_HOLD, ConsistencyDesign, ConsistencyResidual, design_consistency
 from robofdi.observers.kinematic import RIPPLE_CYCLES, WINDOWS, ripple_orders
 from robofdi.observers.diagnostic import Adaptive, DiagnosticObserver, Recursive, RippleModel, TimeDelayed
 from robofdi.observers.momentum import MomentumObserver
@@ -141,7 +141,8 @@ class SchemeCalibration:
     "false_alarm_rate" (extreme-value thresholds for ``settings.consistency_false_alarm_rate`` per hour, and
     evidence levels for the discriminating rows: their largest fault-free value, at least 1);
     ``confirm``: the isolation confirmation window [samples] of its decision; ``release``: the quiet samples
-    after which its isolation may be revised (0: latched); ``random_motions`` and ``top_speed``:
+    after which its isolation may be revised (0: latched); ``overturn``: the samples a later alarm must persist
+    to overturn the hypothesis it refines (0: never); ``random_motions`` and ``top_speed``:
     what the calibration suite must hold for it (random motions, half of them held out; the top-speed motion)."""
 
     design: Callable | None = None
@@ -150,6 +151,7 @@ class SchemeCalibration:
     random_motions: int = 0
     top_speed: bool = False
     release: int = 0
+    overturn: int = 0
 
 
 def _design_consistency(model, inputs, settings: ArmSchemeSettings, skip: int) -> ConsistencyDesign:
@@ -179,5 +181,6 @@ def scheme_calibration(name: str, settings: ArmSchemeSettings = ArmSchemeSetting
     if name == "consistency":
         return SchemeCalibration(_design_consistency, "false_alarm_rate", settings.consistency_confirm,
                                  random_motions=settings.consistency_calibration_motions, top_speed=True,
-                                 release=max(1, int(round(settings.consistency_release / settings.T))))
+                                 release=max(1, int(round(settings.consistency_release / settings.T))),
+                                 overturn=int(round(2 * STEP_HOLD / settings.T)))
     return SchemeCalibration()

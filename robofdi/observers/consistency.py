@@ -388,7 +388,7 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, re
         # e = −T q̇ follows the velocity exactly: a frozen encoder; at rest the reading carries no gain anyway)
         moved = not abs(q[i] - gain_sums[10, i]) <= FROZEN_CHANGE       # a held reading's last bits may move
         gain[i] = _gain_evidence(gain_sums, i, e[i], T * gain_sums[9, i], moved and not (position_step and changed),
-                                 lam)
+                                 lam, single_scale)
         gain_sums[9, i], gain_sums[8, i], gain_sums[10, i] = gain_sums[8, i], v[i], q[i]
         if gain_scale[i] > 0 and gain[i] / gain_scale[i] > step:
             step = gain[i] / gain_scale[i]
@@ -400,17 +400,19 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, re
 
 
 @kernel
-def _gain_evidence(sums, i, e, x, add, lam):
+def _gain_evidence(sums, i, e, x, add, lam, floor):
     """The gain evidence of joint i (dimensionless): how much more of the kinematic increments e [rad] a
     velocity-gain error explains (e ∝ x = T q̇, the reading two samples back) than an encoder drift that may start
-    inside the window (a constant and a trend), against what neither explains: √(max(0, SS_gain − SS_drift) /
-    (Σw e² − max(SS_gain, SS_drift))), with SS the explained sums of squares of the weighted least-squares fits
-    over an exponential window of weight λ per sample — a likelihood ratio's statistic, so a noisier sensor
-    raises no evidence by its noise alone. ``sums`` (10, n): Σw, Σw·a, Σw·a², Σw·e, Σw·a·e, Σw·x², Σw·x·e, Σw·e²
-    (a: the sample's age), updated in place when ``add`` (see :func:`_step_rows`; rows 8–10 hold the last two
-    velocity readings and the last position reading). 0 until the window holds half its weight."""
+    inside the window (a constant and a trend), against what neither explains and at least the fault-free
+    single-sample scale ``floor`` [rad]: √(max(0, SS_gain − SS_drift) / (Σw e² − max(SS_gain, SS_drift) + Σw
+    floor²)), with SS the explained sums of squares of the weighted least-squares fits over an exponential window
+    of weight λ per sample — a likelihood ratio's statistic, so a noisier sensor raises no evidence by its noise
+    alone, and a smooth drift's increments no more than the noise-free few µrad they vary by. ``sums`` (11, n):
+    Σw, Σw·a, Σw·a², Σw·e, Σw·a·e, Σw·x², Σw·x·e, Σw·e² (a: the sample's age), updated in place when ``add``
+    (see :func:`_step_rows`; rows 8–10 hold the last two velocity readings and the last position reading). 0
+    until the window holds half its weight."""
     if not add:
-        return _gain_fit(sums, i, lam)
+        return _gain_fit(sums, i, lam, floor)
     sums[2, i] = lam * (sums[2, i] + 2.0 * sums[1, i] + sums[0, i])
     sums[1, i] = lam * (sums[1, i] + sums[0, i])
     sums[0, i] = lam * sums[0, i] + 1.0
@@ -419,11 +421,11 @@ def _gain_evidence(sums, i, e, x, add, lam):
     sums[5, i] = lam * sums[5, i] + x * x
     sums[6, i] = lam * sums[6, i] + x * e
     sums[7, i] = lam * sums[7, i] + e * e
-    return _gain_fit(sums, i, lam)
+    return _gain_fit(sums, i, lam, floor)
 
 
 @kernel
-def _gain_fit(sums, i, lam):
+def _gain_fit(sums, i, lam, floor):
     """:func:`_gain_evidence`'s statistic from its sums."""
     w, wa, waa, we, wae, wxx, wxe = sums[0, i], sums[1, i], sums[2, i], sums[3, i], sums[4, i], sums[5, i], sums[6, i]
     if w < 0.5 / (1.0 - lam):       # half a window's weight: a fit to fewer samples explains anything
@@ -438,7 +440,7 @@ def _gain_fit(sums, i, lam):
     left = sums[7, i] - (explained if explained > drift else drift)
     if excess <= 0:
         return 0.0
-    return math.sqrt(excess / left) if left > 1e-300 else math.inf
+    return math.sqrt(excess / (left + w * floor * floor))
 
 
 def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray, np.ndarray]], T: float,
