@@ -306,3 +306,18 @@ def test_a_later_row_overturns_the_hypothesis_it_refines_while_alarmed():
     with pytest.raises(RobofdiError, match="overturn"):
         ThresholdDecision(comps, np.ones(5), sigs, overturn=-1)
     assert _episode(d, [3, 0, 0, 0, 2], 5)[-1].isolated == ("j1", "j2_pos")
+
+
+def test_an_overturn_is_not_blocked_by_another_fault_that_may_raise_the_same_row():
+    """The refining hypothesis's rows count whichever isolated fault may also account for them: an encoder fault
+    isolated beside a fault that may raise its joint's step row (a payload change) still becomes a velocity fault,
+    and the other fault stays."""
+    comps = ["j1", "j1_kin", "j1_step", "p"]
+    sigs = [Signature("j1", {"j1"}, {"j1_step"}), Signature("j1_pos", {"j1_kin"}, {"j1"}),
+            Signature("j1_vel", {"j1_kin", "j1_step"}, {"j1"}), Signature("p", {"p"}, {"j1", "j1_step"})]
+    d = ThresholdDecision(comps, np.ones(4), sigs, confirm=3, overturn=4)
+    assert _episode(d, [0, 2, 0, 0], 10)[-1].isolated == ("j1_pos",)
+    assert _episode(d, [0, 2, 0, 3], 3)[-1].isolated == ("j1_pos", "p")
+    out = _episode(d, [0, 2, 3, 3], 4)
+    assert [a.isolated for a in out] == [("j1_pos", "p")] * 3 + [("j1_vel", "p")] and out[-1].new == ("j1_vel",)
+    assert _episode(d, [0, 0, 3, 0], 10)[-1].isolated == ("j1_vel", "p")      # a step row alone refines nothing

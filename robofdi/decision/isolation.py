@@ -100,10 +100,11 @@ class ThresholdDecision:
     window. Alarms are not delayed. With ``latch``, a confirmed fault keeps explaining its components: later alarms
     add a fault only for components it cannot raise (a velocity fault isolated from its step row is not joined
     by the encoder fault its kinematic row alone would suggest, once the step row has decayed). With ``overturn``
-    = N > 0, once such components have alarmed for N samples in a row, the new fault is chosen over every
-    alarmed component, and it replaces an isolated fault whose required components it requires too: evidence
-    that persists overturns the hypothesis it refines (an encoder fault, its kinematic row alone, becomes a
-    velocity fault once the step row has alarmed for N samples).
+    = N > 0, evidence that persists overturns the hypothesis it refines: a hypothesis whose required components
+    strictly contain an isolated fault's replaces that fault once they have all alarmed for N samples in a row,
+    whichever isolated fault may also account for them (an encoder fault, its kinematic row, becomes a velocity
+    fault, kinematic and step rows, once the step row has alarmed with it for N samples, also beside a payload
+    change that may raise every step row).
 
     Revision: with ``release`` = R > 0 samples (and ``confirm``), an isolation is a decision the evidence can
     overturn. Once no component has alarmed for R samples the alarm episode that led to it is over, and the next
@@ -181,6 +182,10 @@ class ThresholdDecision:
                 raise RobofdiError(f"{name}: expected an integer number of samples >= 0, got {value!r}")
         self._index = {c: j for j, c in enumerate(self.components)}
         self._by_fault = {s.fault: s for s in self.signatures}
+        # the hypotheses that refine each fault: their required components a strict superset of its own (overturn)
+        self._refinements = {s.fault: tuple((h.fault, tuple(self._index[c] for c in sorted(h.required)))
+                                            for h in self.signatures if s.required < h.required)
+                             for s in self.signatures}
         self._tables_of, self._explained_masks = None, {}
         self.reset()
 
@@ -192,7 +197,7 @@ class ThresholdDecision:
         self._quiet_for = None      # the isolated tuple _quiet was made for
         self._since_alarm = 0       # samples since the last alarm (revision: release)
         self._revising = False      # a confirmation window is open to revise an isolation
-        self._unexplained_for = 0   # consecutive samples with an alarm no isolated fault explains (overturn)
+        self._refining = {}         # samples in a row each refining hypothesis's rows all alarmed (overturn)
         self._shape = (len(self.components),)
 
     def _quiet(self) -> Alarms:
@@ -262,27 +267,14 @@ class ThresholdDecision:
             new = tuple(f for f in self._isolated if f not in previous)
             return Alarms(alarm=alarm, isolated=tuple(self._isolated), new=new)
         if self.confirm and self.latch and self._isolated:      # a confirmed fault keeps explaining its components
+            refined = self._refine(alarm) if self.overturn else ()
             alarm_new = alarm & ~self._explained_mask()
-            if not alarm_new.any():
-                self._unexplained_for = 0
-                return Alarms(alarm=alarm, isolated=tuple(self._isolated))
-            self._unexplained_for += 1
-            # a component no isolated fault explains, for ``overturn`` samples in a row: a hypothesis that explains
-            # it together with components already explained replaces the faults whose evidence it requires too (a
-            # velocity fault, kinematic and step rows, replaces the encoder fault its kinematic row alone had
-            # suggested: evidence that persists overturns it)
-            previous = list(self._isolated)
-            unexplained = {c for c, a in zip(self.components, alarm_new) if a}
-            picks = []
-            if self.overturn and self._unexplained_for >= self.overturn:
-                picks = [f for f in self._isolate(ratio, alarm) if self._by_fault[f].explains & unexplained]
-            if not picks:
-                picks = self._isolate(ratio, alarm_new)
-            required = frozenset().union(*(self._by_fault[f].required for f in picks)) if picks else frozenset()
-            kept = [f for f in previous if not self._by_fault[f].required <= required]
-            self._isolated = kept + [f for f in picks if f not in kept]
-            new = tuple(f for f in self._isolated if f not in previous)
-            return Alarms(alarm=alarm, isolated=tuple(self._isolated), new=new)
+            picks = self._isolate(ratio, alarm_new)
+            if refined:
+                previous = list(self._isolated)
+                self._isolated = previous + [f for f in picks if f not in previous]
+                new = refined + tuple(f for f in self._isolated if f not in previous and f not in refined)
+                return Alarms(alarm=alarm, isolated=tuple(self._isolated), new=new)
         else:
             picks = self._isolate(ratio, alarm)
         previous = list(self._isolated)
@@ -292,6 +284,24 @@ class ThresholdDecision:
             self._isolated = picks
         new = tuple(f for f in self._isolated if f not in previous)
         return Alarms(alarm=alarm, isolated=tuple(self._isolated), new=new)
+
+    def _refine(self, alarm: np.ndarray) -> tuple[str, ...]:
+        """Overturn: count, per hypothesis that refines an isolated fault (its required components a strict superset
+        of the fault's), the samples in a row its required components all alarmed; at ``overturn`` it replaces the
+        fault in place. Returns the hypotheses that did (usually none)."""
+        counts, replaced = {}, []
+        for f in self._isolated:
+            for h, indices in self._refinements[f]:
+                if h in self._isolated or h in counts:
+                    continue
+                counts[h] = self._refining.get(h, 0) + 1 if all(alarm[j] for j in indices) else 0
+                if counts[h] >= self.overturn and f not in dict(replaced):
+                    replaced.append((f, h))
+        self._refining = counts
+        for f, h in replaced:
+            self._isolated[self._isolated.index(f)] = h
+            self._refining.pop(h, None)
+        return tuple(h for _, h in replaced)
 
     def _explained(self) -> frozenset[str]:
         """Every component the faults isolated so far can account for."""
