@@ -103,8 +103,7 @@ from robofdi.observers.payload import PayloadRegressor, payload_evidence
 from robofdi.observers.residual import Residual, shared_measurement
 
 __all__ = ["ConsistencyDesign", "ConsistencyResidual", "design_consistency", "DEFAULT_GAIN", "STEP_HOLD",
-           "FROZEN_CHANGE", "FROZEN_SAMPLES", "GAIN_WINDOW",
-           "GAIN_FLOOR", "GAIN_MARGIN"]
+           "FROZEN_CHANGE", "FROZEN_SAMPLES", "GAIN_WINDOW", "GAIN_FLOOR", "GAIN_MARGIN", "GAIN_JUMPS"]
 
 #: Momentum-observer bandwidth K_O [1/s] of the consistency residual: fast enough that an abrupt fault of twice
 #: the smallest detectable size crosses its bound within a few 2 ms samples.
@@ -123,6 +122,10 @@ GAIN_FLOOR = 0.1
 #: 1.4× it on arm6 (three motions), an encoder drift that starts as its joint accelerates 1.2× (arm6) and 4×
 #: (arm7 at 1–6 rad/s).
 GAIN_MARGIN = 4.0
+#: The largest share of a window's moving samples that may be position steps for the gain evidence to count: a
+#: noisy encoder's increments jump at 94–100 % of its samples, and the few left are the small ones (a biased fit);
+#: velocity-gain errors jumped at most 1 % (arm6 and arm7 campaigns).
+GAIN_JUMPS = 0.2
 #: A velocity reading that changed by at most this [rad/s or m/s] from the previous sample is a repeat (held).
 FROZEN_CHANGE = 1e-9
 #: Consecutive repeated velocity readings that make the step row 1 (its largest fault-free value, at least).
@@ -241,8 +244,8 @@ class ConsistencyResidual:
         self._previous = np.zeros((3, self.n))  # the last sample's e [rad] and ν [rad/s], the e before it [rad]
         self._steps = np.zeros((self._hold, self.n))     # ring buffer of |ν| / scale (or agreement) over the hold
         self._jumps = np.zeros((self._hold, self.n))    # ring buffer of position-step ratios
-        self._gain_sums = np.full((11, self.n), np.nan)    # the gain evidence's weighted sums, the last readings
-        self._gain_sums[:10] = 0.0
+        self._gain_sums = np.zeros((13, self.n))    # the gain evidence's weighted sums, the last readings
+        self._gain_sums[10] = np.nan
         self.gain_evidence = np.zeros(self.n)       # its last value (dimensionless)
         self._k = 0
 
@@ -385,9 +388,14 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, re
                 step = steps[h, i]
         # the reading two samples back: e_k holds the noise of v_k and v_{k−1}, which would explain itself
         # not at a position step (an offset's one-sample spike) nor where the encoder repeated its reading (held,
-        # e = −T q̇ follows the velocity exactly: a frozen encoder; at rest the reading carries no gain anyway)
+        # e = −T q̇ follows the velocity exactly: a frozen encoder; at rest the reading carries no gain anyway);
+        # the share of moving samples that were position steps is kept (rows 11–12)
         moved = not abs(q[i] - gain_sums[10, i]) <= FROZEN_CHANGE       # a held reading's last bits may move
-        gain[i] = _gain_evidence(gain_sums, i, e[i], T * gain_sums[9, i], moved and not (position_step and changed),
+        jumped = position_step and changed
+        if moved:
+            gain_sums[11, i] = lam * gain_sums[11, i] + (1.0 if jumped else 0.0)
+            gain_sums[12, i] = lam * gain_sums[12, i] + 1.0
+        gain[i] = _gain_evidence(gain_sums, i, e[i], T * gain_sums[9, i], moved and not jumped,
                                  lam, single_scale)
         gain_sums[9, i], gain_sums[8, i], gain_sums[10, i] = gain_sums[8, i], v[i], q[i]
         if gain_scale[i] > 0 and gain[i] / gain_scale[i] > step:
@@ -407,10 +415,12 @@ def _gain_evidence(sums, i, e, x, add, lam, floor):
     single-sample scale ``floor`` [rad]: √(max(0, SS_gain − SS_drift) / (Σw e² − max(SS_gain, SS_drift) + Σw
     floor²)), with SS the explained sums of squares of the weighted least-squares fits over an exponential window
     of weight λ per sample — a likelihood ratio's statistic, so a noisier sensor raises no evidence by its noise
-    alone, and a smooth drift's increments no more than the noise-free few µrad they vary by. ``sums`` (11, n):
+    alone, and a smooth drift's increments no more than the noise-free few µrad they vary by. ``sums`` (13, n):
     Σw, Σw·a, Σw·a², Σw·e, Σw·a·e, Σw·x², Σw·x·e, Σw·e² (a: the sample's age), updated in place when ``add``
-    (see :func:`_step_rows`; rows 8–10 hold the last two velocity readings and the last position reading). 0
-    until the window holds half its weight."""
+    (see :func:`_step_rows`; rows 8–10 hold the last two velocity readings and the last position reading, rows
+    11–12 the weight of the moving samples that were position steps and of all of them). 0 until the window
+    holds half its weight, and where more than :data:`GAIN_JUMPS` of its moving samples were position steps (the
+    encoder, not the velocity, is what the increments show)."""
     if not add:
         return _gain_fit(sums, i, lam, floor)
     sums[2, i] = lam * (sums[2, i] + 2.0 * sums[1, i] + sums[0, i])
@@ -429,6 +439,8 @@ def _gain_fit(sums, i, lam, floor):
     """:func:`_gain_evidence`'s statistic from its sums."""
     w, wa, waa, we, wae, wxx, wxe = sums[0, i], sums[1, i], sums[2, i], sums[3, i], sums[4, i], sums[5, i], sums[6, i]
     if w < 0.5 / (1.0 - lam):       # half a window's weight: a fit to fewer samples explains anything
+        return 0.0
+    if sums[11, i] > GAIN_JUMPS * sums[12, i]:      # the encoder jumps: the samples kept are its small increments
         return 0.0
     det = w * waa - wa * wa
     if det > 1e-12 * w * waa:
