@@ -88,6 +88,8 @@ def quality(table: pd.DataFrame) -> pd.DataFrame:
         big = f[limit.notna() & (f["size"] >= 2 * limit.fillna(np.inf))]
         det = big["detected"].fillna(False).astype(bool)
         correct = big["correct"].fillna(False).astype(bool) & det
+        final = (big["final_correct"].fillna(False).astype(bool) & det if "final_correct" in big
+                 else pd.Series(False, index=big.index))
         abrupt = f[(f["class"] == "actuator_abrupt") & f["detected"].fillna(False).astype(bool)]
         incipient = f[f["class"] == "actuator_incipient"]
         drift = f[f["class"] == "sensor_drift_pos"]
@@ -111,7 +113,8 @@ def quality(table: pd.DataFrame) -> pd.DataFrame:
             "false-alarm runs": f"{fa}/{len(free)}",
             "FA rate 95% upper": f"{100 * clopper_pearson(fa, len(free))[1]:.1f} %",
             "≥2×MDF detected": f"{int(det.sum())}/{len(big)}",
-            "≥2×MDF correct": f"{int(correct.sum())}/{len(big)}",
+            "≥2×MDF correct first": f"{int(correct.sum())}/{len(big)}",
+            "≥2×MDF correct at the end": f"{int(final.sum())}/{len(big)}" if "final_correct" in big else "-",
             "abrupt delay [samples]": f"{np.median(abrupt['delay']) / SAMPLE:.1f}" if len(abrupt) else "-",
             "incipient detected": f"{int(incipient['detected'].fillna(False).sum())}/{len(incipient)}",
             "drift offset at detection / MDF bias [mrad]":
