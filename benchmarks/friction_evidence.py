@@ -21,7 +21,6 @@ from dataclasses import replace
 import numpy as np
 
 from robofdi.config import evolve
-from robofdi.control.motions import random_point_to_point
 from robofdi.faults.spec import parse_fault_spec
 from robofdi.loop import diagnoser_inputs
 from robofdi.observers.consistency import ConsistencyResidual
@@ -51,10 +50,10 @@ def main(argv=None) -> None:
 
     fault = parse_fault_spec(args.fault)
     sc = arm_scenario(args.robot, faults=[fault], seed=0)
-    if args.segments:
-        _, model, limits = ArmSystem()._base(evolve(ArmOptions(), robot=args.robot))
-        motion = random_point_to_point(model, limits, rng(args.mission_seed, "mission"), args.segments)
-        sc = replace(sc, motion=motion, duration=float(motion.end) + 0.5)
+    if args.segments:        # a campaign's mission (its generator, tail 0.5 s), robot instance 0
+        options = evolve(ArmOptions(), robot=args.robot, segments=args.segments, tail=0.5)
+        mission = ArmSystem().mission(options, "0", rng(args.mission_seed, "mission"))
+        sc = replace(sc, motion=mission.plan, duration=mission.duration)
     cal = calibration(sc)[0]
     record = run_scenario(sc, cal)
     trace, design = record.diagnosers["consistency"], cal.designs["consistency"]

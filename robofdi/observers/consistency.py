@@ -351,9 +351,8 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, re
         increment = abs(e[i])
         reach = 2 * (T / 2 + abs(skew[i]))
         position_step = increment > reach * abs(innovation[i]) + single_scale
-        change = abs(e[i] - previous[0, i])
-        changed = change > reach * (abs(innovation[i]) + abs(previous[1, i])) + 2 * single_scale
-        previous_e = previous[0, i]
+        moved = e[i] - previous[0, i]       # the increment's change since the last sample
+        changed = abs(moved) > reach * (abs(innovation[i]) + abs(previous[1, i])) + 2 * single_scale
         span = e[i] - previous[2, i]        # a velocity-reading step at the last sample: −T b (docstring)
         if abs(span) > 2 * single_scale:
             share = previous[0, i] - previous[2, i] - (T / 2 + skew[i]) / T * span    # its sample's share, ≈ 0
@@ -380,7 +379,7 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, re
                 jump = jumps[h, i]
         # refuted: the increment did not move by the −(T/2 + τ_s) ν a reading's step of ν makes (docstring)
         made = -(T / 2 + skew[i]) * innovation[i]
-        refuted = abs(e[i] - previous_e - made) > abs(made) / 2 + 2 * single_scale
+        refuted = abs(moved - made) > abs(made) / 2 + 2 * single_scale
         steps[row, i] = 0.0 if jump > 0 or refuted else abs(innovation[i]) / step_bound[i]
         step = steps[0, i]
         for h in range(1, hold):
