@@ -389,12 +389,12 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, re
         # not at a position step (an offset's one-sample spike) nor where the encoder repeated its reading (held,
         # e = −T q̇ follows the velocity exactly: a frozen encoder; at rest the reading carries no gain anyway);
         # the share of moving samples that were position steps is kept (rows 11–12)
-        moved = not abs(q[i] - gain_sums[10, i]) <= FROZEN_CHANGE       # a held reading's last bits may move
+        reading_moved = not abs(q[i] - gain_sums[10, i]) <= FROZEN_CHANGE       # a held reading's last bits may move
         jumped = position_step and changed
-        if moved:
+        if reading_moved:
             gain_sums[11, i] = lam * gain_sums[11, i] + (1.0 if jumped else 0.0)
             gain_sums[12, i] = lam * gain_sums[12, i] + 1.0
-        gain[i] = _gain_evidence(gain_sums, i, e[i], T * gain_sums[9, i], moved and not jumped,
+        gain[i] = _gain_evidence(gain_sums, i, e[i], T * gain_sums[9, i], reading_moved and not jumped,
                                  lam, single_scale)
         gain_sums[9, i], gain_sums[8, i], gain_sums[10, i] = gain_sums[8, i], v[i], q[i]
         if gain_scale[i] > 0 and gain[i] / gain_scale[i] > step:
