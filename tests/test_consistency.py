@@ -458,8 +458,9 @@ def test_the_velocity_innovation_is_one_joint_step_that_explains_the_impulse(des
 
 def test_the_gain_evidence_counts_only_where_the_encoder_does_not_jump():
     """Increments that follow the velocity two samples back (a +15 % gain error on a joint speeding up and slowing
-    down: a velocity a trend cannot follow) raise the gain evidence above a drift's; the same window counts nothing once more than GAIN_JUMPS of
-    its moving samples were position steps (a noisy encoder's small increments are a biased sample)."""
+    down: a velocity a trend cannot follow) raise the gain evidence above a drift's; the same window counts nothing
+    once more than GAIN_JUMPS of its moving samples were position steps (a noisy encoder's small increments are a
+    biased sample). A drift's constant increments raise none."""
     from robofdi.observers.consistency import GAIN_JUMPS, _gain_evidence, _gain_fit
 
     T, lam, floor = 0.002, 0.99, 1e-5
