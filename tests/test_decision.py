@@ -321,3 +321,9 @@ def test_an_overturn_is_not_blocked_by_another_fault_that_may_raise_the_same_row
     out = _episode(d, [0, 2, 3, 3], 4)
     assert [a.isolated for a in out] == [("j1_pos", "p")] * 3 + [("j1_vel", "p")] and out[-1].new == ("j1_vel",)
     assert _episode(d, [0, 0, 3, 0], 10)[-1].isolated == ("j1_vel", "p")      # a step row alone refines nothing
+    d.reset()
+    _episode(d, [0, 2, 0, 0], 10)
+    _episode(d, [0, 2, 3, 0], 3)
+    _episode(d, [0, 0, 0, 0], 1)                   # a quiet sample: the rows did not alarm in a row
+    assert _episode(d, [0, 2, 3, 0], 3)[-1].isolated == ("j1_pos",)
+    assert _episode(d, [0, 2, 3, 0], 1)[-1].isolated == ("j1_vel",)

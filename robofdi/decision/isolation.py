@@ -198,6 +198,7 @@ class ThresholdDecision:
         self._since_alarm = 0       # samples since the last alarm (revision: release)
         self._revising = False      # a confirmation window is open to revise an isolation
         self._refining = {}         # samples in a row each refining hypothesis's rows all alarmed (overturn)
+        self._refined_at = -1       # the sample those counts were last made at
         self._shape = (len(self.components),)
 
     def _quiet(self) -> Alarms:
@@ -289,19 +290,22 @@ class ThresholdDecision:
         """Overturn: count, per hypothesis that refines an isolated fault (its required components a strict superset
         of the fault's), the samples in a row its required components all alarmed; at ``overturn`` it replaces the
         fault in place. Returns the hypotheses that did (usually none)."""
-        counts, replaced = {}, []
+        if self._refined_at != self._samples - 1:       # a quiet sample, or a revision window, came between
+            self._refining = {}
+        self._refined_at = self._samples
+        counts, replaced = {}, {}
         for f in self._isolated:
             for h, indices in self._refinements[f]:
                 if h in self._isolated or h in counts:
                     continue
                 counts[h] = self._refining.get(h, 0) + 1 if all(alarm[j] for j in indices) else 0
-                if counts[h] >= self.overturn and f not in dict(replaced):
-                    replaced.append((f, h))
+                if counts[h] >= self.overturn and f not in replaced:
+                    replaced[f] = h
         self._refining = counts
-        for f, h in replaced:
+        for f, h in replaced.items():
             self._isolated[self._isolated.index(f)] = h
             self._refining.pop(h, None)
-        return tuple(h for _, h in replaced)
+        return tuple(replaced.values())
 
     def _explained(self) -> frozenset[str]:
         """Every component the faults isolated so far can account for."""
