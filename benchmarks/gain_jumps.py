@@ -64,8 +64,8 @@ def measure(spec, system, options, calibrations: dict, index: int) -> dict:
     for y, u in zip(Y, U):
         diagnoser.update(y, u)
         sums = diagnoser._gain_sums
-        moved = sums[12, joint]
-        share.append(sums[11, joint] / moved if moved > 0 else 0.0)
+        moving = sums[12, joint]        # the window's weight of samples whose reading moved
+        share.append(sums[11, joint] / moving if moving > 0 else 0.0)
         counted.append(diagnoser.gain_evidence[joint] / scale)
         free = sums.copy()
         free[11] = 0.0          # the rule off: the same fit on the same kept samples
