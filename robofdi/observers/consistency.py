@@ -44,9 +44,10 @@ and its kinematic row alarms like an encoder drift's. As the joint moves, though
 velocity, e_k ≈ −T g q̇_k, which no drift does: the step row also holds the gain evidence of
 :func:`_gain_evidence` — how much more of the increments over the last :data:`GAIN_WINDOW` a gain explains than a
 drift that may start inside the window, against what neither explains — over its fault-free scale
-(``gain_scale``: :data:`GAIN_MARGIN` × its largest value on the design runs). It builds up over about 0.2 s of
+(``gain_scale``: :data:`GAIN_MARGIN` × its largest value on the design runs), counted only where the encoder's
+increments do not jump (:data:`GAIN_JUMPS`: a noisy encoder is no gain error). It builds up over about 0.2 s of
 motion, after the first isolation; the decision then replaces the encoder hypothesis by the velocity one
-(:class:`~robofdi.decision.ThresholdDecision`: a later row overturns the hypothesis it refines).
+(:class:`~robofdi.decision.ThresholdDecision`: evidence that persists overturns the hypothesis it refines).
 
 A frozen velocity sensor (its reading held) has no step at onset, so ν says nothing; the kinematic row alarms as
 the joint moves on, and alone it would call it an encoder fault. A drive's velocity estimate carries noise and
