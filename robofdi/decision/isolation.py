@@ -267,29 +267,24 @@ class ThresholdDecision:
             self._isolated = list(picks)
             new = tuple(f for f in self._isolated if f not in previous)
             return Alarms(alarm=alarm, isolated=tuple(self._isolated), new=new)
+        previous = list(self._isolated)
         if self.confirm and self.latch and self._isolated:      # a confirmed fault keeps explaining its components
-            refined = self._refine(alarm) if self.overturn else ()
-            alarm_new = alarm & ~self._explained_mask()
-            picks = self._isolate(ratio, alarm_new)
-            if refined:
-                previous = list(self._isolated)
-                self._isolated = previous + [f for f in picks if f not in previous]
-                new = refined + tuple(f for f in self._isolated if f not in previous and f not in refined)
-                return Alarms(alarm=alarm, isolated=tuple(self._isolated), new=new)
+            if self.overturn:
+                self._refine(alarm)
+            picks = self._isolate(ratio, alarm & ~self._explained_mask())
         else:
             picks = self._isolate(ratio, alarm)
-        previous = list(self._isolated)
         if self.latch:
-            self._isolated = previous + [f for f in picks if f not in previous]
+            self._isolated = self._isolated + [f for f in picks if f not in self._isolated]
         else:
             self._isolated = picks
         new = tuple(f for f in self._isolated if f not in previous)
         return Alarms(alarm=alarm, isolated=tuple(self._isolated), new=new)
 
-    def _refine(self, alarm: np.ndarray) -> tuple[str, ...]:
+    def _refine(self, alarm: np.ndarray) -> None:
         """Overturn: count, per hypothesis that refines an isolated fault (its required components a strict superset
         of the fault's), the samples in a row its required components all alarmed; at ``overturn`` it replaces the
-        fault in place. Returns the hypotheses that did (usually none)."""
+        fault in place in the isolated faults."""
         if self._refined_at != self._samples - 1:       # a quiet sample, or a revision window, came between
             self._refining = {}
         self._refined_at = self._samples
@@ -305,7 +300,6 @@ class ThresholdDecision:
         for f, h in replaced.items():
             self._isolated[self._isolated.index(f)] = h
             self._refining.pop(h, None)
-        return tuple(replaced.values())
 
     def _explained(self) -> frozenset[str]:
         """Every component the faults isolated so far can account for."""
