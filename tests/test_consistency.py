@@ -282,12 +282,16 @@ def test_a_velocity_step_below_the_step_bound_is_told_from_an_encoder_drift_by_a
                                              ("sensor_scale:joint3_vel:-0.08@0.4", "joint3_vel"),
                                              ("sensor_drift:joint3_pos:0.005@0.4", "joint3_pos"),
                                              ("sensor_drift:joint3_pos:0.0005@0.9", "joint3_pos"),
-                                             ("sensor_noise:joint3_pos:0.004@0.4", "joint3_pos")])
+                                             ("sensor_noise:joint3_pos:0.004@0.4", "joint3_pos"),
+                                             ("sensor_scale:joint3_pos:0.15@0.4", "joint3_pos"),
+                                             ("sensor_scale:joint3_pos:-0.03@0.4", "joint3_pos")])
 def test_a_velocity_gain_error_that_starts_at_rest_is_named_from_the_motion_that_follows(designed, fault, isolated):
     """A gain error set while its joint rests has no step at onset; once the joint moves (at 0.8 s), the increments
     follow the velocity, which no encoder drift does — also one that starts as the joint accelerates (0.9 s), nor a
     noisy encoder. The first call is the encoder (nothing else has spoken yet); the gain evidence overturns it
-    within the run."""
+    within the run. An encoder's gain error makes the same increments once the joint moves, but it stepped the
+    reading by g·q at its onset (joint 3 rests at π/6: 78 and 16 mrad), which a velocity sensor cannot: it stays
+    the encoder."""
     base, _, model, rates, _, design = designed
     q0 = (np.pi / 2, -2 * np.pi / 3, np.pi / 6, -np.pi / 2, np.pi / 2, -2.4)
     sc = replace(base, motion=Quintic(q0, (0, 0, 1.0, 0, 0, 0), 1.5, start=0.8), faults=(parse_fault_spec(fault),),
@@ -404,7 +408,7 @@ def test_the_step_row_counts_nu_only_where_the_increments_do_not_refute_a_readin
     z, estimate = np.empty(4), np.empty(4)
     _step_rows(np.zeros(1), np.array([nu]), np.zeros(1), np.array([moved * made]), np.ones(1),
                np.array([[single, 1.0]]), 0, np.array([skew]), np.array([bound]), np.zeros(1), 2.0, steps, jumps,
-               previous, 3, 2, T, z, estimate, np.zeros(1), np.zeros(1), np.zeros((13, 1)), 0.99, np.zeros(1), np.zeros(1))
+               previous, 3, 2, T, z, estimate, np.zeros(1), np.zeros(1), np.zeros((14, 1)), 0.99, np.zeros(1), np.zeros(1))
     assert z[2] == (pytest.approx(nu / bound) if counted else 0.0)
     assert z[1] == 0.0                                # no position step: |e| is within what ν makes
 
@@ -465,7 +469,7 @@ def test_the_gain_evidence_counts_only_where_the_encoder_does_not_jump():
 
     T, lam, floor = 0.002, 0.99, 1e-5
     noise = np.random.default_rng(3).normal(0.0, 2e-6, 400)
-    sums = np.zeros((13, 1))
+    sums = np.zeros((14, 1))
     v = 3.0 * (1.0 - np.cos(2 * np.pi * T * np.arange(400) / 0.8))      # the velocity readings [rad/s]
     for k in range(2, 400):
         sums[12, 0] = lam * sums[12, 0] + 1.0
@@ -475,7 +479,7 @@ def test_the_gain_evidence_counts_only_where_the_encoder_does_not_jump():
     assert _gain_fit(sums, 0, lam, floor) == 0.0
     sums[11, 0] = (GAIN_JUMPS - 0.01) * sums[12, 0]
     assert _gain_fit(sums, 0, lam, floor) == value
-    drift = np.zeros((13, 1))                     # constant increments (an encoder drift) over the same motion
+    drift = np.zeros((14, 1))                     # constant increments (an encoder drift) over the same motion
     for k in range(2, 400):
         drift[12, 0] = lam * drift[12, 0] + 1.0
         assert _gain_evidence(drift, 0, 5e-5 + noise[k], T * v[k - 2], True, lam, floor) < 1.0

@@ -45,7 +45,9 @@ velocity, e_k ≈ −T g q̇_k, which no drift does: the step row also holds the
 :func:`_gain_evidence` — how much more of the increments over the last :data:`GAIN_WINDOW` a gain explains than a
 drift that may start inside the window, against what neither explains — over its fault-free scale
 (``gain_scale``: :data:`GAIN_MARGIN` × its largest value on the design runs), counted only where the encoder's
-increments do not jump (:data:`GAIN_JUMPS`: a noisy encoder is no gain error). It builds up over about 0.2 s of
+increments do not jump (:data:`GAIN_JUMPS`: a noisy encoder is no gain error) and not once the encoder has
+stepped (:data:`ENCODER_STEP`: an encoder scale error g steps the reading by g·q at its onset, and its increments
+then follow the velocity as a velocity-gain error's do, with the opposite sign of g). It builds up over about 0.2 s of
 motion, after the first isolation; the decision then replaces the encoder hypothesis by the velocity one
 (:class:`~robofdi.decision.ThresholdDecision`: evidence that persists overturns the hypothesis it refines).
 
@@ -104,7 +106,8 @@ from robofdi.observers.payload import PayloadRegressor, payload_evidence
 from robofdi.observers.residual import Residual, shared_measurement
 
 __all__ = ["ConsistencyDesign", "ConsistencyResidual", "design_consistency", "DEFAULT_GAIN", "STEP_HOLD",
-           "FROZEN_CHANGE", "FROZEN_SAMPLES", "GAIN_WINDOW", "GAIN_FLOOR", "GAIN_MARGIN", "GAIN_JUMPS"]
+           "FROZEN_CHANGE", "FROZEN_SAMPLES", "GAIN_WINDOW", "GAIN_FLOOR", "GAIN_MARGIN", "GAIN_JUMPS",
+           "ENCODER_STEP"]
 
 #: Momentum-observer bandwidth K_O [1/s] of the consistency residual: fast enough that an abrupt fault of twice
 #: the smallest detectable size crosses its bound within a few 2 ms samples.
@@ -127,6 +130,11 @@ GAIN_MARGIN = 4.0
 #: noisy encoder's increments jump at 94–100 % of its samples, and the few left are the small ones (a biased fit);
 #: velocity-gain errors jumped at most 1 % (arm6 and arm7 campaigns).
 GAIN_JUMPS = 0.2
+#: A position step of more than this many single-sample kinematic scales marks the joint's encoder as stepped for
+#: the rest of the run, and its gain evidence is 0 from then on: an encoder scale error g steps the reading by g·q
+#: at its onset (2 500–17 000 scales on arm6 and robosuite's Panda) and then makes the increments a velocity-gain
+#: error makes. Fault-free runs and velocity-gain errors had no position step at all (arm6, arm7 campaigns).
+ENCODER_STEP = 10.0
 #: A velocity reading that changed by at most this [rad/s or m/s] from the previous sample is a repeat (held).
 FROZEN_CHANGE = 1e-9
 #: Consecutive repeated velocity readings that make the step row 1 (its largest fault-free value, at least).
@@ -245,7 +253,7 @@ class ConsistencyResidual:
         self._previous = np.zeros((3, self.n))  # the last sample's e [rad] and ν [rad/s], the e before it [rad]
         self._steps = np.zeros((self._hold, self.n))     # ring buffer of |ν| / scale (or agreement) over the hold
         self._jumps = np.zeros((self._hold, self.n))    # ring buffer of position-step ratios
-        self._gain_sums = np.zeros((13, self.n))    # the gain evidence's weighted sums, the last readings
+        self._gain_sums = np.zeros((14, self.n))    # the gain evidence's sums, the last readings, encoder stepped
         self._gain_sums[10] = np.nan
         self.gain_evidence = np.zeros(self.n)       # its last value (dimensionless)
         self._k = 0
@@ -395,8 +403,12 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, re
         if reading_moved:
             gain_sums[11, i] = lam * gain_sums[11, i] + (1.0 if jumped else 0.0)
             gain_sums[12, i] = lam * gain_sums[12, i] + 1.0
+        if jumped and increment > ENCODER_STEP * single_scale:
+            gain_sums[13, i] = 1.0          # the encoder stepped: what follows is no evidence of a velocity gain
         gain[i] = _gain_evidence(gain_sums, i, e[i], T * gain_sums[9, i], reading_moved and not jumped,
                                  lam, single_scale)
+        if gain_sums[13, i] > 0:
+            gain[i] = 0.0
         gain_sums[9, i], gain_sums[8, i], gain_sums[10, i] = gain_sums[8, i], v[i], q[i]
         if gain_scale[i] > 0 and gain[i] / gain_scale[i] > step:
             step = gain[i] / gain_scale[i]
@@ -418,7 +430,8 @@ def _gain_evidence(sums, i, e, x, add, lam, floor):
     alone, and a smooth drift's increments no more than the noise-free few µrad they vary by. ``sums`` (13, n):
     Σw, Σw·a, Σw·a², Σw·e, Σw·a·e, Σw·x², Σw·x·e, Σw·e² (a: the sample's age), updated in place when ``add``
     (see :func:`_step_rows`; rows 8–10 hold the last two velocity readings and the last position reading, rows
-    11–12 the weight of the moving samples that were position steps and of all of them). 0 until the window
+    11–12 the weight of the moving samples that were position steps and of all of them, row 13 whether the
+    encoder stepped by more than :data:`ENCODER_STEP`). 0 until the window
     holds half its weight, and where more than :data:`GAIN_JUMPS` of its moving samples were position steps (the
     encoder, not the velocity, is what the increments show)."""
     if not add:
