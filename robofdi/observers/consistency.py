@@ -107,7 +107,7 @@ from robofdi.observers.residual import Residual, shared_measurement
 
 __all__ = ["ConsistencyDesign", "ConsistencyResidual", "design_consistency", "DEFAULT_GAIN", "STEP_HOLD",
            "FROZEN_CHANGE", "FROZEN_SAMPLES", "GAIN_WINDOW", "GAIN_FLOOR", "GAIN_MARGIN", "GAIN_JUMPS",
-           "ENCODER_STEP"]
+           "ENCODER_STEP", "TREND_WINDOW", "TREND_FLOOR", "TREND_MARGIN"]
 
 #: Momentum-observer bandwidth K_O [1/s] of the consistency residual: fast enough that an abrupt fault of twice
 #: the smallest detectable size crosses its bound within a few 2 ms samples.
@@ -135,6 +135,13 @@ GAIN_JUMPS = 0.2
 #: at its onset (2 500–17 000 scales on arm6 and robosuite's Panda) and then makes the increments a velocity-gain
 #: error makes. Fault-free runs and velocity-gain errors had no position step at all (arm6, arm7 campaigns).
 ENCODER_STEP = 10.0
+#: Length [s] of each of the four consecutive windows over which the step row looks for increments that grow
+#: steadily away from zero (:func:`_trend_evidence`: a velocity-reading drift).
+TREND_WINDOW = 0.25
+#: The smallest fault-free trend evidence a design takes.
+TREND_FLOOR = 0.1
+#: The trend scale is this many times the design runs' largest trend evidence.
+TREND_MARGIN = 4.0
 #: A velocity reading that changed by at most this [rad/s or m/s] from the previous sample is a repeat (held).
 FROZEN_CHANGE = 1e-9
 #: Consecutive repeated velocity readings that make the step row 1 (its largest fault-free value, at least).
@@ -157,8 +164,9 @@ class ConsistencyDesign:
     joint that weighs the velocity innovation (:meth:`ConsistencyResidual.velocity_innovation`; None: equal),
     and ``noise_walk`` (n,) [rad], the long-run standard deviation per sample of the kinematic increments' noise
     that floors the window scales (:func:`~robofdi.observers.kinematic.identify_noise_walk`; None: not identified),
-    and ``gain_scale`` (n,), the largest fault-free gain evidence per joint (dimensionless, :func:`_gain_evidence`;
-    None: no gain evidence)."""
+    ``gain_scale`` (n,), the largest fault-free gain evidence per joint (dimensionless, :func:`_gain_evidence`;
+    None: no gain evidence) and ``trend_scale`` (n,), the same for the trend evidence (:func:`_trend_evidence`;
+    None: none)."""
 
     friction: JointFriction
     envelope: np.ndarray
@@ -174,9 +182,11 @@ class ConsistencyDesign:
     impulse_scale: np.ndarray | None = None
     noise_walk: np.ndarray | None = None
     gain_scale: np.ndarray | None = None
+    trend_scale: np.ndarray | None = None
 
     #: The optional arrays of :meth:`arrays` (absent when None).
-    OPTIONAL = ("reach", "ripple_orders", "ripple_amplitude", "impulse_scale", "noise_walk", "gain_scale")
+    OPTIONAL = ("reach", "ripple_orders", "ripple_amplitude", "impulse_scale", "noise_walk", "gain_scale",
+                "trend_scale")
 
     def step_bound(self, speed: np.ndarray) -> np.ndarray:
         """(n,) bound [rad/s] of the fault-free |ν| at joint speeds ``speed`` (n,) [rad/s]: c₀ + c₁ |speed|."""
@@ -227,6 +237,9 @@ class ConsistencyResidual:
         self._gain_scale = (np.zeros(n) if design.gain_scale is None
                             else np.asarray(design.gain_scale, dtype=float))   # 0: no gain evidence
         self._gain_lambda = 1.0 - design.T / GAIN_WINDOW
+        self._trend_scale = (np.zeros(n) if design.trend_scale is None
+                             else np.asarray(design.trend_scale, dtype=float))  # 0: no trend evidence
+        self._trend_samples = max(1, int(round(TREND_WINDOW / design.T)))
         names = list(model.joint_names)
         self.inputs = names
         self.measurements = [f"{j}_pos" for j in names] + [f"{j}_vel" for j in names]
@@ -256,6 +269,9 @@ class ConsistencyResidual:
         self._gain_sums = np.zeros((14, self.n))    # the gain evidence's sums, the last readings, encoder stepped
         self._gain_sums[10] = np.nan
         self.gain_evidence = np.zeros(self.n)       # its last value (dimensionless)
+        self._trend_ring = np.zeros((4 * self._trend_samples, self.n))  # the increments counted, newest at k
+        self._trend_sums = np.zeros((4, self.n))    # their sums over the four windows, newest first
+        self.trend_evidence = np.zeros(self.n)      # its last value (dimensionless)
         self._k = 0
 
     @property
@@ -307,7 +323,8 @@ class ConsistencyResidual:
         _step_rows(r, self.innovation, kin, e, bound, self._kinematic.scale, self._single, self.design.skew,
                    self.design.step_bound(speed), self._repeats, FROZEN_SAMPLES, self._steps, self._jumps,
                    self._previous, self._k % self._hold, (self._k - 1) % self._hold, self.T, z, estimate,
-                   q, v, self._gain_sums, self._gain_lambda, self._gain_scale, self.gain_evidence)
+                   q, v, self._gain_sums, self._gain_lambda, self._gain_scale, self.gain_evidence,
+                   self._trend_ring, self._trend_sums, self._k, self._trend_scale, self.trend_evidence)
         z[3 * n], estimate[3 * n] = payload_evidence(z[:n], self._payload.update(q, v) / bound)
         self._k += 1
         return Residual(z, estimate)
@@ -326,7 +343,8 @@ class ConsistencyResidual:
 
 @kernel
 def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, repeats, frozen_samples, steps, jumps,
-               previous, row, previous_row, T, z, estimate, q, v, gain_sums, lam, gain_scale, gain):
+               previous, row, previous_row, T, z, estimate, q, v, gain_sums, lam, gain_scale, gain,
+               trend_ring, trend_sums, k, trend_scale, trend):
     """The rows of :meth:`ConsistencyResidual.update` after its momentum and kinematic parts, joint by joint in
     the order of operations of their array form: the residual ``z`` and the ``estimate``; the step and jump ring
     buffers ``steps``/``jumps`` held at ``row``; ``previous`` (3, n) the last sample's e and ν and the e before
@@ -407,8 +425,13 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, re
             gain_sums[13, i] = 1.0          # the encoder stepped: what follows is no evidence of a velocity gain
         gain[i] = _gain_evidence(gain_sums, i, e[i], T * gain_sums[9, i], reading_moved and not jumped,
                                  lam, single_scale)
+        trend[i] = _trend_evidence(trend_ring, trend_sums, k, i, e[i] if reading_moved and not jumped else 0.0,
+                                   single_scale)
         if gain_sums[13, i] > 0:
             gain[i] = 0.0
+            trend[i] = 0.0
+        if trend_scale[i] > 0 and trend[i] / trend_scale[i] > step:
+            step = trend[i] / trend_scale[i]
         gain_sums[9, i], gain_sums[8, i], gain_sums[10, i] = gain_sums[8, i], v[i], q[i]
         if gain_scale[i] > 0 and gain[i] / gain_scale[i] > step:
             step = gain[i] / gain_scale[i]
@@ -466,6 +489,39 @@ def _gain_fit(sums, i, lam, floor):
     if excess <= 0:
         return 0.0
     return math.sqrt(excess / (left + w * floor * floor))
+
+
+@kernel
+def _trend_evidence(ring, sums, k, i, e, floor):
+    """The trend evidence of joint i at sample k (dimensionless): how steadily its kinematic increments e [rad]
+    grow away from zero over the last four windows of m = len(ring) / 4 samples. With A, B, C, D the windows'
+    means, newest first, it is min(|A − B|, |B − C|, |C − D|) over the noise of a mean, ``floor`` / √m (``floor``:
+    the single-sample scale [rad]), where the three differences and A have one sign, else 0. A velocity-reading
+    drift d makes e = −T d (t − t₀), a ramp (equal differences, away from zero); an encoder drift or a velocity
+    bias a constant (after its onset step has passed through the windows, at most two of the differences move);
+    an encoder offset that rises to its value makes |e| fall. ``ring`` (4m, n) holds the increments counted (the
+    caller passes 0 where they say nothing of the velocity), ``sums`` (4, n) their sums over the four windows,
+    both updated in place. 0 until the windows have filled."""
+    m = ring.shape[0] // 4
+    at = k % ring.shape[0]
+    for w in range(4):          # the sample leaving window w enters window w + 1
+        leaving = ring[(at - (w + 1) * m) % ring.shape[0], i]
+        sums[w, i] += (e if w == 0 else ring[(at - w * m) % ring.shape[0], i]) - leaving
+    ring[at, i] = e
+    if k + 1 < ring.shape[0]:
+        return 0.0
+    a, b, c, d = sums[0, i], sums[1, i], sums[2, i], sums[3, i]
+    d1, d2, d3 = a - b, b - c, c - d
+    if a > 0:
+        if d1 <= 0 or d2 <= 0 or d3 <= 0:
+            return 0.0
+    elif a < 0:
+        if d1 >= 0 or d2 >= 0 or d3 >= 0:
+            return 0.0
+    else:
+        return 0.0
+    smallest = min(abs(d1), abs(d2), abs(d3)) / m
+    return smallest / (floor / math.sqrt(m))
 
 
 def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray, np.ndarray]], T: float,
@@ -534,14 +590,16 @@ def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray,
                                                             fallback=scales[:, int(np.argmin(windows)), 0])
     design = ConsistencyDesign(friction, envelope, skew, scales, step, gain, T, tuple(windows), reach, orders,
                                amplitude, impulse_scale, walk)
-    evidence = np.zeros(n)          # the gain evidence's largest fault-free value
+    evidence, trend = np.zeros(n), np.zeros(n)      # the gain and trend evidence's largest fault-free values
     for Y, U in runs:
         d = ConsistencyResidual(model, design)
         for k, (y, u) in enumerate(zip(Y, U)):
             d.update(y, u)
             if k >= skip:
                 np.maximum(evidence, d.gain_evidence, out=evidence)
-    return replace(design, gain_scale=GAIN_MARGIN * np.maximum(evidence, GAIN_FLOOR))
+                np.maximum(trend, d.trend_evidence, out=trend)
+    return replace(design, gain_scale=GAIN_MARGIN * np.maximum(evidence, GAIN_FLOOR),
+                   trend_scale=TREND_MARGIN * np.maximum(trend, TREND_FLOOR))
 
 
 @kernel
