@@ -2,6 +2,7 @@
 
     python benchmarks/arm_acceptance.py [--robots arm6.xml arm7.xml panda] [--speed fast] [--workers 2]
                                         [--out runs/arm-acceptance] [--runs N] [--seed S] [--set NAME=VALUE …]
+                                        [--spec benchmarks/arm_more_kinds.toml]
 
 A robot is a shipped asset name, an MJCF path, or the name of a robosuite 1.5 arm (``panda``, ``iiwa``,
 ``ur5e``, ``kinova3``: its raw ``robot.xml``, servos turned into torque motors; needs the robosuite extra).
@@ -15,7 +16,8 @@ Each (robot, speed) campaign is resumable: re-running the command continues it. 
 table of benchmarks/arm_quality.py (false-alarm runs with the 95 % Clopper–Pearson upper bound, detection and
 correct isolation at ≥ 2× the minimum detectable fault, the median abrupt delay in samples, incipient faults
 detected) plus correct isolation at any time after detection ("eventually correct") and the median time to
-a correct isolation, then the consistency scheme by fault class.
+a correct isolation, then the consistency scheme by fault class. --spec runs another campaign TOML the same way
+(benchmarks/arm_more_kinds.toml: the fault kinds the acceptance mix lacks, faulty runs only).
 """
 from __future__ import annotations
 
@@ -74,11 +76,11 @@ def drive_inertia(option: str, name: str) -> float:
 
 
 def acceptance_spec(name: str, speed: str, inertia: str = "auto", seed: int | None = None,
-                    diagnosers=None, system: dict | None = None) -> dict:
-    """benchmarks/arm_acceptance.toml for robot ``name`` at ``speed`` (normal missions get two segments, fast ones
-    three), with its --drive-inertia option, and optionally another seed, diagnosers or more [system] fields
-    (``system``, e.g. from :func:`settings_option`)."""
-    spec = tomllib.loads((HERE / "arm_acceptance.toml").read_text())
+                    diagnosers=None, system: dict | None = None, path: str | Path | None = None) -> dict:
+    """benchmarks/arm_acceptance.toml (or the campaign TOML at ``path``) for robot ``name`` at ``speed`` (normal
+    missions get two segments, fast ones three), with its --drive-inertia option, and optionally another seed,
+    diagnosers or more [system] fields (``system``, e.g. from :func:`settings_option`)."""
+    spec = tomllib.loads(Path(path or HERE / "arm_acceptance.toml").read_text())
     spec["system"].update(system or {})
     if seed is not None:
         spec["seed"] = seed
@@ -111,6 +113,8 @@ def eventually(table: pd.DataFrame) -> pd.DataFrame:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--spec", default=str(HERE / "arm_acceptance.toml"),
+                    help="the campaign TOML (default: arm_acceptance.toml; arm_more_kinds.toml: fault kinds it lacks)")
     ap.add_argument("--robots", nargs="+", default=["arm6.xml", "arm7.xml"])
     ap.add_argument("--speed", choices=("normal", "fast"), default="fast")
     ap.add_argument("--drive-inertia", default="auto",
@@ -123,7 +127,8 @@ def main() -> None:
                     help="more [system] fields, e.g. consistency_tail=exponential consistency_calibration_motions=24")
     args = ap.parse_args()
     for name in args.robots:
-        spec = acceptance_spec(name, args.speed, args.drive_inertia, args.seed, system=settings_option(args.set))
+        spec = acceptance_spec(name, args.speed, args.drive_inertia, args.seed, system=settings_option(args.set),
+                               path=args.spec)
         inertia = spec["system"].get("drive_inertia", 0.0)
         out = Path(args.out) / f"{Path(name).stem}-{args.speed}"
         t0 = time.perf_counter()

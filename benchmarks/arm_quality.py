@@ -111,7 +111,7 @@ def quality(table: pd.DataFrame) -> pd.DataFrame:
         rows.append({
             "diagnoser": name,
             "false-alarm runs": f"{fa}/{len(free)}",
-            "FA rate 95% upper": f"{100 * clopper_pearson(fa, len(free))[1]:.1f} %",
+            "FA rate 95% upper": f"{100 * clopper_pearson(fa, len(free))[1]:.1f} %" if len(free) else "-",
             "≥2×MDF detected": f"{int(det.sum())}/{len(big)}",
             "≥2×MDF correct first": f"{int(correct.sum())}/{len(big)}",
             "≥2×MDF correct at the end": f"{int(final.sum())}/{len(big)}" if "final_correct" in big else "-",
@@ -129,8 +129,10 @@ def per_class(table: pd.DataFrame, diagnoser: str) -> pd.DataFrame:
     f = table[table["faulty"] & (table["diagnoser"] == diagnoser)].copy()
     f["class"] = f.apply(_class, axis=1)
     g = f.groupby("class")
-    return pd.DataFrame({"faults": g.size(), "detected": g["detected"].sum(),
-                         "correct": g["correct"].sum(), "median size": g["size"].median()})
+    out = pd.DataFrame({"faults": g.size(), "detected": g["detected"].sum(), "correct": g["correct"].sum()})
+    if "final_correct" in f:
+        out["correct at the end"] = g["final_correct"].sum()
+    return out.assign(**{"median size": g["size"].median()})
 
 
 def settings_option(items) -> dict:

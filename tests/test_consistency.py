@@ -304,6 +304,26 @@ def test_a_velocity_gain_error_that_starts_at_rest_is_named_from_the_motion_that
     assert tr.isolated[-1] == isolated and time < 1.5, (time, got, tr.isolated[-1])
 
 
+@pytest.mark.parametrize("fault, isolated", [("sensor_drift:joint3_vel:0.05@0.5", "joint3_vel"),
+                                             ("sensor_drift:joint3_vel:-0.02@0.5", "joint3_vel"),
+                                             ("sensor_drift:joint3_pos:0.002@0.5", "joint3_pos"),
+                                             ("sensor_bias:joint3_pos:0.003@0.5~exponential_rise(0.5)", "joint3_pos")])
+def test_a_velocity_drift_is_named_from_increments_that_grow(designed, fault, isolated):
+    """A velocity reading that drifts by d rad/s² has no step at onset, and its kinematic row alarms like an
+    encoder's, which the first call names; its increments −T d (t − t₀) then grow steadily away from zero, which
+    an encoder drift's (constant) and an encoder offset that rises to its value (falling) do not: the trend
+    evidence overturns the call within the run, and only for the velocity sensor."""
+    base, _, model, rates, _, design = designed
+    q0 = (np.pi / 2, -2 * np.pi / 3, np.pi / 6, -np.pi / 2, np.pi / 2, -2.4)
+    sc = replace(base, motion=Quintic(q0, (0, 0, 1.0, 0, 0, 0), 2.0, start=0.2), faults=(parse_fault_spec(fault),),
+                 duration=2.6)
+    rule = scheme_calibration("consistency")
+    tr = _trace(run_scenario(sc, calibration(sc)[0]), model, design, rates, rule.confirm, True, rule.overturn)
+    t = tr.time
+    assert np.abs(tr.residual[(t > SKIP * 0.002) & (t < 0.5)]).max() < 1.0
+    assert tr.isolated[-1] == isolated, (_first_isolation(tr), tr.isolated[-1])
+
+
 def test_a_frozen_velocity_sensor_is_isolated_as_the_velocity_sensor(designed):
     """A held velocity reading has no step at onset (ν says nothing) and was called an encoder fault; its
     repeated samples count in the step row."""
@@ -484,3 +504,25 @@ def test_the_gain_evidence_counts_only_where_the_encoder_does_not_jump():
     for k in range(2, 400):
         drift[12, 0] = lam * drift[12, 0] + 1.0
         assert _gain_evidence(drift, 0, 5e-5 + noise[k], T * v[k - 2], True, lam, floor) < 1.0
+
+
+def test_the_trend_evidence_is_a_steady_growth_away_from_zero():
+    """Four windows of m samples: a ramp away from zero (a velocity drift's increments) gives the difference of
+    consecutive window means over the noise of a mean; a step to a constant (an encoder drift) gives none once its
+    onset has left the oldest window, nor does a decay towards zero (an encoder offset rising to its value)."""
+    from robofdi.observers.consistency import _trend_evidence
+
+    m, floor = 25, 1e-5
+    k = np.arange(400)
+
+    def last(e):
+        ring, sums = np.zeros((4 * m, 1)), np.zeros((4, 1))
+        return np.array([_trend_evidence(ring, sums, j, 0, x, floor) for j, x in enumerate(e)])
+
+    ramp = last(-2e-7 * np.maximum(k - 100, 0))         # −T d (t − t₀): −2e-7 rad a sample
+    assert ramp[:4 * m - 1].max() == 0.0                # not before the four windows have filled
+    assert ramp[-1] == pytest.approx(2e-7 * m / (floor / np.sqrt(m)), rel=1e-9)
+    step = last(np.where(k >= 100, 5e-5, 0.0))
+    assert step[100 + 4 * m:].max() == 0.0
+    decay = last(np.where(k >= 100, 5e-5 * np.exp(-(k - 100) / 80.0), 0.0))
+    assert decay[101:].max() == 0.0

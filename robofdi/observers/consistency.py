@@ -51,6 +51,15 @@ then follow the velocity as a velocity-gain error's do, with the opposite sign o
 motion, after the first isolation; the decision then replaces the encoder hypothesis by the velocity one
 (:class:`~robofdi.decision.ThresholdDecision`: evidence that persists overturns the hypothesis it refines).
 
+A velocity reading that drifts by d has no step at onset either, and its kinematic row alarms like an encoder's.
+Its increments e_k = −T d (t − t₀) grow steadily away from zero, which no encoder drift's (constant) or offset's
+(a spike, or falling as it rises to its value) do: the step row also holds the trend evidence of
+:func:`_trend_evidence` — the smallest change of the increments' mean between four consecutive
+:data:`TREND_WINDOW` windows, where all three move away from zero, over the noise of a mean — over its fault-free
+scale (``trend_scale``, :data:`TREND_MARGIN` × its largest value on the design runs). It counts the same
+samples as the gain evidence, and none once the encoder has stepped. It needs about four windows of motion
+after the onset, so the first call is the encoder and the decision overturns it.
+
 A frozen velocity sensor (its reading held) has no step at onset, so ν says nothing; the kinematic row alarms as
 the joint moves on, and alone it would call it an encoder fault. A drive's velocity estimate carries noise and
 never repeats: the step row also holds the run of consecutive samples whose velocity reading did not change
@@ -131,9 +140,10 @@ GAIN_MARGIN = 4.0
 #: velocity-gain errors jumped at most 1 % (arm6 and arm7 campaigns).
 GAIN_JUMPS = 0.2
 #: A position step of more than this many single-sample kinematic scales marks the joint's encoder as stepped for
-#: the rest of the run, and its gain evidence is 0 from then on: an encoder scale error g steps the reading by g·q
-#: at its onset (2 500–17 000 scales on arm6 and robosuite's Panda) and then makes the increments a velocity-gain
-#: error makes. Fault-free runs and velocity-gain errors had no position step at all (arm6, arm7 campaigns).
+#: the rest of the run, and its gain and trend evidence are 0 from then on: an encoder scale error g steps the
+#: reading by g·q at its onset (2 500–17 000 scales, 8 runs on arm6 fast) and then makes the increments a
+#: velocity-gain error makes. Re-run fault-free runs and velocity-gain errors (acceptance arm6 fast, unseen arm7
+#: fast) had no position step at all.
 ENCODER_STEP = 10.0
 #: Length [s] of each of the four consecutive windows over which the step row looks for increments that grow
 #: steadily away from zero (:func:`_trend_evidence`: a velocity-reading drift).
@@ -269,7 +279,7 @@ class ConsistencyResidual:
         self._gain_sums = np.zeros((14, self.n))    # the gain evidence's sums, the last readings, encoder stepped
         self._gain_sums[10] = np.nan
         self.gain_evidence = np.zeros(self.n)       # its last value (dimensionless)
-        self._trend_ring = np.zeros((4 * self._trend_samples, self.n))  # the increments counted, newest at k
+        self._trend_ring = np.zeros((4 * self._trend_samples, self.n))  # the increments counted, sample k at k mod 4m
         self._trend_sums = np.zeros((4, self.n))    # their sums over the four windows, newest first
         self.trend_evidence = np.zeros(self.n)      # its last value (dimensionless)
         self._k = 0
@@ -430,11 +440,11 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, re
         if gain_sums[13, i] > 0:
             gain[i] = 0.0
             trend[i] = 0.0
-        if trend_scale[i] > 0 and trend[i] / trend_scale[i] > step:
-            step = trend[i] / trend_scale[i]
         gain_sums[9, i], gain_sums[8, i], gain_sums[10, i] = gain_sums[8, i], v[i], q[i]
         if gain_scale[i] > 0 and gain[i] / gain_scale[i] > step:
             step = gain[i] / gain_scale[i]
+        if trend_scale[i] > 0 and trend[i] / trend_scale[i] > step:
+            step = trend[i] / trend_scale[i]
         held = repeats[i] / frozen_samples
         z[i] = r[i] / bound[i]
         z[n + i] = jump if jump > kin[i] or jump != jump else kin[i]
@@ -450,7 +460,7 @@ def _gain_evidence(sums, i, e, x, add, lam, floor):
     single-sample scale ``floor`` [rad]: √(max(0, SS_gain − SS_drift) / (Σw e² − max(SS_gain, SS_drift) + Σw
     floor²)), with SS the explained sums of squares of the weighted least-squares fits over an exponential window
     of weight λ per sample — a likelihood ratio's statistic, so a noisier sensor raises no evidence by its noise
-    alone, and a smooth drift's increments no more than the noise-free few µrad they vary by. ``sums`` (13, n):
+    alone, and a smooth drift's increments no more than the noise-free few µrad they vary by. ``sums`` (14, n):
     Σw, Σw·a, Σw·a², Σw·e, Σw·a·e, Σw·x², Σw·x·e, Σw·e² (a: the sample's age), updated in place when ``add``
     (see :func:`_step_rows`; rows 8–10 hold the last two velocity readings and the last position reading, rows
     11–12 the weight of the moving samples that were position steps and of all of them, row 13 whether the
