@@ -139,11 +139,11 @@ GAIN_MARGIN = 4.0
 #: noisy encoder's increments jump at 94–100 % of its samples, and the few left are the small ones (a biased fit);
 #: velocity-gain errors jumped at most 1 % (arm6 and arm7 campaigns).
 GAIN_JUMPS = 0.2
-#: A position step of more than this many single-sample kinematic scales marks the joint's encoder as stepped for
-#: the rest of the run, and its gain and trend evidence are 0 from then on: an encoder scale error g steps the
-#: reading by g·q at its onset (2 500–17 000 scales, 8 runs on arm6 fast) and then makes the increments a
-#: velocity-gain error makes. Re-run fault-free runs and velocity-gain errors (acceptance arm6 fast, unseen arm7
-#: fast) had no position step at all.
+#: An increment that stands out from both its neighbours by more than this many single-sample kinematic scales
+#: (a one-sample spike: the encoder stepped) marks the joint's encoder as stepped for the rest of the run, and its
+#: gain and trend evidence are 0 from then on: an encoder scale error g steps the reading by g·q at its onset and
+#: then makes the increments a velocity-gain error makes. A velocity-gain error's increments −T g q̇ are large in
+#: fast motion, but smooth: they do not spike.
 ENCODER_STEP = 10.0
 #: Length [s] of each of the four consecutive windows over which the step row looks for increments that grow
 #: steadily away from zero (:func:`_trend_evidence`: a velocity-reading drift).
@@ -391,6 +391,8 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, re
         moved = e[i] - previous[0, i]       # the increment's change since the last sample
         changed = abs(moved) > reach * (abs(innovation[i]) + abs(previous[1, i])) + 2 * single_scale
         span = e[i] - previous[2, i]        # a velocity-reading step at the last sample: −T b (docstring)
+        rise, fall = previous[0, i] - previous[2, i], previous[0, i] - e[i]     # the last increment stood out
+        spiked = rise * fall > 0 and min(abs(rise), abs(fall)) > ENCODER_STEP * single_scale   # (ENCODER_STEP)
         if abs(span) > 2 * single_scale:
             share = previous[0, i] - previous[2, i] - (T / 2 + skew[i]) / T * span    # its sample's share, ≈ 0
             implied = -span / T
@@ -431,7 +433,7 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, re
         if reading_moved:
             gain_sums[11, i] = lam * gain_sums[11, i] + (1.0 if jumped else 0.0)
             gain_sums[12, i] = lam * gain_sums[12, i] + 1.0
-        if jumped and increment > ENCODER_STEP * single_scale:
+        if spiked:
             gain_sums[13, i] = 1.0          # the encoder stepped: what follows is no evidence of a velocity gain
         gain[i] = _gain_evidence(gain_sums, i, e[i], T * gain_sums[9, i], reading_moved and not jumped,
                                  lam, single_scale)
