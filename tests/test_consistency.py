@@ -526,3 +526,33 @@ def test_the_trend_evidence_is_a_steady_growth_away_from_zero():
     assert step[100 + 4 * m:].max() == 0.0
     decay = last(np.where(k >= 100, 5e-5 * np.exp(-(k - 100) / 80.0), 0.0))
     assert decay[101:].max() == 0.0
+
+
+def test_the_encoder_counts_as_stepped_on_a_spike_of_its_increments_not_on_large_smooth_ones():
+    """A velocity-gain error in hard acceleration makes large increments that change by many single-sample scales
+    a sample, but smoothly: the encoder is not marked as stepped (its gain evidence stays). One increment that
+    stands out from both neighbours by more than ENCODER_STEP scales (an encoder step) marks it for the run."""
+    from robofdi.observers.consistency import ENCODER_STEP
+
+    T, single, hold = 0.002, 2e-6, 50
+
+    def stepped(e):
+        steps, jumps, previous = np.zeros((hold, 1)), np.zeros((hold, 1)), np.zeros((3, 1))
+        sums = np.zeros((14, 1))
+        sums[10] = np.nan
+        z, estimate = np.empty(4), np.empty(4)
+        for k, x in enumerate(e):
+            _step_rows(np.zeros(1), np.zeros(1), np.zeros(1), np.array([x]), np.ones(1), np.array([[single, 1.0]]), 0,
+                       np.array([0.001]), np.array([0.01]), np.zeros(1), 2.0, steps, jumps, previous, k % hold,
+                       (k - 1) % hold, T, z, estimate, np.array([0.01 * k]), np.array([5.0]), sums, 0.99, np.zeros(1),
+                       np.zeros(1), np.zeros((8, 1)), np.zeros((4, 1)), k, np.zeros(1), np.zeros(1))
+        return bool(sums[13, 0] > 0)
+
+    accelerating = -T * 0.16 * 50.0 * T * np.arange(200)     # −T g q̇, q̇ rising by 50 rad/s² (32 µrad a sample)
+    assert np.abs(np.diff(accelerating)).min() > ENCODER_STEP * single
+    assert not stepped(accelerating)
+    spike = np.zeros(200)
+    spike[100] = 30 * single
+    assert stepped(spike)
+    spike[100] = 8 * single
+    assert not stepped(spike)
