@@ -381,7 +381,12 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, re
 
     Refutation: ν_k counts in the step row only where e_k − e_{k−1} is within |m|/2 + twice the single-sample
     scale of m = −(T/2 + τ_s) ν_k, what a reading's step of ν_k would have made of it; a real velocity change
-    (a torque) leaves the increments near 0 and is the dynamic row's."""
+    (a torque) leaves the increments near 0 and is the dynamic row's.
+
+    Evidence of a velocity-sensor fault that made no step: the gain evidence (:func:`_gain_evidence`) and the
+    trend evidence (:func:`_trend_evidence`), over their scales, both 0 once e_{k−1} stood out from e_{k−2} and
+    e_k by more than :data:`ENCODER_STEP` single-sample scales on both sides (the encoder stepped; row 13 of
+    ``gain_sums``)."""
     n, hold = r.shape[0], steps.shape[0]
     for i in range(n):
         single_scale = scale[i, single]
