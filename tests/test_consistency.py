@@ -278,6 +278,17 @@ def test_a_velocity_step_below_the_step_bound_is_told_from_an_encoder_drift_by_a
     assert got == isolated and time - 1.0 < 0.1
 
 
+def _joint3_move(designed, fault, duration, start):
+    """The consistency trace (the scheme's own confirmation, evidence and overturn) of a 2.6 s arm run with
+    ``fault``, in which joint 3 moves by 1 rad over ``duration`` s from ``start`` s and the others rest."""
+    base, _, model, rates, _, design = designed
+    q0 = (np.pi / 2, -2 * np.pi / 3, np.pi / 6, -np.pi / 2, np.pi / 2, -2.4)
+    sc = replace(base, motion=Quintic(q0, (0, 0, 1.0, 0, 0, 0), duration, start=start),
+                 faults=(parse_fault_spec(fault),), duration=2.6)
+    rule = scheme_calibration("consistency")
+    return _trace(run_scenario(sc, calibration(sc)[0]), model, design, rates, rule.confirm, True, rule.overturn)
+
+
 @pytest.mark.parametrize("fault, isolated", [("sensor_scale:joint3_vel:0.15@0.4", "joint3_vel"),
                                              ("sensor_scale:joint3_vel:-0.08@0.4", "joint3_vel"),
                                              ("sensor_drift:joint3_pos:0.005@0.4", "joint3_pos"),
@@ -292,12 +303,7 @@ def test_a_velocity_gain_error_that_starts_at_rest_is_named_from_the_motion_that
     within the run. An encoder's gain error makes the same increments once the joint moves, but it stepped the
     reading by g·q at its onset (joint 3 rests at π/6: 78 and 16 mrad), which a velocity sensor cannot: it stays
     the encoder."""
-    base, _, model, rates, _, design = designed
-    q0 = (np.pi / 2, -2 * np.pi / 3, np.pi / 6, -np.pi / 2, np.pi / 2, -2.4)
-    sc = replace(base, motion=Quintic(q0, (0, 0, 1.0, 0, 0, 0), 1.5, start=0.8), faults=(parse_fault_spec(fault),),
-                 duration=2.6)
-    rule = scheme_calibration("consistency")
-    tr = _trace(run_scenario(sc, calibration(sc)[0]), model, design, rates, rule.confirm, True, rule.overturn)
+    tr = _joint3_move(designed, fault, 1.5, 0.8)
     t = tr.time
     assert np.abs(tr.residual[(t > SKIP * 0.002) & (t < 0.4)]).max() < 1.0
     time, got = _first_isolation(tr)
@@ -313,12 +319,7 @@ def test_a_velocity_drift_is_named_from_increments_that_grow(designed, fault, is
     encoder's, which the first call names; its increments −T d (t − t₀) then grow steadily away from zero, which
     an encoder drift's (constant) and an encoder offset that rises to its value (falling) do not: the trend
     evidence overturns the call within the run, and only for the velocity sensor."""
-    base, _, model, rates, _, design = designed
-    q0 = (np.pi / 2, -2 * np.pi / 3, np.pi / 6, -np.pi / 2, np.pi / 2, -2.4)
-    sc = replace(base, motion=Quintic(q0, (0, 0, 1.0, 0, 0, 0), 2.0, start=0.2), faults=(parse_fault_spec(fault),),
-                 duration=2.6)
-    rule = scheme_calibration("consistency")
-    tr = _trace(run_scenario(sc, calibration(sc)[0]), model, design, rates, rule.confirm, True, rule.overturn)
+    tr = _joint3_move(designed, fault, 2.0, 0.2)
     t = tr.time
     assert np.abs(tr.residual[(t > SKIP * 0.002) & (t < 0.5)]).max() < 1.0
     assert tr.isolated[-1] == isolated, (_first_isolation(tr), tr.isolated[-1])
