@@ -43,7 +43,7 @@ from arm_quality import per_class, quality, settings_option  # noqa: E402
 from robofdi.campaign import run_campaign  # noqa: E402
 from robofdi.campaign.results import load  # noqa: E402
 
-ROBOSUITE_ARMS = ("panda", "iiwa", "ur5e", "kinova3")
+ROBOSUITE_ARMS = ("panda", "iiwa", "ur5e", "kinova3", "jaco", "sawyer", "spot_arm")
 
 
 #: The drive inertia [s²] "auto" gives robosuite's arms (--drive-inertia).

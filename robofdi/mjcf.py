@@ -10,6 +10,7 @@ from __future__ import annotations
 import copy
 import hashlib
 import os
+import re
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
@@ -20,7 +21,7 @@ import numpy as np
 
 from robofdi import ASSETS, RobofdiError
 
-__all__ = ["Drive", "CompiledArm", "compile_arm", "resolve_asset", "is_torque_motor", "actuator_kind",
+__all__ = ["Drive", "CompiledArm", "compile_arm", "load_model", "model_xml", "fixed_distance_pairs", "resolve_asset", "is_torque_motor", "actuator_kind",
            "joint_actuators", "urdf_to_mjcf", "find_package_root", "URDF_TIMESTEP", "VELOCITY_LIMIT"]
 
 _JOINT_KINDS = {int(mujoco.mjtJoint.mjJNT_HINGE): "hinge", int(mujoco.mjtJoint.mjJNT_SLIDE): "slide",
@@ -165,11 +166,54 @@ def joint_actuators(m: mujoco.MjModel) -> dict[int, list[int]]:
     return out
 
 
+#: MuJoCo's refusal of a mesh too thin to be a solid (its message then advises shell inertia).
+_THIN_MESH = re.compile(r"mesh volume is too small: (\S+)")
+
+
 def _compile(spec: mujoco.MjSpec, path: Path) -> mujoco.MjModel:
+    """``spec`` compiled. A mesh MuJoCo refuses as too thin to be a solid ("mesh volume is too small", e.g. the
+    visual head shells of robosuite's raw sawyer ``robot.xml``, which robosuite's own loader leaves out of the
+    inertia by its ``inertiagrouprange``) gets shell inertia, as MuJoCo's message advises; a body that declares its
+    ``<inertial>`` keeps that mass and inertia either way."""
+    shelled: set[str] = set()
+    while True:
+        try:
+            return spec.compile()
+        except Exception as exc:
+            message = " ".join(str(exc).split())
+            thin = _THIN_MESH.search(message)
+            mesh = spec.mesh(thin.group(1)) if thin and thin.group(1) not in shelled else None
+            if mesh is None:
+                raise RobofdiError(f"mjcf: MuJoCo cannot compile {str(path)!r}: {message}") from None
+            mesh.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL
+            shelled.add(thin.group(1))
+
+
+def _read(path: Path) -> mujoco.MjSpec:
     try:
-        return spec.compile()
+        return mujoco.MjSpec.from_file(str(path))
     except Exception as exc:
-        raise RobofdiError(f"mjcf: MuJoCo cannot compile {str(path)!r}: {' '.join(str(exc).split())}") from None
+        raise RobofdiError(f"mjcf: MuJoCo cannot read {str(path)!r}: {' '.join(str(exc).split())}") from None
+
+
+def load_model(mjcf: str | Path) -> mujoco.MjModel:
+    """The MuJoCo model of the MJCF file ``mjcf`` (a shipped asset name or a path) as :func:`compile_arm` compiles it,
+    with no arm read from it; raises RobofdiError naming the file if MuJoCo cannot read or compile it."""
+    path = resolve_asset(mjcf)
+    return _compile(_read(path), path)
+
+
+def model_xml(mjcf: str | Path) -> str:
+    """The MJCF text MuJoCo writes back for the file ``mjcf`` (includes, defaults and meshes resolved), with the
+    meshes :func:`load_model` gives shell inertia marked so: what a cache keys a model file's content on."""
+    path = resolve_asset(mjcf)
+    spec = _read(path)
+    probe = spec.copy()
+    _compile(probe, path)
+    for mesh in probe.meshes:
+        if mesh.inertia == mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL:
+            spec.mesh(mesh.name).inertia = mesh.inertia
+    return spec.to_xml()
 
 
 def _select_arm(m: mujoco.MjModel, path: Path, joints: Sequence[str] | None, torque_motors: bool) -> list[int]:
@@ -255,6 +299,59 @@ def _torque_range(m: mujoco.MjModel, a: int, j: int, path: Path) -> tuple[float,
         raise RobofdiError(f"mjcf: actuator {_actuator_label(m, a)} on arm joint {joint!r} of {path.name}: empty torque "
                            f"range [{lo}, {hi}]")
     return float(lo), float(hi)
+
+
+def fixed_distance_pairs(m: mujoco.MjModel, joints: Sequence[int], margin: float, poses: int = 8) -> dict:
+    """{(geom1, geom2): distance [m]} of the geom pairs within ``margin`` [m] (or their own larger margin) of each
+    other at ``poses`` poses of the ``joints`` drawn over their ranges (one turn for an unlimited joint; a fixed
+    draw, the other joints at their reference), at the same distance to 1 µm each time: links whose distance no joint
+    changes, such as a cover turning about its joint's own axis. MuJoCo's collision detection on a copy of ``m``
+    (contype/conaffinity, parent filter and excludes as the file sets them)."""
+    scratch = copy.copy(m)
+    scratch.geom_margin[:] = np.maximum(m.geom_margin, margin)
+    d = mujoco.MjData(scratch)
+    joints = np.asarray(joints, dtype=int)
+    qadr = scratch.jnt_qposadr[joints]
+    lo = np.where(scratch.jnt_limited[joints], scratch.jnt_range[joints, 0], -np.pi)
+    hi = np.where(scratch.jnt_limited[joints], scratch.jnt_range[joints, 1], np.pi)
+    draw = np.random.default_rng(0)
+    seen = []
+    for _ in range(poses):
+        d.qpos[:] = scratch.qpos0
+        d.qpos[qadr] = draw.uniform(lo, hi)
+        mujoco.mj_kinematics(scratch, d)
+        mujoco.mj_collision(scratch, d)
+        pairs: dict[tuple[int, int], float] = {}
+        for c in d.contact[:d.ncon]:
+            pair = (int(c.geom1), int(c.geom2))
+            pairs[pair] = min(pairs.get(pair, np.inf), float(c.dist))
+        seen.append(pairs)
+    fixed = {}
+    for pair in set(seen[0]).intersection(*seen[1:]):
+        distances = [pairs[pair] for pairs in seen]
+        if max(distances) - min(distances) < 1e-6:
+            fixed[pair] = float(np.mean(distances))
+    return fixed
+
+
+def _exclude_bearings(spec: mujoco.MjSpec, m: mujoco.MjModel, ids: Sequence[int]) -> bool:
+    """Exclude in ``spec`` the contacts of the links that touch at every pose of the arm (:func:`fixed_distance_pairs`
+    at the geoms' own margin): a surface resting on the link below it and turning about the same axis (robosuite's
+    raw sawyer file has its shoulder sphere on the base cylinder) is a bearing, which MuJoCo's parent filter leaves in
+    only because the lower link is fixed to the world. Left in, its contact friction brakes the joint, a drag no
+    drive has. Returns whether anything changed."""
+    bodies = set()
+    for g1, g2 in fixed_distance_pairs(m, ids, 0.0):
+        b1, b2 = int(m.geom_bodyid[g1]), int(m.geom_bodyid[g2])
+        if b1 != b2:
+            bodies.add((min(b1, b2), max(b1, b2)))
+    changed = False
+    for pair in sorted(bodies):
+        names = [_name(m, mujoco.mjtObj.mjOBJ_BODY, b) for b in pair]
+        if all(names):                            # an exclude names its bodies; an unnamed one keeps its contact
+            spec.add_exclude(bodyname1=names[0], bodyname2=names[1])
+            changed = True
+    return changed
 
 
 def _to_motors(spec: mujoco.MjSpec, m: mujoco.MjModel, ids: list[int], path: Path) -> bool:
@@ -344,15 +441,14 @@ _COMPILED_SIZE = 16
 
 def _compile_arm(path: Path, joints, torque_motors: bool, drive_inertia: float) -> CompiledArm:
     check_model_text(path)
-    try:
-        spec = mujoco.MjSpec.from_file(str(path))
-    except Exception as exc:
-        raise RobofdiError(f"mjcf: MuJoCo cannot read {str(path)!r}: {' '.join(str(exc).split())}") from None
+    spec = _read(path)
     m = _compile(spec, path)
     if not 0 < m.opt.timestep <= MAX_ARM_TIMESTEP:
         raise RobofdiError(f"mjcf: {path.name}: <option timestep> is {m.opt.timestep:g} s; expected a physics step in "
                            f"(0, {MAX_ARM_TIMESTEP:g}] s for an arm (MuJoCo's default is 0.002 s)")
     ids = _select_arm(m, path, joints, torque_motors)
+    if _exclude_bearings(spec, m, ids):
+        m = _compile(spec, path)
     if torque_motors and _to_motors(spec, m, ids, path):
         m = _compile(spec, path)
     drives = _drives(m, ids, path)

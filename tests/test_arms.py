@@ -16,13 +16,13 @@ import pytest
 
 from robofdi import ASSETS, RobofdiError
 from robofdi.control import MotionLimits
-from robofdi.mjcf import compile_arm, find_package_root, urdf_to_mjcf
+from robofdi.mjcf import compile_arm, find_package_root, load_model, urdf_to_mjcf
 from robofdi.systems.arm import arm_scenario, calibration_trajectories
 from robofdi.sims import ArmSimulator
 from robofdi.sims.arm import full_mass_matrix
 
 URDF = ASSETS / "urdf" / "robofdi_arm4_description" / "urdf" / "robofdi_arm4.urdf"
-ROBOSUITE_ARMS = ("iiwa", "jaco", "kinova3", "panda", "ur5e", "spot_arm")
+ROBOSUITE_ARMS = ("iiwa", "jaco", "kinova3", "panda", "sawyer", "ur5e", "spot_arm")
 
 
 def robosuite_arm(name: str) -> Path:
@@ -164,6 +164,59 @@ def test_drive_inertia_gives_plant_and_belief_the_same_rotor_inertia_floor():
     for bad in (-1e-3, float("nan"), True, "0.002"):
         with pytest.raises(RobofdiError, match="drive_inertia: expected a finite armature"):
             compile_arm(URDF, drive_inertia=bad)
+
+
+def test_a_mesh_too_thin_for_a_solid_gets_shell_inertia(tmp_path):
+    """MuJoCo refuses a flat mesh as a solid ("mesh volume is too small"; robosuite's raw sawyer file has two visual
+    ones); the arm compiles with that mesh's inertia taken as a shell, and the body keeps the inertia it declares."""
+    path = tmp_path / "flat.xml"
+    path.write_text("""<mujoco model="flat">
+      <asset><mesh name="plate" vertex="0 0 0  0.1 0 0  0.1 0.1 0  0 0.1 0" face="0 1 2  0 2 3  0 2 1  0 3 2"/></asset>
+      <worldbody><body name="link"><joint name="j1" axis="0 0 1"/>
+        <inertial pos="0 0 0" mass="1.5" diaginertia="0.01 0.02 0.03"/>
+        <geom type="mesh" mesh="plate" contype="0" conaffinity="0"/></body></worldbody>
+      <actuator><motor name="m1" joint="j1" ctrlrange="-10 10"/></actuator></mujoco>""")
+    with pytest.raises(ValueError, match="mesh volume is too small"):
+        mujoco.MjModel.from_xml_path(str(path))
+    arm = compile_arm(path)
+    assert arm.model.body_mass[1] == 1.5
+    np.testing.assert_array_equal(arm.model.body_inertia[1], [0.01, 0.02, 0.03])
+    assert load_model(path).nmesh == 1
+
+
+def test_links_that_touch_at_every_pose_turn_as_a_bearing(tmp_path):
+    """A turret whose shoulder sphere sits 1 mm into the base pillar it turns on (robosuite's raw sawyer file has
+    such a pair, at 0 mm): MuJoCo's parent filter keeps that contact, as the pillar is fixed to the world, and its
+    friction brakes the joint. The arm as robofdi compiles it excludes the pair: a 5 N·m torque spins the turret as
+    a free rigid body would (τ t / I), and a pair whose distance the joints change keeps its contacts."""
+    path = tmp_path / "bearing.xml"
+    path.write_text("""<mujoco model="bearing"><compiler angle="radian"/>
+      <worldbody><body name="base"><geom name="pillar" type="cylinder" size="0.08 0.12" pos="0 0 0.12"/>
+        <body name="turret" pos="0 0 0.08"><joint name="yaw" axis="0 0 1" range="-3 3"/>
+          <inertial pos="0 0 0.2" mass="2" diaginertia="0.02 0.02 0.025"/>
+          <geom name="shoulder" type="sphere" size="0.07" pos="0.05 0 0.229"/>
+          <body name="upper" pos="0.2 0 0.2"><joint name="pitch" axis="0 1 0" range="-0.3 2"/>
+            <inertial pos="0 0 0" mass="0.1" diaginertia="1e-3 1e-3 1e-3"/>
+            <geom name="elbow" type="sphere" size="0.03" pos="0 0 -0.15"/></body></body></body></worldbody>
+      <actuator><motor joint="yaw" ctrlrange="-20 20"/><motor joint="pitch" ctrlrange="-20 20"/></actuator>
+    </mujoco>""")
+    raw, arm = mujoco.MjModel.from_xml_path(str(path)), compile_arm(path)
+    assert raw.nexclude == 0 and arm.model.nexclude == 1
+    spins = []
+    for m in (raw, arm.model):
+        d = mujoco.MjData(m)
+        d.ctrl[:] = [5.0, 0.0]
+        for _ in range(int(round(0.1 / m.opt.timestep))):
+            mujoco.mj_step(m, d)
+        spins.append(d.qvel[0])
+    inertia_about_yaw = 0.025 + 0.1 * 0.2 ** 2 + 1e-3       # the turret about its axis, the upper body 0.2 m out
+    assert spins[0] < 0.1 * 5.0 * 0.1 / inertia_about_yaw                   # braked by the contact
+    assert spins[1] == pytest.approx(5.0 * 0.1 / inertia_about_yaw, rel=0.02)
+    # the elbow's distance to the pillar changes with pitch: it is not a fixed pair, and at pitch 0.8 it touches
+    d = mujoco.MjData(arm.model)
+    d.qpos[:] = [0.0, 0.8]
+    mujoco.mj_forward(arm.model, d)
+    assert d.ncon >= 1
 
 
 @pytest.mark.parametrize("seed", [3, 5, 11])

@@ -181,13 +181,10 @@ def joint_ranges(mjcf: str | Path, joint_names=None) -> tuple[np.ndarray, np.nda
     Raises RobofdiError naming the joint if it is missing or unlimited."""
     import mujoco
 
-    from robofdi.mjcf import resolve_asset
+    from robofdi.mjcf import load_model, resolve_asset
 
     path = resolve_asset(mjcf)
-    try:
-        m = mujoco.MjModel.from_xml_path(str(path))
-    except Exception as exc:
-        raise RobofdiError(f"mjcf: cannot load {str(path)!r} in MuJoCo: {exc}") from None
+    m = load_model(path)
     if joint_names is None:
         joint_names = [mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, i) for i in range(m.njnt)]
     lower, upper = [], []
@@ -377,13 +374,16 @@ class _SelfCollision:
 
     A pose collides when two geoms touch (closer than the file's margin), or when two links that are not a body
     and its parent come within ``clearance`` [m] (MuJoCo's margin on the scratch model). Pairs on bodies no
-    joint moves apart (:func:`_rigid_and_adjacent`) never count: they are the same at every pose."""
+    joint moves apart (:func:`_rigid_and_adjacent`), and pairs no joint changes the distance of
+    (:func:`robofdi.mjcf.fixed_distance_pairs`), never count: they are the same at every pose."""
 
     def __init__(self, path: Path, joint_names: tuple, clearance: float = SELF_CLEARANCE):
         import mujoco
 
         self._mujoco = mujoco
-        self.m = mujoco.MjModel.from_xml_path(str(path))
+        from robofdi.mjcf import fixed_distance_pairs, load_model
+
+        self.m = load_model(path)
         m = self.m
         self.active = bool(np.any((m.geom_contype != 0) | (m.geom_conaffinity != 0)))
         self.d = mujoco.MjData(m)
@@ -392,6 +392,9 @@ class _SelfCollision:
         self.margin = m.geom_margin.copy()          # the file's own: a contact as the simulator reports it
         self.clearance = float(clearance)
         m.geom_margin[:] = np.maximum(self.margin, self.clearance)
+        for g1, g2 in fixed_distance_pairs(m, [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_JOINT, j) for j in joint_names],
+                                           self.clearance):
+            self.rigid[g1, g2] = self.rigid[g2, g1] = True
 
     def contacts(self, q) -> list[tuple[int, int, float]]:
         """(geom1, geom2, distance [m]) of every pair at pose q that counts (class docstring)."""

@@ -25,7 +25,6 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-import mujoco
 import numpy as np
 
 from robofdi.calibration import cached
@@ -43,6 +42,7 @@ from robofdi.errors import RobofdiError
 from robofdi.faults import Fault, check_faults, parse_fault_specs
 from robofdi.ftc import FaultCompensation
 from robofdi.loop import ORACLE, ClosedLoop, Diagnosis, Rates, diagnose_record, diagnoser_inputs
+from robofdi.mjcf import model_xml
 from robofdi.models import ManipulatorModel, ModelMismatch
 from robofdi.observers import DiagnosticObserver
 from robofdi.observers.arm_schemes import (ALL_SCHEMES, BOOK_SCHEMES, SCHEMES, ArmSchemeSettings, arm_schemes, row_tails,
@@ -360,7 +360,7 @@ def _calibration_description(scenario: ArmScenario, sim: ArmSimulator, trajector
     """Everything a calibration depends on: the compiled robot, its seed and harness, rates, schemes and motions
     (:mod:`robofdi.calibration` adds the code)."""
     return {
-        "robot": hashlib.sha256(mujoco.MjSpec.from_file(str(sim.path)).to_xml().encode()).hexdigest(),
+        "robot": hashlib.sha256(model_xml(sim.path).encode()).hexdigest(),
         "joints": list(sim.joint_names), "torque_motors": scenario.plant.torque_motors, "seed": scenario.seed,
         "ripple": scenario.plant.ripple_mode, "sensors": repr(scenario.plant.sensors), "payload": scenario.plant.payload,
         "mismatch": repr(scenario.mismatch), "rates": repr(scenario.loop_rates(sim)), "settings": repr(scenario.settings),
