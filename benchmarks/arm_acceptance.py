@@ -4,14 +4,16 @@
                                         [--out runs/arm-acceptance] [--runs N] [--seed S] [--set NAME=VALUE …]
                                         [--spec benchmarks/arm_more_kinds.toml]
 
-A robot is a shipped asset name, an MJCF path, or the name of a robosuite 1.5 arm (``panda``, ``iiwa``,
-``ur5e``, ``kinova3``: its raw ``robot.xml``, servos turned into torque motors; needs the robosuite extra).
+A robot is a shipped asset name, an MJCF or URDF path, or the name of a robosuite 1.5 arm (``panda``, ``iiwa``,
+``ur5e``, ``kinova3``, ``jaco``, ``sawyer``, ``spot_arm``: its raw ``robot.xml``, servos turned into torque motors;
+needs the robosuite extra).
 --speed sets the missions' speed ("normal" or "fast"; normal missions get two segments, fast ones three).
 --drive-inertia S2 gives every joint whose armature is below S2 × its torque limit that armature, in the plant and
 the belief alike (:func:`robofdi.mjcf.compile_arm`): the reflected rotor inertia of a geared drive, which
 robosuite's raw robot.xml files leave out (robosuite's own loader adds 5/(i+1) kg·m² to every joint instead).
-The default, "auto", is 0.002 s² for robosuite's arms (the smallest of robofdi's own drives) and 0 for the
-other files (their armature as written); 0 runs a robosuite arm's file as it is.
+The default, "auto", is 0.002 s² (the smallest of robofdi's own drives) for a file that gives none of its arm joints
+any armature (robosuite's raw files, a URDF: the links without their drives) and 0 for the other files (their
+armature as written); 0 runs such a file as it is.
 Each (robot, speed) campaign is resumable: re-running the command continues it. Per diagnoser it prints the
 table of benchmarks/arm_quality.py (false-alarm runs with the 95 % Clopper–Pearson upper bound, detection and
 correct isolation at ≥ 2× the minimum detectable fault, the median abrupt delay in samples, incipient faults
@@ -42,12 +44,13 @@ from arm_quality import per_class, quality, settings_option  # noqa: E402
 
 from robofdi.campaign import run_campaign  # noqa: E402
 from robofdi.campaign.results import load  # noqa: E402
+from robofdi.mjcf import compile_arm  # noqa: E402
 
 ROBOSUITE_ARMS = ("panda", "iiwa", "ur5e", "kinova3", "jaco", "sawyer", "spot_arm")
 
 
-#: The drive inertia [s²] "auto" gives robosuite's arms (--drive-inertia).
-ROBOSUITE_DRIVE_INERTIA = 0.002
+#: The drive inertia [s²] "auto" gives a file whose arm joints have no armature (--drive-inertia).
+LINKS_ONLY_DRIVE_INERTIA = 0.002
 
 
 def robot_file(name: str) -> tuple[str, bool]:
@@ -64,7 +67,10 @@ def robot_file(name: str) -> tuple[str, bool]:
 def drive_inertia(option: str, name: str) -> float:
     """The --drive-inertia of robot ``name`` [s²]: "auto" (module docstring) or a number >= 0."""
     if option == "auto":
-        return ROBOSUITE_DRIVE_INERTIA if name in ROBOSUITE_ARMS else 0.0
+        path, torque_motors = robot_file(name)
+        arm = compile_arm(path, torque_motors=torque_motors)
+        links_only = not np.any(arm.model.dof_armature[[d.dof for d in arm.drives]])
+        return LINKS_ONLY_DRIVE_INERTIA if links_only else 0.0
     try:
         value = float(option)
     except ValueError:
