@@ -21,8 +21,9 @@ import numpy as np
 
 from robofdi import ASSETS, RobofdiError
 
-__all__ = ["Drive", "CompiledArm", "compile_arm", "load_model", "model_xml", "fixed_distance_pairs", "resolve_asset", "is_torque_motor", "actuator_kind",
-           "joint_actuators", "urdf_to_mjcf", "find_package_root", "URDF_TIMESTEP", "VELOCITY_LIMIT"]
+__all__ = ["Drive", "CompiledArm", "compile_arm", "load_model", "model_xml", "fixed_distance_pairs", "resolve_asset",
+           "is_torque_motor", "actuator_kind", "joint_actuators", "urdf_to_mjcf", "find_package_root", "URDF_TIMESTEP",
+           "VELOCITY_LIMIT"]
 
 _JOINT_KINDS = {int(mujoco.mjtJoint.mjJNT_HINGE): "hinge", int(mujoco.mjtJoint.mjJNT_SLIDE): "slide",
                 int(mujoco.mjtJoint.mjJNT_BALL): "ball", int(mujoco.mjtJoint.mjJNT_FREE): "free"}
