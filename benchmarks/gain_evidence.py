@@ -40,7 +40,7 @@ def regression(model, design, Y, U, tau: float, start: int = 0) -> tuple[np.ndar
         previous = v
         if k < start:
             continue
-        bound = design.step_bound(np.abs(v))
+        bound = design.step_bound(np.abs(v), diagnoser.spread)
         x, w = diagnoser.innovation / bound, change / bound
         sxw, sww = lam * sxw + x * w, lam * sww + w * w
         stat[k] = np.abs(sxw) / np.sqrt(np.maximum(sww, 1e-300))

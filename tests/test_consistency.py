@@ -215,7 +215,8 @@ def test_velocity_bias_and_encoder_drift_are_told_apart_by_the_step_row(designed
     step = np.abs(tr.residual[:, 2 * n + j])
     assert step[(t > SKIP * 0.002) & (t < 1.0)].max() < 2.0
     if isolated.endswith("_vel"):       # ν = b on its own joint: 0.05 rad/s against ≈ 0.01 fault-free
-        bound = design.step_bound(np.asarray(sc.motion(1.0)[1]))[j]
+        q, v = (np.asarray(x) for x in sc.motion(1.0)[:2])
+        bound = design.step_bound(v, design.spread(model.mass_matrix(q)))[j]
         assert step[(t >= 1.0) & (t < 1.01)].max() * bound == pytest.approx(0.05, rel=0.25)
         # the onset's ν stays held: the increment −T·b that persists after it is a velocity offset, no position step
         held = step[(t >= 1.0) & (t < 1.0 + STEP_HOLD - 0.01)]
@@ -234,7 +235,8 @@ def test_a_velocity_step_below_the_step_alarm_is_isolated_from_its_evidence(desi
     sensor. (At 1.8× the agreement alone crosses 2: the step row detects it.)"""
     _, _, model, rates, _, design = designed
     motion = arm_scenario("arm6.xml", seed=5, schemes=("momentum",)).motion
-    b = 1.3 * design.step_bound(np.asarray(motion(1.0)[1]))[4]     # the bound at the planned speed
+    q, v = (np.asarray(x) for x in motion(1.0)[:2])
+    b = 1.3 * design.step_bound(v, design.spread(model.mass_matrix(q)))[4]     # the bound at the planned pose
     sc = arm_scenario("arm6.xml", faults=[f"sensor_bias:joint5_vel:{b}@1.0"], seed=5, schemes=("momentum",))
     rec = run_scenario(sc, calibration(sc)[0])
     confirm = ArmSchemeSettings().consistency_confirm
@@ -259,7 +261,8 @@ def test_a_velocity_step_below_the_step_bound_is_told_from_an_encoder_drift_by_a
     quarter of its bound, a drift of 0.75× the bound is called a velocity fault with a probability of ≈ 7 %.)"""
     _, _, model, rates, _, design = designed
     motion = arm_scenario("arm6.xml", seed=5, schemes=("momentum",)).motion
-    bound = design.step_bound(np.asarray(motion(1.0)[1]))[5]          # at the planned speed
+    q, v = (np.asarray(x) for x in motion(1.0)[:2])
+    bound = design.step_bound(v, design.spread(model.mass_matrix(q)))[5]          # at the planned pose
     single = design.window_scales[5, int(np.argmin(design.windows)), 0]
     b = 0.75 * bound
     assert design.T * b > 2.4 * single      # the precondition of the agreement, with room for noise

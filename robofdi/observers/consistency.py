@@ -162,9 +162,10 @@ FROZEN_SAMPLES = 2
 class ConsistencyDesign:
     """What :class:`ConsistencyResidual` learns once per robot: ``friction`` (identified), ``envelope`` (n, 4)
     bound coefficients of the dynamic rows, ``skew`` (n,) [s] and ``window_scales`` (n, len(windows), 3) of the
-    kinematic rows (:func:`~robofdi.observers.kinematic.design_window_scales`), ``step_scale`` (n, 2) of the
-    step rows: the tightest bound c₀ + c₁ s of the fault-free |ν| over the joint's speed s (:meth:`step_bound`;
-    c₀ [rad/s], c₁ dimensionless), the observer ``gain`` K_O [1/s], sample time ``T`` [s], the
+    kinematic rows (:func:`~robofdi.observers.kinematic.design_window_scales`), ``step_scale`` (n, 3) of the
+    step rows: the tightest bound c₀ + c₁ s + c₂ σ of the fault-free |ν| over the joint's speed s and the spread
+    σ(q) that the impulse noise gives ν at the pose (:meth:`step_bound`; c₀ [rad/s], c₁ and c₂ dimensionless), the
+    observer ``gain`` K_O [1/s], sample time ``T`` [s], the
     kinematic ``windows`` [s], the operating envelope the kinematic scales were designed on, ``reach``
     (n, len(windows), 2) (:func:`~robofdi.observers.kinematic.window_reach`; None: unbounded), and the drives'
     nominal ripple orders (n, n_orders) [cycles/rad] whose aliasing the kinematic rows cover
@@ -198,9 +199,17 @@ class ConsistencyDesign:
     OPTIONAL = ("reach", "ripple_orders", "ripple_amplitude", "impulse_scale", "noise_walk", "gain_scale",
                 "trend_scale")
 
-    def step_bound(self, speed: np.ndarray) -> np.ndarray:
-        """(n,) bound [rad/s] of the fault-free |ν| at joint speeds ``speed`` (n,) [rad/s]: c₀ + c₁ |speed|."""
-        return self.step_scale[:, 0] + self.step_scale[:, 1] * np.abs(speed)
+    def step_bound(self, speed: np.ndarray, spread: np.ndarray) -> np.ndarray:
+        """(n,) bound [rad/s] of the fault-free |ν| at joint speeds ``speed`` (n,) [rad/s] and the pose's ν spread
+        ``spread`` (n,) [rad/s] (:meth:`ConsistencyResidual.velocity_innovation`): c₀ + c₁ |speed| + c₂ spread."""
+        return self.step_scale[:, 0] + self.step_scale[:, 1] * np.abs(speed) + self.step_scale[:, 2] * spread
+
+    def spread(self, mass: np.ndarray) -> np.ndarray:
+        """(n,) [rad/s] the ν spread at a pose of mass matrix ``mass`` (n, n): (M_jᵀ W M_j)^(−1/2), W the inverse
+        squares of ``impulse_scale`` (:meth:`ConsistencyResidual.velocity_innovation`)."""
+        n = mass.shape[0]
+        scale = np.ones(n) if self.impulse_scale is None else np.asarray(self.impulse_scale, dtype=float)
+        return np.einsum("ij,i,ij->j", mass, scale ** -2.0, mass) ** -0.5
 
     def arrays(self) -> dict[str, np.ndarray]:
         """Flat arrays (for caching in an .npz); :meth:`from_arrays` inverts it."""
@@ -229,7 +238,7 @@ class ConsistencyResidual:
 
     def __init__(self, model: ManipulatorModel, design: ConsistencyDesign):
         n = model.n
-        if design.envelope.shape != (n, 4) or design.skew.shape != (n,) or design.step_scale.shape != (n, 2):
+        if design.envelope.shape != (n, 4) or design.skew.shape != (n,) or design.step_scale.shape != (n, 3):
             raise RobofdiError(f"ConsistencyResidual: design is for {design.skew.shape[0]} joints, the model has {n}")
         self.model, self.design, self.n, self.T = model, design, n, design.T
         self._momentum = MomentumObserver(model, design.T, design.gain, design.friction)
@@ -273,6 +282,7 @@ class ConsistencyResidual:
         self._r_prev = None
         self._repeats = np.zeros(self.n)     # consecutive samples with an unchanged velocity reading
         self.innovation = np.zeros(self.n)      # ν of the last sample [rad/s]
+        self.spread = np.zeros(self.n)          # ν's impulse-noise spread at the last sample's pose [rad/s]
         self._previous = np.zeros((3, self.n))  # the last sample's e [rad] and ν [rad/s], the e before it [rad]
         self._steps = np.zeros((self._hold, self.n))     # ring buffer of |ν| / scale (or agreement) over the hold
         self._jumps = np.zeros((self._hold, self.n))    # ring buffer of position-step ratios
@@ -302,12 +312,18 @@ class ConsistencyResidual:
         noise). Solving M ν = w for all joints at once (ν = M⁻¹ w) is exact for a step too, but near a
         singular M (robosuite's iiwa with joint 2 ≈ 0, where joints 1 and 3 are coaxial and their relative
         motion has almost no inertia) it amplifies every impulse along the weak direction: the fault-free
-        |ν| of joint 1 reached 0.2 rad/s against 0.02 rad/s for the one-joint fit."""
+        |ν| of joint 1 reached 0.2 rad/s against 0.02 rad/s for the one-joint fit.
+
+        Sets ``spread`` (n,) [rad/s], the standard deviation that impulse noise of spread impulse_scale gives
+        ν_j at this pose, (M_jᵀ W M_j)^(−1/2): a base joint's inertia changes several-fold with the arm's
+        reach, and with it the ν its impulse noise makes (sawyer's shoulder: 0.47–3.6 kg·m²)."""
         previous, self._r_prev = self._r_prev, r.copy()
+        weighted = self._impulse_weight[:, None] * mass
+        norm = einsum("ij,ij->j", weighted, mass)
+        self.spread = norm ** -0.5
         if previous is None:
             return np.zeros(self.n)
-        weighted = self._impulse_weight[:, None] * mass
-        return (weighted.T @ (r - previous)) / einsum("ij,ij->j", weighted, mass) / self.design.gain
+        return (weighted.T @ (r - previous)) / norm / self.design.gain
 
     def update(self, y: np.ndarray, u: np.ndarray) -> Residual:
         """y = [q; q̇](k), u = ū(k−1)."""
@@ -331,7 +347,7 @@ class ConsistencyResidual:
         z, estimate = np.empty(3 * n + 1), np.empty(3 * n + 1)
         bound = self.bound()
         _step_rows(r, self.innovation, kin, e, bound, self._kinematic.scale, self._single, self.design.skew,
-                   self.design.step_bound(speed), self._repeats, FROZEN_SAMPLES, self._steps, self._jumps,
+                   self.design.step_bound(speed, self.spread), self._repeats, FROZEN_SAMPLES, self._steps, self._jumps,
                    self._previous, self._k % self._hold, (self._k - 1) % self._hold, self.T, z, estimate,
                    q, v, self._gain_sums, self._gain_lambda, self._gain_scale, self.gain_evidence,
                    self._trend_ring, self._trend_sums, self._k, self._trend_scale, self.trend_evidence)
@@ -569,7 +585,7 @@ def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray,
     plain = replay(MomentumObserver(model, T, gain))
     friction = identify_friction(plain, [np.asarray(Y)[:, n:] for Y, _ in runs], gain, T, skip)
     unit = ConsistencyDesign(friction, np.ones((n, 4)), np.zeros(n), np.ones((n, len(windows), 3)),
-                             np.column_stack([np.ones(n), np.zeros(n)]), gain, T, tuple(windows))
+                             np.column_stack([np.ones(n), np.zeros((n, 2))]), gain, T, tuple(windows))
     features, residuals, speeds, masses = [], [], [], []
     for Y, U in runs:
         d = ConsistencyResidual(model, unit)
@@ -588,9 +604,11 @@ def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray,
     impulses = [np.diff(r, axis=0, prepend=r[:1]) / gain for r in residuals]     # (r_k − r_{k−1}) / K_O
     impulse_scale = np.maximum(np.concatenate([w[skip + 1:] for w in impulses]).std(axis=0), 1e-12)
     weight = impulse_scale ** -2.0
-    innovations = [np.einsum("kij,i,ki->kj", M, weight, w) / np.einsum("kij,i,kij->kj", M, weight, M)
-                   for M, w in zip(masses, impulses)]          # velocity_innovation over every sample
-    step = design_envelope([np.stack([np.ones_like(s), s], axis=-1) for s in speeds], innovations, skip + 1)
+    norms = [np.einsum("kij,i,kij->kj", M, weight, M) for M in masses]
+    innovations = [np.einsum("kij,i,ki->kj", M, weight, w) / norm
+                   for M, w, norm in zip(masses, impulses, norms)]          # velocity_innovation over every sample
+    step = design_envelope([np.stack([np.ones_like(s), s, norm ** -0.5], axis=-1) for s, norm in zip(speeds, norms)],
+                           innovations, skip + 1)
     step[:, 0] = np.maximum(step[:, 0], 1e-9)
     qs = [np.asarray(Y)[:, :n] for Y, _ in runs]
     vs = [np.asarray(Y)[:, n:] for Y, _ in runs]
