@@ -34,7 +34,7 @@ def _diagnose(record, model, settings) -> dict:
     n = model.n
     design = ConsistencyDesign(JointFriction.from_coefficients(np.full((n, 4), 0.1)), np.full((n, 4), 0.5),
                                np.full(n, 2e-4), np.full((n, len(WINDOWS), 3), 1e-4),
-                               np.column_stack([np.full(n, 0.05), np.zeros(n)]),
+                               np.column_stack([np.full(n, 0.05), np.zeros(n), np.full(n, 0.5)]),
                                settings.consistency_gain, settings.T, WINDOWS, np.full((n, len(WINDOWS), 2), 0.2))
     out = {}
     for name, d in arm_schemes(model, settings, None, SCHEMES, consistency=design).items():

@@ -238,8 +238,10 @@ class ConsistencyResidual:
 
     def __init__(self, model: ManipulatorModel, design: ConsistencyDesign):
         n = model.n
-        if design.envelope.shape != (n, 4) or design.skew.shape != (n,) or design.step_scale.shape != (n, 3):
-            raise RobofdiError(f"ConsistencyResidual: design is for {design.skew.shape[0]} joints, the model has {n}")
+        for field, shape in (("envelope", (n, 4)), ("skew", (n,)), ("step_scale", (n, 3))):
+            if np.shape(getattr(design, field)) != shape:
+                raise RobofdiError(f"ConsistencyResidual: design field '{field}' has shape "
+                                   f"{np.shape(getattr(design, field))}; expected {shape} for the model's {n} joints")
         self.model, self.design, self.n, self.T = model, design, n, design.T
         self._momentum = MomentumObserver(model, design.T, design.gain, design.friction)
         self._kinematic = KinematicConsistency(design.T, design.skew, design.window_scales, design.windows,
