@@ -380,9 +380,9 @@ class _SelfCollision:
     def __init__(self, path: Path, joint_names: tuple, clearance: float = SELF_CLEARANCE):
         import mujoco
 
-        self._mujoco = mujoco
         from robofdi.mjcf import fixed_distance_pairs, load_model
 
+        self._mujoco = mujoco
         self.m = load_model(path)
         m = self.m
         self.active = bool(np.any((m.geom_contype != 0) | (m.geom_conaffinity != 0)))
