@@ -204,12 +204,18 @@ class ConsistencyDesign:
         ``spread`` (n,) [rad/s] (:meth:`ConsistencyResidual.velocity_innovation`): c₀ + c₁ |speed| + c₂ spread."""
         return self.step_scale[:, 0] + self.step_scale[:, 1] * np.abs(speed) + self.step_scale[:, 2] * spread
 
-    def spread(self, mass: np.ndarray) -> np.ndarray:
-        """(n,) [rad/s] the ν spread at a pose of mass matrix ``mass`` (n, n): (M_jᵀ W M_j)^(−1/2), W the inverse
-        squares of ``impulse_scale`` (:meth:`ConsistencyResidual.velocity_innovation`)."""
-        n = mass.shape[0]
+    @property
+    def impulse_weight(self) -> np.ndarray:
+        """(n,) W [1/(N·m·s)²], the inverse squares of ``impulse_scale`` (all 1 without it): the weights of the
+        velocity innovation's fit (:meth:`ConsistencyResidual.velocity_innovation`)."""
+        n = self.skew.shape[0]
         scale = np.ones(n) if self.impulse_scale is None else np.asarray(self.impulse_scale, dtype=float)
-        return np.einsum("ij,i,ij->j", mass, scale ** -2.0, mass) ** -0.5
+        return scale ** -2.0
+
+    def spread(self, mass: np.ndarray) -> np.ndarray:
+        """(n,) [rad/s] the ν spread at a pose of mass matrix ``mass`` (n, n): (M_jᵀ W M_j)^(−1/2)
+        (:meth:`ConsistencyResidual.velocity_innovation`)."""
+        return np.einsum("ij,i,ij->j", mass, self.impulse_weight, mass) ** -0.5
 
     def arrays(self) -> dict[str, np.ndarray]:
         """Flat arrays (for caching in an .npz); :meth:`from_arrays` inverts it."""
@@ -251,7 +257,7 @@ class ConsistencyResidual:
         if scale.shape != (n,) or not np.all(np.isfinite(scale) & (scale > 0)):
             raise RobofdiError(f"ConsistencyResidual: field 'impulse_scale' must be {n} finite values > 0 [N·m·s], "
                                f"got {design.impulse_scale!r}")
-        self._impulse_weight = scale ** -2.0
+        self._impulse_weight = design.impulse_weight
         self._a = design.gain * design.T
         self._hold = max(1, int(round(STEP_HOLD / design.T)))
         self._single = int(np.argmin(design.windows))       # the single-sample kinematic window
