@@ -127,6 +127,12 @@ class CompiledArm:
     def torque_limit(self) -> np.ndarray:
         return np.array([d.torque_limit for d in self.drives], dtype=float)
 
+    @property
+    def without_armature(self) -> list[str]:
+        """The arm joints the file gives no armature (rotor inertia): a drive without its rotor, as in a file that
+        models the links only (a URDF, robosuite's raw ``robot.xml``); ``drive_inertia`` gives them one."""
+        return [d.joint for d in self.drives if self.model.dof_armature[d.dof] <= 0]
+
 
 def _name(m: mujoco.MjModel, obj, i: int) -> str:
     return mujoco.mj_id2name(m, obj, i) or ""

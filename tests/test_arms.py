@@ -166,6 +166,23 @@ def test_drive_inertia_gives_plant_and_belief_the_same_rotor_inertia_floor():
             compile_arm(URDF, drive_inertia=bad)
 
 
+def test_a_run_on_a_file_without_rotor_inertia_says_so_in_one_line(capsys):
+    """`robofdi run arm --robot F` notes the joints F gives no armature, and says nothing where the file gives
+    them one or --drive-inertia does."""
+    from robofdi.cli import _armature_note
+
+    assert compile_arm(URDF).without_armature == ["joint1", "joint2", "joint3", "joint4"]
+    assert compile_arm(URDF, drive_inertia=0.002).without_armature == []
+    assert compile_arm("arm6.xml").without_armature == []
+    _armature_note("arm", {"robot": str(URDF)})
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert len(lines) == 1 and "joint1, joint2, joint3, joint4 no rotor inertia" in lines[0] \
+        and "--drive-inertia 0.002" in lines[0]
+    for options in ({"robot": str(URDF), "drive_inertia": 0.002}, {"robot": "arm6.xml"}, {}):
+        _armature_note("arm", options)
+    assert capsys.readouterr().out == ""
+
+
 def test_a_mesh_too_thin_for_a_solid_gets_shell_inertia(tmp_path):
     """MuJoCo refuses a flat mesh as a solid ("mesh volume is too small"; robosuite's raw sawyer file has two visual
     ones); the arm compiles with that mesh's inertia taken as a shell, and the body keeps the inertia it declares."""
