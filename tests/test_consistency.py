@@ -420,19 +420,32 @@ def test_skew_is_identified_when_the_instrument_is_anti_correlated():
     np.testing.assert_allclose(identify_skew([qs], [vs], T), h / 2, rtol=1e-6)
 
 
-@pytest.mark.parametrize("moved, counted", [(1.0, True), (1.3, True), (0.0, False), (0.2, False), (2.0, False)])
-def test_the_step_row_counts_nu_only_where_the_increments_do_not_refute_a_readings_step(moved, counted):
+def test_the_refutation_allows_the_noise_of_a_change_of_the_increment_learnt_from_fault_free_runs(designed):
+    """The move scale is the largest fault-free |e_k − e_{k−1}| over the single-sample scale: more than one
+    sample's bound (the floor) where the velocity noise moves e, less than the two samples' bounds added (what
+    the refutation allowed before): consecutive increments share a velocity reading (|Δe| ≈ 1–1.7 scales for white
+    velocity and encoder noise)."""
+    design = designed[-1]
+    assert np.all(design.move_scale >= 1.0) and np.all(design.move_scale < 2.0), design.move_scale
+    assert np.any(design.move_scale > 1.0), design.move_scale
+
+
+@pytest.mark.parametrize("moved, move, counted", [(1.0, 2.0, True), (1.3, 2.0, True), (0.0, 2.0, False),
+                                                   (0.2, 2.0, False), (2.0, 2.0, False),
+                                                   (0.38, 2.0, True), (0.38, 1.0, False), (1.0, 1.0, True)])
+def test_the_step_row_counts_nu_only_where_the_increments_do_not_refute_a_readings_step(moved, move, counted):
     """A reading's step of ν at a sample moves the kinematic increment by m = −(T/2 + τ_s) ν at once; a real
     velocity change (a torque) leaves it where it was. ν = 5× its bound: counted when e moved by ``moved`` × m
-    within |m|/2 plus twice the single-sample scale (here 100 µrad ± 70 µrad), else the row holds nothing."""
+    within |m|/2 plus ``move`` single-sample scales (here 100 µrad ± 50 µrad + move × 10 µrad), else the row
+    holds nothing."""
     T, skew, single, nu, bound = 0.002, 0.001, 10e-6, 0.05, 0.01
     made = -(T / 2 + skew) * nu                       # −100 µrad
     hold = 50
     steps, jumps, previous = np.zeros((hold, 1)), np.zeros((hold, 1)), np.zeros((3, 1))
     z, estimate = np.empty(4), np.empty(4)
     _step_rows(np.zeros(1), np.array([nu]), np.zeros(1), np.array([moved * made]), np.ones(1),
-               np.array([[single, 1.0]]), 0, np.array([skew]), np.array([bound]), np.zeros(1), 2.0, steps, jumps,
-               previous, 3, 2, T, z, estimate, np.zeros(1), np.zeros(1), np.zeros((14, 1)), 0.99, np.zeros(1), np.zeros(1),
+               np.array([[single, 1.0]]), 0, np.array([skew]), np.array([move]), np.array([bound]), np.zeros(1), 2.0,
+               steps, jumps, previous, 3, 2, T, z, estimate, np.zeros(1), np.zeros(1), np.zeros((14, 1)), 0.99, np.zeros(1), np.zeros(1),
                np.zeros((8, 1)), np.zeros((4, 1)), 0, np.zeros(1), np.zeros(1))
     assert z[2] == (pytest.approx(nu / bound) if counted else 0.0)
     assert z[1] == 0.0                                # no position step: |e| is within what ν makes
@@ -575,7 +588,8 @@ def test_the_encoder_counts_as_stepped_on_a_spike_of_its_increments_not_on_large
         z, estimate = np.empty(4), np.empty(4)
         for k, x in enumerate(e):
             _step_rows(np.zeros(1), np.zeros(1), np.zeros(1), np.array([x]), np.ones(1), np.array([[single, 1.0]]), 0,
-                       np.array([0.001]), np.array([0.01]), np.zeros(1), 2.0, steps, jumps, previous, k % hold,
+                       np.array([0.001]), np.array([2.0]), np.array([0.01]), np.zeros(1), 2.0, steps, jumps, previous,
+                       k % hold,
                        (k - 1) % hold, T, z, estimate, np.array([0.01 * k]), np.array([5.0]), sums, 0.99, np.zeros(1),
                        np.zeros(1), np.zeros((8, 1)), np.zeros((4, 1)), k, np.zeros(1), np.zeros(1))
         return bool(sums[13, 0] > 0)

@@ -29,7 +29,7 @@ the design runs):
   peak keeps that sample: the row is the peak of |ν| over :data:`STEP_HOLD`, over its fault-free bound at the
   joint's speed (the step scale, c₀ + c₁ |q̇_i|: the innovation grows with speed). ν counts only where the
   kinematic increments do not refute a reading's step of it: such a step moves e_k by −(T/2 + τ_s) ν at once,
-  and where e_k moved from e_{k−1} by more than half of that away from it (plus twice the single-sample scale),
+  and where e_k moved from e_{k−1} by more than half of that away from it (plus the noise of such a move, learnt),
   the velocity change was real — a torque, which is the dynamic row's to judge (a fault-free torque impulse the
   model lacks raised robosuite kinova3's base step row to 1.09× its threshold: ν = −38 mrad/s, where the
   increment moved 4.5 µrad, not the 76 µrad a reading's step makes).
@@ -156,6 +156,8 @@ TREND_MARGIN = 4.0
 FROZEN_CHANGE = 1e-9
 #: Consecutive repeated velocity readings that make the step row 1 (its largest fault-free value, at least).
 FROZEN_SAMPLES = 2
+#: The smallest move scale a design takes (single-sample scales): one sample's own bound.
+MOVE_FLOOR = 1.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -176,8 +178,10 @@ class ConsistencyDesign:
     and ``noise_walk`` (n,) [rad], the long-run standard deviation per sample of the kinematic increments' noise
     that floors the window scales (:func:`~robofdi.observers.kinematic.identify_noise_walk`; None: not identified),
     ``gain_scale`` (n,), the largest fault-free gain evidence per joint (dimensionless, :func:`_gain_evidence`;
-    None: no gain evidence) and ``trend_scale`` (n,), the same for the trend evidence (:func:`_trend_evidence`;
-    None: none)."""
+    None: no gain evidence), ``trend_scale`` (n,), the same for the trend evidence (:func:`_trend_evidence`;
+    None: none), and ``move_scale`` (n,), the largest fault-free change of the kinematic increment from one sample
+    to the next, |e_k − e_{k−1}|, in single-sample scales (dimensionless): the noise the step rows' refutation
+    allows (:func:`_step_rows`; None: 2, the two samples' bounds added)."""
 
     friction: JointFriction
     envelope: np.ndarray
@@ -194,10 +198,11 @@ class ConsistencyDesign:
     noise_walk: np.ndarray | None = None
     gain_scale: np.ndarray | None = None
     trend_scale: np.ndarray | None = None
+    move_scale: np.ndarray | None = None
 
     #: The optional arrays of :meth:`arrays` (absent when None).
     OPTIONAL = ("reach", "ripple_orders", "ripple_amplitude", "impulse_scale", "noise_walk", "gain_scale",
-                "trend_scale")
+                "trend_scale", "move_scale")
 
     def step_bound(self, speed: np.ndarray, spread: np.ndarray) -> np.ndarray:
         """(n,) bound [rad/s] of the fault-free |ν| at joint speeds ``speed`` (n,) [rad/s] and the pose's ν spread
@@ -267,6 +272,10 @@ class ConsistencyResidual:
         self._trend_scale = (np.zeros(n) if design.trend_scale is None
                              else np.asarray(design.trend_scale, dtype=float))  # 0: no trend evidence
         self._trend_samples = max(1, int(round(TREND_WINDOW / design.T)))
+        self._move = np.full(n, 2.0) if design.move_scale is None else np.asarray(design.move_scale, dtype=float)
+        if self._move.shape != (n,) or not np.all(np.isfinite(self._move) & (self._move > 0)):
+            raise RobofdiError(f"ConsistencyResidual: field 'move_scale' must be {n} finite values > 0 "
+                               f"(single-sample scales), got {design.move_scale!r}")
         names = list(model.joint_names)
         self.inputs = names
         self.measurements = [f"{j}_pos" for j in names] + [f"{j}_vel" for j in names]
@@ -354,7 +363,7 @@ class ConsistencyResidual:
         kin, e = self._kinematic.update(q, v)
         z, estimate = np.empty(3 * n + 1), np.empty(3 * n + 1)
         bound = self.bound()
-        _step_rows(r, self.innovation, kin, e, bound, self._kinematic.scale, self._single, self.design.skew,
+        _step_rows(r, self.innovation, kin, e, bound, self._kinematic.scale, self._single, self.design.skew, self._move,
                    self.design.step_bound(speed, self.spread), self._repeats, FROZEN_SAMPLES, self._steps, self._jumps,
                    self._previous, self._k % self._hold, (self._k - 1) % self._hold, self.T, z, estimate,
                    q, v, self._gain_sums, self._gain_lambda, self._gain_scale, self.gain_evidence,
@@ -376,7 +385,7 @@ class ConsistencyResidual:
 
 
 @kernel
-def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, repeats, frozen_samples, steps, jumps,
+def _step_rows(r, innovation, kin, e, bound, scale, single, skew, move, step_bound, repeats, frozen_samples, steps, jumps,
                previous, row, previous_row, T, z, estimate, q, v, gain_sums, lam, gain_scale, gain,
                trend_ring, trend_sums, k, trend_scale, trend):
     """The rows of :meth:`ConsistencyResidual.update` after its momentum and kinematic parts, joint by joint in
@@ -403,9 +412,12 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, re
     ν and starts anywhere within a sample (its share at k is arbitrary). Not while a position step is held: its
     increment returning looks like a step too.
 
-    Refutation: ν_k counts in the step row only where e_k − e_{k−1} is within |m|/2 + twice the single-sample
-    scale of m = −(T/2 + τ_s) ν_k, what a reading's step of ν_k would have made of it; a real velocity change
-    (a torque) leaves the increments near 0 and is the dynamic row's.
+    Refutation: ν_k counts in the step row only where e_k − e_{k−1} is within |m|/2 + ``move`` single-sample
+    scales of m = −(T/2 + τ_s) ν_k, what a reading's step of ν_k would have made of it; a real velocity change
+    (a torque) leaves the increments near 0 and is the dynamic row's. ``move`` (n,) is the largest fault-free
+    |e_k − e_{k−1}| in single-sample scales (``ConsistencyDesign.move_scale``): the noise of the change itself,
+    not the two samples' bounds added (which let a torque ringing at the sample rate on sawyer's base count
+    as a reading's step: the increments moved 6.6 µrad where a step would have moved them 53).
 
     Evidence of a velocity-sensor fault that made no step: the gain evidence (:func:`_gain_evidence`) and the
     trend evidence (:func:`_trend_evidence`), over their scales, both 0 once e_{k−1} stood out from e_{k−2} and
@@ -447,7 +459,7 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, step_bound, re
                 jump = jumps[h, i]
         # refuted: the increment did not move by the −(T/2 + τ_s) ν a reading's step of ν makes (docstring)
         made = -(T / 2 + skew[i]) * innovation[i]
-        refuted = abs(moved - made) > abs(made) / 2 + 2 * single_scale
+        refuted = abs(moved - made) > abs(made) / 2 + move[i] * single_scale
         steps[row, i] = 0.0 if jump > 0 or refuted else abs(innovation[i]) / step_bound[i]
         step = steps[0, i]
         for h in range(1, hold):
@@ -634,15 +646,19 @@ def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray,
     design = ConsistencyDesign(friction, envelope, skew, scales, step, gain, T, tuple(windows), reach, orders,
                                amplitude, impulse_scale, walk)
     evidence, trend = np.zeros(n), np.zeros(n)      # the gain and trend evidence's largest fault-free values
+    move = np.full(n, MOVE_FLOOR)                   # |e_k − e_{k−1}| over the single-sample scale, largest
     for Y, U in runs:
         d = ConsistencyResidual(model, design)
         for k, (y, u) in enumerate(zip(Y, U)):
+            e_prev = d._previous[0].copy()
             d.update(y, u)
             if k >= skip:
                 np.maximum(evidence, d.gain_evidence, out=evidence)
                 np.maximum(trend, d.trend_evidence, out=trend)
+            if k > skip:
+                np.maximum(move, np.abs(d._previous[0] - e_prev) / d._kinematic.scale[:, d._single], out=move)
     return replace(design, gain_scale=GAIN_MARGIN * np.maximum(evidence, GAIN_FLOOR),
-                   trend_scale=TREND_MARGIN * np.maximum(trend, TREND_FLOOR))
+                   trend_scale=TREND_MARGIN * np.maximum(trend, TREND_FLOOR), move_scale=move)
 
 
 @kernel
