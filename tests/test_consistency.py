@@ -16,8 +16,8 @@ from robofdi.observers.consistency import (
     STEP_HOLD, ConsistencyDesign, ConsistencyResidual, _step_rows, design_consistency,
 )
 from robofdi.observers.kinematic import (
-    NOISE_WALK_SIGMAS, KinematicConsistency, design_window_scales, identify_noise_walk, identify_ripple, identify_skew,
-    kinematic_increments, ripple_orders,
+    NOISE_WALK_SIGMAS, WINDOWS, KinematicConsistency, design_window_scales, identify_noise_walk, identify_ripple,
+    identify_skew, kinematic_increments, ripple_orders,
 )
 from robofdi.systems.arm import arm_scenario, calibration, calibration_records, run_scenario
 
@@ -449,6 +449,29 @@ def test_the_step_row_counts_nu_only_where_the_increments_do_not_refute_a_readin
                np.zeros((8, 1)), np.zeros((4, 1)), 0, np.zeros(1), np.zeros(1))
     assert z[2] == (pytest.approx(nu / bound) if counted else 0.0)
     assert z[1] == 0.0                                # no position step: |e| is within what ν makes
+
+
+def test_the_kinematic_windows_do_not_sum_what_a_velocity_change_within_the_sample_made():
+    """An increment blip that ν explains (the same sign, up to −(T/2 + τ_s) ν) is left out of the window sums; one
+    of the other sign, or larger than it explains, is summed (the excess); the returned e is the increment as is."""
+    T, n = 0.002, 1
+    scales = np.ones((n, len(WINDOWS), 3)) * [1e-5, 0.0, 0.0]
+    def ratios(blip, explained):
+        kc = KinematicConsistency(T, np.zeros(n), scales, WINDOWS)
+        q, out = 0.0, []
+        for k in range(20):
+            q += 0.01 * T + (blip if k == 10 else 0.0)
+            x = np.array([explained if k == 10 else 0.0])
+            r, e = kc.update(np.array([q]), np.array([0.01]), x)
+            out.append((r[0], e[0]))
+        return out
+    quiet, explained = ratios(0.0, 0.0), ratios(1e-4, 1.5e-4)
+    assert explained[10][1] == pytest.approx(1e-4)                      # e itself is reported
+    assert max(r for r, _ in explained) == pytest.approx(max(r for r, _ in quiet), abs=1e-9)   # not summed
+    excess = ratios(1e-4, 0.4e-4)                                       # only the part it explains is removed
+    assert max(r for r, _ in excess) == pytest.approx(6.0, rel=1e-6)    # 60 µrad over the 10 µrad scale
+    opposite = ratios(1e-4, -1.5e-4)
+    assert max(r for r, _ in opposite) == pytest.approx(10.0, rel=1e-6)
 
 
 def test_kinematic_stepping_matches_the_offline_sums():

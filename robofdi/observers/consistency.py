@@ -14,7 +14,13 @@ the design runs):
   with an abrupt one before the controller answers it (the median abrupt delay went from 1.5 to 3–3.5 samples
   on panda and arm7).
 * ``joint<i>_kin`` — kinematic consistency between the joint's position and velocity sensors
-  (:mod:`robofdi.observers.kinematic`), which no actuator fault can raise.
+  (:mod:`robofdi.observers.kinematic`), which no actuator fault can raise. But for the onset: a torque step at a
+  time s before the sample instant makes the trapezoid's increment e_k = −(T/2 + τ_s − s/2) ν_k at that sample
+  alone, as much as a reading's step of ν_k where s is small, and the windows would hold it for their length (a
+  hard-over on arm6's wrist: e = 143 µrad, its 0.1 s window 1.3× its threshold for 0.1 s, the fault named a
+  velocity sensor). So where |ν_k| exceeds its fault-free bound, the windows sum e_k shrunk towards 0 by up to
+  −(T/2 + τ_s) ν_k: a reading's step of ν_k then shows in the windows from the next sample on (−T ν_k a sample),
+  a torque step not at all. The rows' ``e`` and the step rows see e_k as it is.
 * ``joint<i>_step`` — the velocity innovation ν_k [rad/s]: the velocity step on joint i alone that best explains
   the torque impulse w_k = (r_k − r_{k−1}) / K_O, the part of the measured momentum change the dynamics cannot
   explain (the momentum observer's one-step prediction error, r_k − r_{k−1} = K_O (p_k − p_{k−1} −
@@ -360,11 +366,16 @@ class ConsistencyResidual:
             self._repeats = _repeated(v, self._v_prev, self._repeats, FROZEN_CHANGE)
         speed = np.abs(v) if self._v_prev is None else (np.abs(v) + np.abs(self._v_prev)) / 2
         self._v_prev = v
-        kin, e = self._kinematic.update(q, v)
+        step_bound = self.design.step_bound(speed, self.spread)
+        # a velocity change within the sample beyond ν's fault-free bound makes up to −(T/2 + τ_s) ν of e_k at once
+        # (module docstring, "onset"): not the kinematic windows' to sum
+        explained = np.where(np.abs(self.innovation) > step_bound, -(self.T / 2 + self.design.skew) * self.innovation,
+                             0.0)
+        kin, e = self._kinematic.update(q, v, explained)
         z, estimate = np.empty(3 * n + 1), np.empty(3 * n + 1)
         bound = self.bound()
         _step_rows(r, self.innovation, kin, e, bound, self._kinematic.scale, self._single, self.design.skew, self._move,
-                   self.design.step_bound(speed, self.spread), self._repeats, FROZEN_SAMPLES, self._steps, self._jumps,
+                   step_bound, self._repeats, FROZEN_SAMPLES, self._steps, self._jumps,
                    self._previous, self._k % self._hold, (self._k - 1) % self._hold, self.T, z, estimate,
                    q, v, self._gain_sums, self._gain_lambda, self._gain_scale, self.gain_evidence,
                    self._trend_ring, self._trend_sums, self._k, self._trend_scale, self.trend_evidence)

@@ -309,6 +309,7 @@ class KinematicConsistency:
                                f"ripple orders > 0 [cycles/rad] and amplitudes >= 0 [rad], got shapes "
                                f"{self.orders.shape} and {self.ripple.shape}")
         self.sizes = _window_samples(self.T, windows)
+        self._none = np.zeros(0)
         self._sizes = np.array(self.sizes, dtype=np.int64)
         self._reach = np.ones((n, len(windows), 2)) if self.reach is None else np.ascontiguousarray(self.reach)
         self.scales = np.ascontiguousarray(self.scales)
@@ -325,13 +326,17 @@ class KinematicConsistency:
         self.outside = np.zeros(n, dtype=bool)
         self.outside_samples = np.zeros(n, dtype=int)
 
-    def update(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def update(self, q: np.ndarray, v: np.ndarray, explained: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """One sample: (the ratios, the increments e_k [rad]). ``explained`` (n,) [rad]: the part of e_k that a
+        velocity change within the sample makes (:class:`~robofdi.observers.consistency.ConsistencyResidual`): the
+        window sums take e_k shrunk towards 0 by up to it where it has e_k's sign; None: all of e_k."""
         n, windows = self.skew.shape[0], len(self.sizes)
         q, v = np.asarray(q, dtype=float), np.asarray(v, dtype=float)
         ratio, e = np.empty(n), np.empty(n)
         outside, scales = np.empty(n, dtype=bool), np.empty((n, windows))
         qp, vp = self._prev if self._prev is not None else (q, v)
-        _kinematic_step(q, v, qp, vp, self._prev is None, self.T, self.skew, self._history, self._k, self._sizes,
+        _kinematic_step(q, v, qp, vp, self._prev is None, self.T, self.skew,
+                        self._none if explained is None else explained, self._history, self._k, self._sizes,
                         self.scales, self.orders, self.ripple, self._reach, self.reach is not None, ratio, e, outside,
                         scales, self.outside_samples)
         self._prev = (q, v)
@@ -341,10 +346,11 @@ class KinematicConsistency:
 
 
 @kernel
-def _kinematic_step(q, v, qp, vp, first, T, skew, history, k, sizes, scales, orders, ripple, reach, bounded, ratio,
-                    e, outside, scale, outside_samples):
+def _kinematic_step(q, v, qp, vp, first, T, skew, explained, history, k, sizes, scales, orders, ripple, reach,
+                    bounded, ratio, e, outside, scale, outside_samples):
     """One sample of :meth:`KinematicConsistency.update`, joint by joint in the order of operations of its array
-    form: e_k, the cumulative sums in the ring buffer ``history`` at sample ``k`` (e, |q̇|, Δq̇, then cos and
+    form: e_k (summed shrunk towards 0 by up to ``explained``, where that has its sign; length 0: none), the
+    cumulative sums in the ring buffer ``history`` at sample ``k`` (e, |q̇|, Δq̇, then cos and
     sin of m q per ripple order of ``orders`` on samples near an alias), each window's sum over its scale σ_W (plus
     the ``ripple`` amplitude times each order's coherent sum; widened outside ``reach`` when ``bounded``); writes
     ``ratio``, ``e``, ``outside``, ``scale`` and counts ``outside_samples``."""
@@ -357,6 +363,9 @@ def _kinematic_step(q, v, qp, vp, first, T, skew, history, k, sizes, scales, ord
             dvi = v[i] - vp[i]
             ei = q[i] - qp[i] - T * (v[i] + vp[i]) / 2 - skew[i] * dvi
         e[i] = ei
+        x = explained[i] if explained.shape[0] else 0.0
+        if x * ei > 0:          # a velocity change within the sample made (up to) x of e_k: not summed
+            ei = ei - x if abs(x) < abs(ei) else 0.0
         if k:
             c0, c1, c2 = history[before, 0, i] + ei, history[before, 1, i] + abs(v[i]), history[before, 2, i] + dvi
         else:
