@@ -18,9 +18,12 @@ the design runs):
   time s before the sample instant makes the trapezoid's increment e_k = −(T/2 + τ_s − s/2) ν_k at that sample
   alone, as much as a reading's step of ν_k where s is small, and the windows would hold it for their length (a
   hard-over on arm6's wrist: e = 143 µrad, its 0.1 s window 1.3× its threshold for 0.1 s, the fault named a
-  velocity sensor). So where |ν_k| exceeds its fault-free bound, the windows sum e_k shrunk towards 0 by up to
-  −(T/2 + τ_s) ν_k: a reading's step of ν_k then shows in the windows from the next sample on (−T ν_k a sample),
-  a torque step not at all. The rows' ``e`` and the step rows see e_k as it is.
+  velocity sensor). So at the onset of a velocity change, the first sample in :data:`STEP_HOLD` whose |ν_k|
+  exceeds its fault-free bound, the windows sum e_k shrunk towards 0 by up to −(T/2 + τ_s) ν_k: a reading's step
+  of ν_k then shows in the windows from the next sample on (−T ν_k a sample), a torque step not at all. Only the
+  onset: a noisy velocity reading makes such a ν and such an e at every spike, and its later spikes are its
+  evidence (a first version at every sample called a velocity-noise fault an actuator's). The rows' ``e`` and the
+  step rows see e_k as it is.
 * ``joint<i>_step`` — the velocity innovation ν_k [rad/s]: the velocity step on joint i alone that best explains
   the torque impulse w_k = (r_k − r_{k−1}) / K_O, the part of the measured momentum change the dynamics cannot
   explain (the momentum observer's one-step prediction error, r_k − r_{k−1} = K_O (p_k − p_{k−1} −
@@ -316,6 +319,7 @@ class ConsistencyResidual:
         self._trend_sums = np.zeros((4, self.n))    # their sums over the four windows, newest first
         self.trend_evidence = np.zeros(self.n)      # its last value (dimensionless)
         self._k = 0
+        self._beyond = np.full(self.n, -(10 ** 9))   # the last sample whose |ν| exceeded its bound, per joint
 
     @property
     def outside_envelope(self) -> np.ndarray:
@@ -367,10 +371,12 @@ class ConsistencyResidual:
         speed = np.abs(v) if self._v_prev is None else (np.abs(v) + np.abs(self._v_prev)) / 2
         self._v_prev = v
         step_bound = self.design.step_bound(speed, self.spread)
-        # a velocity change within the sample beyond ν's fault-free bound makes up to −(T/2 + τ_s) ν of e_k at once
+        # the onset of a velocity change beyond ν's fault-free bound makes up to −(T/2 + τ_s) ν of e_k at once
         # (module docstring, "onset"): not the kinematic windows' to sum
-        explained = np.where(np.abs(self.innovation) > step_bound, -(self.T / 2 + self.design.skew) * self.innovation,
-                             0.0)
+        beyond = np.abs(self.innovation) > step_bound
+        onset = beyond & (self._k - self._beyond > self._hold)      # the first such sample since STEP_HOLD
+        self._beyond[beyond] = self._k
+        explained = np.where(onset, -(self.T / 2 + self.design.skew) * self.innovation, 0.0)
         kin, e = self._kinematic.update(q, v, explained)
         z, estimate = np.empty(3 * n + 1), np.empty(3 * n + 1)
         bound = self.bound()
