@@ -445,8 +445,8 @@ def test_the_step_row_counts_nu_only_where_the_increments_do_not_refute_a_readin
     z, estimate = np.empty(4), np.empty(4)
     _step_rows(np.zeros(1), np.array([nu]), np.zeros(1), np.array([moved * made]), np.ones(1),
                np.array([[single, 1.0]]), 0, np.array([skew]), np.array([move]), np.array([bound]), np.zeros(1), 2.0,
-               steps, jumps, previous, 3, 2, T, z, estimate, np.zeros(1), np.zeros(1), np.zeros((14, 1)), 0.99, np.zeros(1), np.zeros(1),
-               np.zeros((8, 1)), np.zeros((4, 1)), 0, np.zeros(1), np.zeros(1))
+               steps, jumps, previous, 3, 2, T, z, estimate, np.zeros(1), np.zeros(1), np.zeros((14, 1)), 0.99,
+               np.zeros(1), np.zeros(1), np.zeros((8, 1)), np.zeros((4, 1)), 0, np.zeros(1), np.zeros(1))
     assert z[2] == (pytest.approx(nu / bound) if counted else 0.0)
     assert z[1] == 0.0                                # no position step: |e| is within what ν makes
 
