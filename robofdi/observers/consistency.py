@@ -374,9 +374,11 @@ class ConsistencyResidual:
         # the onset of a velocity change beyond ν's fault-free bound makes up to −(T/2 + τ_s) ν of e_k at once
         # (module docstring, "onset"): not the kinematic windows' to sum
         beyond = np.abs(self.innovation) > step_bound
-        onset = beyond & (self._k - self._beyond > self._hold)      # the first such sample since STEP_HOLD
-        self._beyond[beyond] = self._k
-        explained = np.where(onset, -(self.T / 2 + self.design.skew) * self.innovation, 0.0)
+        explained = None                    # most samples: nothing beyond the bound, nothing more to compute
+        if beyond.any():
+            onset = beyond & (self._k - self._beyond > self._hold)  # the first such sample since STEP_HOLD
+            self._beyond[beyond] = self._k
+            explained = np.where(onset, -(self.T / 2 + self.design.skew) * self.innovation, 0.0)
         kin, e = self._kinematic.update(q, v, explained)
         z, estimate = np.empty(3 * n + 1), np.empty(3 * n + 1)
         bound = self.bound()
