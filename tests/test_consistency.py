@@ -446,7 +446,7 @@ def test_the_step_row_counts_nu_only_where_the_increments_do_not_refute_a_readin
     _step_rows(np.zeros(1), np.array([nu]), np.zeros(1), np.array([moved * made]), np.ones(1),
                np.array([[single, 1.0]]), 0, np.array([skew]), np.array([move]), np.array([bound]), np.zeros(1), 2.0,
                steps, jumps, previous, 3, 2, T, z, estimate, np.zeros(1), np.zeros(1), np.zeros((14, 1)), 0.99,
-               np.zeros(1), np.zeros(1), np.zeros((8, 1)), np.zeros((4, 1)), 0, np.zeros(1), np.zeros(1))
+               np.zeros(1), np.zeros(1), np.zeros((8, 1)), np.zeros((4, 1)), 0, np.zeros(1), np.zeros(1), np.zeros(1))
     assert z[2] == (pytest.approx(nu / bound) if counted else 0.0)
     assert z[1] == 0.0                                # no position step: |e| is within what ν makes
 
@@ -614,7 +614,7 @@ def test_the_encoder_counts_as_stepped_on_a_spike_of_its_increments_not_on_large
                        np.array([0.001]), np.array([2.0]), np.array([0.01]), np.zeros(1), 2.0, steps, jumps, previous,
                        k % hold,
                        (k - 1) % hold, T, z, estimate, np.array([0.01 * k]), np.array([5.0]), sums, 0.99, np.zeros(1),
-                       np.zeros(1), np.zeros((8, 1)), np.zeros((4, 1)), k, np.zeros(1), np.zeros(1))
+                       np.zeros(1), np.zeros((8, 1)), np.zeros((4, 1)), k, np.zeros(1), np.zeros(1), np.zeros(1))
         return bool(sums[13, 0] > 0)
 
     accelerating = -T * 0.16 * 50.0 * T * np.arange(200)     # −T g q̇, q̇ rising by 50 rad/s² (32 µrad a sample)

@@ -110,9 +110,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from robofdi.decision.envelope import design_envelope, envelope_features, filtered_features
+from robofdi.decision.envelope import LOW_SPEED_VELOCITY, REST_VELOCITY, design_envelope
 from robofdi.errors import RobofdiError
-from robofdi.jit import einsum, kernel
+from robofdi.jit import kernel
 from robofdi.models.friction import JointFriction
 from robofdi.models.manipulator import ManipulatorModel
 from robofdi.observers.kinematic import (
@@ -120,7 +120,8 @@ from robofdi.observers.kinematic import (
     kinematic_increments, window_reach,
 )
 from robofdi.observers.momentum import MomentumObserver, identify_friction
-from robofdi.observers.payload import PayloadRegressor, payload_evidence
+from robofdi.observers import payload as payload_module
+from robofdi.observers.payload import PayloadRegressor
 from robofdi.observers.residual import Residual, shared_measurement
 
 __all__ = ["ConsistencyDesign", "ConsistencyResidual", "design_consistency", "DEFAULT_GAIN", "STEP_HOLD",
@@ -303,12 +304,17 @@ class ConsistencyResidual:
         self._momentum.reset()
         self._kinematic.reset()
         self._payload.reset()
-        self._features = None
-        self._v_prev = None
-        self._r_prev = None
-        self._repeats = np.zeros(self.n)     # consecutive samples with an unchanged velocity reading
-        self.innovation = np.zeros(self.n)      # ν of the last sample [rad/s]
-        self.spread = np.zeros(self.n)          # ν's impulse-noise spread at the last sample's pose [rad/s]
+        n = self.n
+        self._started = False                   # a residual r_{k−1} is held (ν needs two samples)
+        self._features = np.zeros((n, 4))       # LP of the dynamic rows' operating-point features φ
+        # per joint: the last residual r_{k−1} [N·m], the last velocity reading [rad/s], the consecutive samples
+        # with an unchanged velocity reading, the last sample whose |ν| exceeded its bound
+        self._state = np.zeros((4, n))
+        self._state[3] = -1e9
+        # per joint, this sample's: ν [rad/s], its impulse-noise spread at the pose [rad/s], its fault-free bound
+        # [rad/s], what a velocity change within the sample made of e_k [rad] (the onset; 0 elsewhere), and the
+        # dynamic rows' operating-point bound [N·m] (:func:`_operating_point`)
+        self._point = np.zeros((5, n))
         self._previous = np.zeros((3, self.n))  # the last sample's e [rad] and ν [rad/s], the e before it [rad]
         self._steps = np.zeros((self._hold, self.n))     # ring buffer of |ν| / scale (or agreement) over the hold
         self._jumps = np.zeros((self._hold, self.n))    # ring buffer of position-step ratios
@@ -319,7 +325,18 @@ class ConsistencyResidual:
         self._trend_sums = np.zeros((4, self.n))    # their sums over the four windows, newest first
         self.trend_evidence = np.zeros(self.n)      # its last value (dimensionless)
         self._k = 0
-        self._beyond = np.full(self.n, -(10 ** 9))   # the last sample whose |ν| exceeded its bound, per joint
+
+    @property
+    def innovation(self) -> np.ndarray:
+        """(n,) ν of the last sample [rad/s] (:meth:`velocity_innovation`; 0 before the second); a view that the
+        next sample overwrites."""
+        return self._point[0]
+
+    @property
+    def spread(self) -> np.ndarray:
+        """(n,) ν's impulse-noise spread at the last sample's pose [rad/s] (:meth:`velocity_innovation`); a view
+        that the next sample overwrites."""
+        return self._point[1]
 
     @property
     def outside_envelope(self) -> np.ndarray:
@@ -329,7 +346,9 @@ class ConsistencyResidual:
 
     def bound(self) -> np.ndarray:
         """The current operating-point bound of the dynamic rows [N·m]."""
-        return np.maximum(einsum("nf,nf->n", self._features, self.design.envelope), 1e-12)
+        out = np.empty(self.n)
+        _dynamic_bound(self._features, self.design.envelope, out)
+        return out
 
     def velocity_innovation(self, mass: np.ndarray, r: np.ndarray) -> np.ndarray:
         """ν_k [rad/s] (module docstring) given M(q_k); 0 at the first sample. Joint j's entry is the velocity
@@ -344,13 +363,12 @@ class ConsistencyResidual:
         Sets ``spread`` (n,) [rad/s], the standard deviation that impulse noise of spread impulse_scale gives
         ν_j at this pose, (M_jᵀ W M_j)^(−1/2): a base joint's inertia changes several-fold with the arm's
         reach, and with it the ν its impulse noise makes (sawyer's shoulder: 0.47–3.6 kg·m²)."""
-        previous, self._r_prev = self._r_prev, r.copy()
-        weighted = self._impulse_weight[:, None] * mass
-        norm = einsum("ij,ij->j", weighted, mass)
-        self.spread = norm ** -0.5
-        if previous is None:
-            return np.zeros(self.n)
-        return (weighted.T @ (r - previous)) / norm / self.design.gain
+        nu = np.empty(self.n)
+        _velocity_innovation(np.asarray(mass, dtype=float), self._impulse_weight, np.asarray(r, dtype=float),
+                             self._state[0], not self._started, self.design.gain, nu, self._point[1])
+        self._state[0] = r
+        self._started = True
+        return nu
 
     def update(self, y: np.ndarray, u: np.ndarray) -> Residual:
         """y = [q; q̇](k), u = ū(k−1)."""
@@ -359,35 +377,22 @@ class ConsistencyResidual:
         u = shared_measurement(u, n, "u")
         r = self._momentum.update(y, u).r
         q, v = y[:n], y[n:]
-        r_prev = self._r_prev
-        self.innovation = self.velocity_innovation(self._momentum.mass, r)   # M(q_k): the observer's, not again
-        if self._features is None:      # at rest before the start
-            self._features = envelope_features(np.zeros(n), v)
-        else:       # the residual's own first-order dynamics: a torque acting over (k−1, k] shows in r_k
-            needed = u + r_prev          # the torque the motion took: the command and what else acted
-            torque = np.where(np.abs(needed) < np.abs(u), needed, u)     # the smaller of the two (docstring)
-            self._features = filtered_features(self._features, self._a, torque, self._v_prev)
-            self._repeats = _repeated(v, self._v_prev, self._repeats, FROZEN_CHANGE)
-        speed = np.abs(v) if self._v_prev is None else (np.abs(v) + np.abs(self._v_prev)) / 2
-        self._v_prev = v
-        step_bound = self.design.step_bound(speed, self.spread)
-        # the onset of a velocity change beyond ν's fault-free bound makes up to −(T/2 + τ_s) ν of e_k at once
-        # (module docstring, "onset"): not the kinematic windows' to sum
-        beyond = np.abs(self.innovation) > step_bound
-        explained = None                    # most samples: nothing beyond the bound, nothing more to compute
-        if beyond.any():
-            onset = beyond & (self._k - self._beyond > self._hold)  # the first such sample since STEP_HOLD
-            self._beyond[beyond] = self._k
-            explained = np.where(onset, -(self.T / 2 + self.design.skew) * self.innovation, 0.0)
-        kin, e = self._kinematic.update(q, v, explained)
+        design, point = self.design, self._point
+        # ν, the features' low pass and the dynamic rows' bound, the step rows' bound and the onset of a velocity
+        # change beyond it, whose increment is not the kinematic windows' to sum (module docstring, "onset")
+        beyond = _operating_point(u, v, r, self._momentum.mass, self._impulse_weight, self._state, self._features,
+                                  design.envelope, design.step_scale, design.skew, not self._started, self._k,
+                                  self._hold, self._a, design.gain, self.T, REST_VELOCITY, LOW_SPEED_VELOCITY,
+                                  FROZEN_CHANGE, point)
+        self._started = True
+        kin, e = self._kinematic.update(q, v, point[3] if beyond else None)
         z, estimate = np.empty(3 * n + 1), np.empty(3 * n + 1)
-        bound = self.bound()
-        _step_rows(r, self.innovation, kin, e, bound, self._kinematic.scale, self._single, self.design.skew, self._move,
-                   step_bound, self._repeats, FROZEN_SAMPLES, self._steps, self._jumps,
+        _step_rows(r, point[0], kin, e, point[4], self._kinematic.scale, self._single, design.skew, self._move,
+                   point[2], self._state[2], FROZEN_SAMPLES, self._steps, self._jumps,
                    self._previous, self._k % self._hold, (self._k - 1) % self._hold, self.T, z, estimate,
                    q, v, self._gain_sums, self._gain_lambda, self._gain_scale, self.gain_evidence,
-                   self._trend_ring, self._trend_sums, self._k, self._trend_scale, self.trend_evidence)
-        z[3 * n], estimate[3 * n] = payload_evidence(z[:n], self._payload.update(q, v) / bound)
+                   self._trend_ring, self._trend_sums, self._k, self._trend_scale, self.trend_evidence,
+                   self._payload.update(q, v))
         self._k += 1
         return Residual(z, estimate)
 
@@ -406,9 +411,10 @@ class ConsistencyResidual:
 @kernel
 def _step_rows(r, innovation, kin, e, bound, scale, single, skew, move, step_bound, repeats, frozen_samples, steps, jumps,
                previous, row, previous_row, T, z, estimate, q, v, gain_sums, lam, gain_scale, gain,
-               trend_ring, trend_sums, k, trend_scale, trend):
-    """The rows of :meth:`ConsistencyResidual.update` after its momentum and kinematic parts, joint by joint in
-    the order of operations of their array form: the residual ``z`` and the ``estimate``; the step and jump ring
+               trend_ring, trend_sums, k, trend_scale, trend, regressor):
+    """The rows of :meth:`ConsistencyResidual.update` after its momentum and kinematic parts, joint by joint: the
+    residual ``z`` and the ``estimate`` (the payload row and mass last, from the payload regressor ``regressor``
+    (n,) [N·m/kg] over ``bound``, :func:`~robofdi.observers.payload.payload_evidence`); the step and jump ring
     buffers ``steps``/``jumps`` held at ``row``; ``previous`` (3, n) the last sample's e and ν and the e before
     it, updated.
 
@@ -512,6 +518,79 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, move, step_bou
         z[n + i] = jump if jump > kin[i] or jump != jump else kin[i]
         z[2 * n + i] = held if held > step or held != held else step
         estimate[i], estimate[n + i], estimate[2 * n + i] = r[i], e[i], -e[i] / T
+    evidence, mass = payload_module._payload_evidence(z[:n], regressor / bound)     # by its module: interpreted()
+    z[3 * n], estimate[3 * n] = evidence, mass
+
+
+@kernel
+def _velocity_innovation(mass, weight, r, r_prev, first, gain, innovation, spread):
+    """ν (0 at the ``first`` sample) and its spread into ``innovation`` and ``spread`` (n,), joint by joint
+    (:meth:`ConsistencyResidual.velocity_innovation`): with w = (r − r_prev) / K_O and W = diag(``weight``),
+    ν_j = M_jᵀ W w / M_jᵀ W M_j and spread_j = (M_jᵀ W M_j)^(−1/2)."""
+    n = r.shape[0]
+    for j in range(n):
+        norm, fit = 0.0, 0.0
+        for i in range(n):
+            weighted = weight[i] * mass[i, j]
+            norm += weighted * mass[i, j]
+            fit += weighted * (r[i] - r_prev[i])
+        spread[j] = norm ** -0.5
+        innovation[j] = 0.0 if first else fit / norm / gain
+
+
+@kernel
+def _dynamic_bound(features, envelope, out):
+    """The dynamic rows' operating-point bound max(c_iᵀ LP(φ_i), 1e-12) [N·m] into ``out`` (n,)
+    (:mod:`robofdi.decision.envelope`)."""
+    for i in range(out.shape[0]):
+        b = 0.0
+        for f in range(features.shape[1]):
+            b += features[i, f] * envelope[i, f]
+        out[i] = b if b > 1e-12 else 1e-12
+
+
+@kernel
+def _operating_point(u, v, r, mass, weight, state, features, envelope, step_scale, skew, first, k, hold, a, gain, T,
+                     rest, low_speed, change, point):
+    """The first part of :meth:`ConsistencyResidual.update`, joint by joint; True where some |ν| exceeds its
+    bound. ``state`` (4, n): the last residual and velocity reading, the repeated readings, the last sample
+    beyond the bound (updated); ``features`` (n, 4): their low pass LP(φ), updated with the torque the motion took
+    over (k−1, k] — the smaller of the command ū and ū + r_{k−1} (the command and what else acted) — and the
+    last velocity reading (at the ``first`` sample φ(0, q̇_k) as it is); ``point`` (5, n) out: ν, its spread, its
+    bound c₀ + c₁ |q̇| + c₂ spread at the mean speed of the two readings (:meth:`ConsistencyDesign.step_bound`),
+    the onset's share of e_k, −(T/2 + τ_s) ν at the first sample beyond the bound in ``hold`` samples (0
+    elsewhere), and the dynamic rows' bound (:func:`_dynamic_bound`)."""
+    r_prev, v_prev, repeats, last = state[0], state[1], state[2], state[3]
+    innovation, spread, bound, explained = point[0], point[1], point[2], point[3]
+    _velocity_innovation(mass, weight, r, r_prev, first, gain, innovation, spread)
+    b = 1.0 - a
+    beyond = False
+    for i in range(v.shape[0]):
+        if first:
+            x, y = v[i] / rest, v[i] / low_speed
+            features[i, 0], features[i, 1] = 1.0, 0.0
+            features[i, 2], features[i, 3] = math.exp(-(x * x)), math.exp(-(y * y))
+            speed = abs(v[i])
+        else:
+            needed = u[i] + r_prev[i]
+            torque = needed if abs(needed) < abs(u[i]) else u[i]
+            x, y = v_prev[i] / rest, v_prev[i] / low_speed
+            features[i, 0] = b * features[i, 0] + a * 1.0
+            features[i, 1] = b * features[i, 1] + a * abs(torque)
+            features[i, 2] = b * features[i, 2] + a * math.exp(-(x * x))
+            features[i, 3] = b * features[i, 3] + a * math.exp(-(y * y))
+            repeats[i] = repeats[i] + 1.0 if abs(v[i] - v_prev[i]) <= change else 0.0
+            speed = (abs(v[i]) + abs(v_prev[i])) / 2
+        bound[i] = step_scale[i, 0] + step_scale[i, 1] * speed + step_scale[i, 2] * spread[i]
+        explained[i] = 0.0
+        if abs(innovation[i]) > bound[i]:
+            beyond = True
+            if k - last[i] > hold:
+                explained[i] = -(T / 2 + skew[i]) * innovation[i]
+            last[i] = k
+        r_prev[i], v_prev[i] = r[i], v[i]
+    _dynamic_bound(features, envelope, point[4])
+    return beyond
 
 
 @kernel
@@ -678,12 +757,3 @@ def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray,
                 np.maximum(move, np.abs(d._previous[0] - e_prev) / d._kinematic.scale[:, d._single], out=move)
     return replace(design, gain_scale=GAIN_MARGIN * np.maximum(evidence, GAIN_FLOOR),
                    trend_scale=TREND_MARGIN * np.maximum(trend, TREND_FLOOR), move_scale=move)
-
-
-@kernel
-def _repeated(v, v_prev, repeats, change):
-    """repeats + 1 where |v − v_prev| <= change, else 0 (the np.where of the array form), as a new array."""
-    out = np.empty(v.shape[0])
-    for i in range(v.shape[0]):
-        out[i] = repeats[i] + 1.0 if abs(v[i] - v_prev[i]) <= change else 0.0
-    return out

@@ -18,10 +18,13 @@ explains more of it. For a payload it grows with δm and with how many joints th
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pinocchio as pin
 
 from robofdi import RobofdiError
+from robofdi.jit import kernel
 from robofdi.models.manipulator import ManipulatorModel, mirror_upper
 from robofdi.observers.momentum import _momentum_step
 
@@ -89,9 +92,19 @@ def payload_evidence(rho: np.ndarray, y: np.ndarray) -> tuple[float, float]:
     """(evidence, δm̂) for normalised dynamic residuals ``rho`` (n,) and the normalised payload direction ``y``
     (n,) [1/kg] (module docstring): evidence = √max(0, (y·ρ)²/(y·y) − max_i ρ_i²) (dimensionless) and the
     least-squares payload δm̂ = −(y·ρ)/(y·y) [kg] (r ≈ −δm LP(Y)); (0, 0) where y vanishes."""
-    yy = float(y.dot(y))
+    return _payload_evidence(np.asarray(rho, dtype=float), np.asarray(y, dtype=float))
+
+
+@kernel
+def _payload_evidence(rho, y):
+    """:func:`payload_evidence`, entry by entry."""
+    yy, yr, largest = 0.0, 0.0, 0.0
+    for i in range(rho.shape[0]):
+        yy += y[i] * y[i]
+        yr += y[i] * rho[i]
+        if rho[i] * rho[i] > largest or rho[i] != rho[i]:
+            largest = rho[i] * rho[i]
     if not yy > 1e-300:
         return 0.0, 0.0
-    yr = float(y.dot(rho))
-    excess = yr * yr / yy - float((rho * rho).max())
-    return (float(np.sqrt(excess)) if excess > 0 else 0.0), -yr / yy
+    excess = yr * yr / yy - largest
+    return (math.sqrt(excess) if excess > 0 else 0.0), -yr / yy
