@@ -7,7 +7,10 @@ function give the same bits on any machine, and the NumPy code before them too w
 library's (on AVX-512 CPUs NumPy has its own ``exp``, which differs in the last bit for some arguments). What a
 kernel may not hold: matrix products and solves (NumPy's BLAS and LAPACK stay outside, called on the same arrays
 as before), ``tanh`` (NumPy's own SIMD implementation) and reductions whose summation order NumPy chooses
-(``einsum``, ``sum`` over more than a few entries).
+(``einsum``, ``sum`` over more than a few entries). One exception, measured: the consistency scheme's sample
+(:mod:`robofdi.observers.consistency`, ``_operating_point`` and the payload evidence) sums its small products and
+takes ``math.exp`` in the kernel, so its residual differs from the NumPy form it replaced at rounding level
+(≤ 1e-15, docs/performance.md); the compiled kernel and its Python function still agree bit for bit.
 
 :func:`kernel` compiles with ``numba.njit(cache=True, nogil=True)``: the machine code is cached on disk next to
 the source (``__pycache__``; numba's ``NUMBA_CACHE_DIR`` moves it), so a process pays the compilation once per
