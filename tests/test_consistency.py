@@ -342,6 +342,26 @@ def test_a_frozen_velocity_sensor_is_isolated_as_the_velocity_sensor(designed):
     assert got == "joint3_vel" and time - 1.0 < 0.1
 
 
+def test_a_velocity_sensor_frozen_while_its_joint_rests_is_isolated_as_the_velocity_sensor(designed):
+    """Frozen at rest, the reading stays right and the increments with it: only its repeats tell. The drive's
+    reading never repeats on the design runs (``repeat_scale`` 0), so they count in the kinematic row as well as
+    the step row, and the velocity sensor (both rows) is named within 30 ms; with that evidence off
+    (``repeat_scale`` None) only the step row alarms, which no hypothesis explains alone, until the frozen
+    reading's noise has drifted the increments far enough for the kinematic row (on jaco never, in a campaign)."""
+    _, _, model, rates, _, design = designed
+    assert np.all(design.repeat_scale == 0)
+    sc = arm_scenario("arm6.xml", faults=["sensor_freeze:joint3_vel:0@3.4"], seed=5, schemes=("momentum",),
+                      duration=3.8)
+    record = run_scenario(sc, calibration(sc)[0])
+    k = np.searchsorted(record.time, 3.4)
+    assert np.abs(record.truth_state[k - 50:k, model.n + 2]).max() < 0.01       # the joint rests at the onset
+    settings = dict(confirm=ArmSchemeSettings().consistency_confirm, evidence=True)
+    time, got = _first_isolation(_trace(record, model, design, rates, **settings))
+    assert got == "joint3_vel" and time - 3.4 < 0.03, (time, got)
+    later, _ = _first_isolation(_trace(record, model, replace(design, repeat_scale=None), rates, **settings))
+    assert later is None or later > time + 0.02, (later, time)      # arm6: 64 ms, the frozen noise's drift
+
+
 def test_the_noise_walk_is_the_drives_velocity_noise_integrated(designed):
     """σ_n, the increments' long-run standard deviation, is what the trapezoid makes of the drive's white
     velocity noise: T σ_v (the sensor model's 1e-3 rad/s at the 2 ms diagnosis sample; the diagnoser never read
@@ -446,7 +466,8 @@ def test_the_step_row_counts_nu_only_where_the_increments_do_not_refute_a_readin
     _step_rows(np.zeros(1), np.array([nu]), np.zeros(1), np.array([moved * made]), np.ones(1),
                np.array([[single, 1.0]]), 0, np.array([skew]), np.array([move]), np.array([bound]), np.zeros(1), 2.0,
                steps, jumps, previous, 3, 2, T, z, estimate, np.zeros(1), np.zeros(1), np.zeros((14, 1)), 0.99,
-               np.zeros(1), np.zeros(1), np.zeros((8, 1)), np.zeros((4, 1)), 0, np.zeros(1), np.zeros(1), np.zeros(1))
+               np.zeros(1), np.zeros(1), np.zeros((8, 1)), np.zeros((4, 1)), 0, np.zeros(1), np.zeros(1), np.zeros(1),
+               np.zeros(1))
     assert z[2] == (pytest.approx(nu / bound) if counted else 0.0)
     assert z[1] == 0.0                                # no position step: |e| is within what ν makes
 
@@ -614,7 +635,7 @@ def test_the_encoder_counts_as_stepped_on_a_spike_of_its_increments_not_on_large
                        np.array([0.001]), np.array([2.0]), np.array([0.01]), np.zeros(1), 2.0, steps, jumps, previous,
                        k % hold,
                        (k - 1) % hold, T, z, estimate, np.array([0.01 * k]), np.array([5.0]), sums, 0.99, np.zeros(1),
-                       np.zeros(1), np.zeros((8, 1)), np.zeros((4, 1)), k, np.zeros(1), np.zeros(1), np.zeros(1))
+                       np.zeros(1), np.zeros((8, 1)), np.zeros((4, 1)), k, np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1))
         return bool(sums[13, 0] > 0)
 
     accelerating = -T * 0.16 * 50.0 * T * np.arange(200)     # −T g q̇, q̇ rising by 50 rad/s² (32 µrad a sample)

@@ -191,7 +191,10 @@ class ConsistencyDesign:
     None: no gain evidence), ``trend_scale`` (n,), the same for the trend evidence (:func:`_trend_evidence`;
     None: none), and ``move_scale`` (n,), the largest fault-free change of the kinematic increment from one sample
     to the next, |e_k − e_{k−1}|, in single-sample scales (dimensionless): the noise the step rows' refutation
-    allows (:func:`_step_rows`; None: 2, the two samples' bounds added)."""
+    allows (:func:`_step_rows`; None: 2, the two samples' bounds added), and ``repeat_scale`` (n,), the longest run
+    of unchanged velocity readings on the design runs over :data:`FROZEN_SAMPLES` (dimensionless; 0 for a drive
+    whose reading carries noise): where it is 0, a held reading is also the kinematic row's evidence (a frozen
+    velocity sensor at rest; :func:`_step_rows`; None: never)."""
 
     friction: JointFriction
     envelope: np.ndarray
@@ -209,10 +212,11 @@ class ConsistencyDesign:
     gain_scale: np.ndarray | None = None
     trend_scale: np.ndarray | None = None
     move_scale: np.ndarray | None = None
+    repeat_scale: np.ndarray | None = None
 
     #: The optional arrays of :meth:`arrays` (absent when None).
     OPTIONAL = ("reach", "ripple_orders", "ripple_amplitude", "impulse_scale", "noise_walk", "gain_scale",
-                "trend_scale", "move_scale")
+                "trend_scale", "move_scale", "repeat_scale")
 
     def step_bound(self, speed: np.ndarray, spread: np.ndarray) -> np.ndarray:
         """(n,) bound [rad/s] of the fault-free |ν| at joint speeds ``speed`` (n,) [rad/s] and the pose's ν spread
@@ -286,6 +290,11 @@ class ConsistencyResidual:
         if self._move.shape != (n,) or not np.all(np.isfinite(self._move) & (self._move > 0)):
             raise RobofdiError(f"ConsistencyResidual: field 'move_scale' must be {n} finite values > 0 "
                                f"(single-sample scales), got {design.move_scale!r}")
+        repeat = np.full(n, np.inf) if design.repeat_scale is None else np.asarray(design.repeat_scale, dtype=float)
+        if repeat.shape != (n,) or not np.all(repeat >= 0):
+            raise RobofdiError(f"ConsistencyResidual: field 'repeat_scale' must be {n} values >= 0, got "
+                               f"{design.repeat_scale!r}")
+        self._held_kinematic = (repeat == 0).astype(float)      # 1: a held velocity reading is kinematic evidence too
         names = list(model.joint_names)
         self.inputs = names
         self.measurements = [f"{j}_pos" for j in names] + [f"{j}_vel" for j in names]
@@ -392,7 +401,7 @@ class ConsistencyResidual:
                    self._previous, self._k % self._hold, (self._k - 1) % self._hold, self.T, z, estimate,
                    q, v, self._gain_sums, self._gain_lambda, self._gain_scale, self.gain_evidence,
                    self._trend_ring, self._trend_sums, self._k, self._trend_scale, self.trend_evidence,
-                   self._payload.update(q, v))
+                   self._payload.update(q, v), self._held_kinematic)
         self._k += 1
         return Residual(z, estimate)
 
@@ -411,7 +420,7 @@ class ConsistencyResidual:
 @kernel
 def _step_rows(r, innovation, kin, e, bound, scale, single, skew, move, step_bound, repeats, frozen_samples, steps, jumps,
                previous, row, previous_row, T, z, estimate, q, v, gain_sums, lam, gain_scale, gain,
-               trend_ring, trend_sums, k, trend_scale, trend, regressor):
+               trend_ring, trend_sums, k, trend_scale, trend, regressor, held_kinematic):
     """The rows of :meth:`ConsistencyResidual.update` after its momentum and kinematic parts, joint by joint: the
     residual ``z`` and the ``estimate`` (the payload row and mass last, from the payload regressor ``regressor``
     (n,) [N·m/kg] over ``bound``, :func:`~robofdi.observers.payload.payload_evidence`); the step and jump ring
@@ -447,7 +456,12 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, move, step_bou
     Evidence of a velocity-sensor fault that made no step: the gain evidence (:func:`_gain_evidence`) and the
     trend evidence (:func:`_trend_evidence`), over their scales, both 0 once e_{k−1} stood out from e_{k−2} and
     e_k by more than :data:`ENCODER_STEP` single-sample scales on both sides (the encoder stepped; row 13 of
-    ``gain_sums``)."""
+    ``gain_sums``).
+
+    A held velocity reading (``repeats`` over ``frozen_samples``) is the step row's evidence and, where
+    ``held_kinematic`` is 1 (a drive whose fault-free reading never repeats: ``ConsistencyDesign.repeat_scale``),
+    the kinematic row's too: a velocity sensor frozen while its joint rests leaves the increments as they were,
+    and the velocity-sensor hypothesis needs both rows."""
     n, hold = r.shape[0], steps.shape[0]
     for i in range(n):
         single_scale = scale[i, single]
@@ -516,6 +530,8 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, move, step_bou
         held = repeats[i] / frozen_samples
         z[i] = r[i] / bound[i]
         z[n + i] = jump if jump > kin[i] or jump != jump else kin[i]
+        if held_kinematic[i] > 0 and held > z[n + i]:
+            z[n + i] = held
         z[2 * n + i] = held if held > step or held != held else step
         estimate[i], estimate[n + i], estimate[2 * n + i] = r[i], e[i], -e[i] / T
     evidence, mass = payload_module._payload_evidence(z[:n], regressor / bound)     # by its module: interpreted()
@@ -745,6 +761,7 @@ def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray,
                                amplitude, impulse_scale, walk)
     evidence, trend = np.zeros(n), np.zeros(n)      # the gain and trend evidence's largest fault-free values
     move = np.full(n, MOVE_FLOOR)                   # |e_k − e_{k−1}| over the single-sample scale, largest
+    held = np.zeros(n)                              # the longest run of unchanged velocity readings, / FROZEN_SAMPLES
     for Y, U in runs:
         d = ConsistencyResidual(model, design)
         for k, (y, u) in enumerate(zip(Y, U)):
@@ -753,7 +770,8 @@ def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray,
             if k >= skip:
                 np.maximum(evidence, d.gain_evidence, out=evidence)
                 np.maximum(trend, d.trend_evidence, out=trend)
+                np.maximum(held, d._state[2] / FROZEN_SAMPLES, out=held)
             if k > skip:
                 np.maximum(move, np.abs(d._previous[0] - e_prev) / d._kinematic.scale[:, d._single], out=move)
     return replace(design, gain_scale=GAIN_MARGIN * np.maximum(evidence, GAIN_FLOOR),
-                   trend_scale=TREND_MARGIN * np.maximum(trend, TREND_FLOOR), move_scale=move)
+                   trend_scale=TREND_MARGIN * np.maximum(trend, TREND_FLOOR), move_scale=move, repeat_scale=held)
