@@ -235,7 +235,10 @@ def _select_arm(m: mujoco.MjModel, path: Path, joints: Sequence[str] | None, tor
             servos = [f"{names[j]!r} ({actuator_kind(m, a)})" for j, acts in actuated.items() for a in acts
                       if not is_torque_motor(m, a)]
             hint = (f"; its joint actuators are {', '.join(servos)}: pass torque_motors=True to turn them into motors"
-                    if servos else "")
+                    if servos else "" if actuated else
+                    f"; it has no joint actuators: give each arm joint a torque motor with its limit, e.g. in a file "
+                    f"that includes it, <include file=\"{file}\"/><actuator><motor joint=\"...\" ctrlrange=\"-30 30\" "
+                    f"ctrllimited=\"true\"/>...</actuator> (docs/howto/own-arm.md)")
             raise RobofdiError(f"mjcf: no hinge/slide joint of {file} is driven by a motor-type actuator{hint}")
     else:
         if isinstance(joints, str) or not all(isinstance(j, str) for j in joints):

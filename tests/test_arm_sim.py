@@ -142,6 +142,22 @@ def test_position_servo_rejected_with_a_clear_message_and_converted_on_request(t
     assert ArmSimulator(ARM7, torque_motors=True, joints=[f"joint{i}" for i in range(1, 8)]).n == 7
 
 
+def test_a_file_without_actuators_is_told_how_to_add_them_and_runs_once_a_wrapper_does(tmp_path):
+    """A dynamics-only file (dm_control's Jaco arm has no <actuator>): one line naming the file and what to add; a
+    file that includes it and adds the motors runs as it is."""
+    text = ARM6.read_text()
+    actuators = text[text.index("<actuator>"):text.index("</actuator>") + len("</actuator>")]
+    bare = variant(tmp_path, actuators, "", name="bare.xml")
+    with pytest.raises(RobofdiError) as info:
+        ArmSimulator(bare)
+    message = str(info.value)
+    assert "bare.xml" in message and "no joint actuators" in message and '<include file="bare.xml"/>' in message
+    assert "<motor" in message and "\n" not in message
+    wrapper = tmp_path / "with_motors.xml"
+    wrapper.write_text(f'<mujoco model="with_motors"><include file="bare.xml"/>{actuators}</mujoco>')
+    np.testing.assert_allclose(quiet(wrapper).torque_limit, quiet(ARM6).torque_limit)
+
+
 def test_torque_motors_takes_the_joint_actuatorfrcrange_or_refuses(tmp_path):
     servo = '<position name="servo3" joint="joint3" kp="2000"/>'
     path = variant(tmp_path, '<motor name="joint3" joint="joint3" ctrlrange="-250 250"/>', servo)
