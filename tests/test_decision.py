@@ -308,31 +308,6 @@ def test_a_later_row_overturns_the_hypothesis_it_refines_while_alarmed():
     assert _episode(d, [3, 0, 0, 0, 2], 5)[-1].isolated == ("j1", "j2_pos")
 
 
-def test_deferral_names_the_refinement_first_when_its_evidence_comes_within_the_extension():
-    """With ``defer`` a window that would name the encoder (kinematic row) is extended once: the step row alarming
-    five samples after the kinematic row makes the first call the velocity sensor; without it the encoder is named
-    first. Alarms are not delayed, a hypothesis nothing refines (an actuator) is not deferred, and an encoder
-    fault whose step row stays quiet is still named, at the extension's end."""
-    comps = ["j1", "j1_kin", "j1_step"]
-    sigs = [Signature("j1", {"j1"}, {"j1_step"}), Signature("j1_pos", {"j1_kin"}, {"j1"}),
-            Signature("j1_vel", {"j1_kin", "j1_step"}, {"j1"})]
-
-    def first_call(defer, rows):
-        d = ThresholdDecision(comps, np.ones(3), sigs, confirm=3, defer=defer)
-        out = [d.update(np.array(r, dtype=float)) for r in rows]
-        k = next((k for k, a in enumerate(out) if a.isolated), None)
-        return (k, out[k].isolated) if k is not None else (None, ()), [bool(a.alarm.any()) for a in out]
-
-    gain_error = [[0, 2, 0]] * 5 + [[0, 2, 3]] * 20
-    assert first_call(0, gain_error)[0] == (3, ("j1_pos",))
-    (k, named), alarms = first_call(10, gain_error)
-    assert named == ("j1_vel",) and k == 13 and alarms == first_call(0, gain_error)[1]
-    assert first_call(10, [[0, 2, 0]] * 20)[0] == (13, ("j1_pos",))
-    assert first_call(10, [[3, 0, 0]] * 20)[0] == (3, ("j1",))
-    with pytest.raises(RobofdiError, match="defer"):
-        ThresholdDecision(comps, np.ones(3), sigs, confirm=3, defer=-1)
-
-
 def test_an_overturn_is_not_blocked_by_another_fault_that_may_raise_the_same_row():
     """The refining hypothesis's rows count whichever isolated fault may also account for them: an encoder fault
     isolated beside a fault that may raise its joint's step row (a payload change) still becomes a velocity fault,

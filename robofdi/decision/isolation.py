@@ -113,13 +113,6 @@ class ThresholdDecision:
     (a false isolation on a fault-free transient does not explain, and so mask, a later real fault). A window
     that isolates nothing leaves the isolation as it was. R = 0: latched for the run, as before.
 
-    Deferral: with ``defer`` = D > 0 samples (and ``confirm``), a confirmation window whose picks include a
-    hypothesis that another refines (its required components a strict subset of the other's: an encoder fault,
-    which a velocity-sensor fault refines) is extended once by D samples before anything is isolated, and the
-    decision is taken at its new end over all it saw: evidence that needs motion to build (a velocity-gain
-    error's) may name the refinement first instead of overturning the first call later. Alarms are not delayed;
-    isolation is, by up to D samples, for such windows only. D = 0: no deferral.
-
     Evidence thresholds: inside a confirmation window a component counts as evidence when |r_j| exceeds
     ``evidence_j`` (default: its alarm threshold; at most that). A lower evidence level suits a component that
     only tells hypotheses apart: it need not carry the false-alarm rate on its own, because it is read only
@@ -140,7 +133,6 @@ class ThresholdDecision:
     evidence: np.ndarray | None = None
     release: int = 0
     overturn: int = 0
-    defer: int = 0
     _isolated: list[str] = field(default_factory=list, init=False, repr=False)
 
     def __post_init__(self):
@@ -184,7 +176,7 @@ class ThresholdDecision:
                     f"signature {sig.fault!r}: component {unknown[0]!r} is not a residual component; "
                     f"expected one of {list(self.components)}"
                 )
-        for name in ("blanking", "confirm", "release", "overturn", "defer"):
+        for name in ("blanking", "confirm", "release", "overturn"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
                 raise RobofdiError(f"{name}: expected an integer number of samples >= 0, got {value!r}")
@@ -262,12 +254,8 @@ class ThresholdDecision:
             if self._window is None or self._window[0] > 0:
                 return Alarms(alarm=alarm, isolated=tuple(self._isolated) if self._revising else ())
             ratio, persisted = self._window[1], self._window[2] >= 2
-            picks = self._isolate(ratio, persisted)
-            if self.defer and len(self._window) == 3 and any(self._refinements[f] for f in picks):
-                self._window[0] = self.defer        # deferral (class docstring): once, then decide over all of it
-                self._window.append(True)
-                return Alarms(alarm=alarm, isolated=tuple(self._isolated) if self._revising else ())
             self._window = None
+            picks = self._isolate(ratio, persisted)
             previous = list(self._isolated)
             if self._revising:
                 self._revising = False
