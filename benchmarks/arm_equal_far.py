@@ -1,7 +1,7 @@
 """Incipient actuator faults at equal false-alarm rates: the acceptance campaign's runs, each diagnoser's thresholds
 scaled until its fault-free runs are just all quiet.
 
-    python benchmarks/arm_equal_far.py --robots iiwa [--speed fast] [--drive-inertia auto] [--runs N]
+    python benchmarks/arm_equal_far.py --robots iiwa [--speed fast] [--drive-inertia auto] [--runs N] [--seed S]
                                        [--diagnosers momentum consistency] [--workers W] [--set NAME=VALUE …]
 
 Issue 24 asks that the consistency scheme detect incipient faults "at least as well as momentum at equal FAR".
@@ -106,6 +106,7 @@ def main() -> None:
     ap.add_argument("--drive-inertia", default="auto", help='as in arm_acceptance.py: [s²] or "auto"')
     ap.add_argument("--diagnosers", nargs="+", default=["momentum", "consistency"])
     ap.add_argument("--runs", type=int, default=None, help="only the first N runs of the campaign")
+    ap.add_argument("--seed", type=int, default=None, help="campaign seed (default: the TOML's), as in arm_acceptance.py")
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--out", default=None, help="folder for one CSV of peak ratios per robot")
     ap.add_argument("--set", nargs="+", default=None, metavar="NAME=VALUE", help="more [system] fields, as in arm_acceptance.py")
@@ -117,7 +118,7 @@ def main() -> None:
         print(f"\n## {Path(path).stem}")
         print(summary(pd.read_csv(path), args.diagnosers).to_string())
     for robot in args.robots if not args.from_csv else ():
-        data = acceptance_spec(robot, args.speed, args.drive_inertia, diagnosers=args.diagnosers,
+        data = acceptance_spec(robot, args.speed, args.drive_inertia, args.seed, diagnosers=args.diagnosers,
                                system=settings_option(args.set))
         spec = parse_spec(data)
         system = spec.campaign_system
