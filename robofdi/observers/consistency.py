@@ -354,10 +354,8 @@ class ConsistencyResidual:
         return self._kinematic.outside
 
     def bound(self) -> np.ndarray:
-        """The current operating-point bound of the dynamic rows [N·m]."""
-        out = np.empty(self.n)
-        _dynamic_bound(self._features, self.design.envelope, out)
-        return out
+        """The operating-point bound of the dynamic rows at the last sample [N·m] (0 before the first)."""
+        return self._point[4].copy()
 
     def velocity_innovation(self, mass: np.ndarray, r: np.ndarray) -> np.ndarray:
         """ν_k [rad/s] (module docstring) given M(q_k); 0 at the first sample. Joint j's entry is the velocity
