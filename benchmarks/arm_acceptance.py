@@ -7,7 +7,8 @@
 A robot is a shipped asset name, an MJCF or URDF path, or the name of a robosuite 1.5 arm (``panda``, ``iiwa``,
 ``ur5e``, ``kinova3``, ``jaco``, ``sawyer``, ``spot_arm``: its raw ``robot.xml``, servos turned into torque motors;
 needs the robosuite extra).
---speed sets the missions' speed ("normal" or "fast"; normal missions get two segments, fast ones three).
+--speed sets the missions' speed ("fast", "normal", "slow" or a duration factor >= 1, as ArmMissions' speed;
+fast missions get three segments, the others two).
 --drive-inertia S2 gives every joint whose armature is below S2 × its torque limit that armature, in the plant and
 the belief alike (:func:`robofdi.mjcf.compile_arm`): the reflected rotor inertia of a geared drive, which
 robosuite's raw robot.xml files leave out (robosuite's own loader adds 5/(i+1) kg·m² to every joint instead).
@@ -81,10 +82,24 @@ def drive_inertia(option: str, name: str) -> float:
     return value
 
 
+def mission_speed(text: str):
+    """--speed: a name of :data:`robofdi.control.motions.SPEEDS` or a duration factor >= 1 (ArmMissions' speed)."""
+    from robofdi.control.motions import SPEEDS
+    if text in SPEEDS:
+        return text
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not value >= 1:
+        raise argparse.ArgumentTypeError(f"must be one of {sorted(SPEEDS)} or a number >= 1, got {text!r}")
+    return value
+
+
 def acceptance_spec(name: str, speed: str, inertia: str = "auto", seed: int | None = None,
                     diagnosers=None, system: dict | None = None, path: str | Path | None = None) -> dict:
-    """benchmarks/arm_acceptance.toml (or the campaign TOML at ``path``) for robot ``name`` at ``speed`` (normal
-    missions get two segments, fast ones three), with its --drive-inertia option, and optionally another seed,
+    """benchmarks/arm_acceptance.toml (or the campaign TOML at ``path``) for robot ``name`` at ``speed`` (fast
+    missions get three segments, the others two), with its --drive-inertia option, and optionally another seed,
     diagnosers or more [system] fields (``system``, e.g. from :func:`settings_option`)."""
     spec = tomllib.loads(Path(path or HERE / "arm_acceptance.toml").read_text())
     spec["system"].update(system or {})
@@ -122,7 +137,8 @@ def main() -> None:
     ap.add_argument("--spec", default=str(HERE / "arm_acceptance.toml"),
                     help="the campaign TOML (default: arm_acceptance.toml; arm_more_kinds.toml: fault kinds it lacks)")
     ap.add_argument("--robots", nargs="+", default=["arm6.xml", "arm7.xml"])
-    ap.add_argument("--speed", choices=("normal", "fast"), default="fast")
+    ap.add_argument("--speed", type=mission_speed, default="fast",
+                    help='"fast", "normal", "slow" or a duration factor >= 1 (default: fast)')
     ap.add_argument("--drive-inertia", default="auto",
                     help='armature per unit torque limit [s²], or "auto" (module docstring)')
     ap.add_argument("--workers", type=int, default=None)

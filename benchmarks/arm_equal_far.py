@@ -36,7 +36,7 @@ import pandas as pd
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from arm_acceptance import acceptance_spec, drive_inertia  # noqa: E402
+from arm_acceptance import acceptance_spec, drive_inertia, mission_speed  # noqa: E402
 from arm_quality import _class, settings_option  # noqa: E402
 
 from robofdi.campaign.runs import draw_fault, faulty_indices, run_seed  # noqa: E402
@@ -127,7 +127,7 @@ def summary(rows: pd.DataFrame, diagnosers) -> pd.DataFrame:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--robots", nargs="+", default=["arm6.xml"])
-    ap.add_argument("--speed", choices=("normal", "fast"), default="fast")
+    ap.add_argument("--speed", type=mission_speed, default="fast", help="as benchmarks/arm_acceptance.py")
     ap.add_argument("--drive-inertia", default="auto", help='as in arm_acceptance.py: [s²] or "auto"')
     ap.add_argument("--diagnosers", nargs="+", default=["momentum", "consistency"])
     ap.add_argument("--runs", type=int, default=None, help="only the first N runs of the campaign")
