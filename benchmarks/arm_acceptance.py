@@ -8,7 +8,7 @@ A robot is a shipped asset name, an MJCF or URDF path, or the name of a robosuit
 ``ur5e``, ``kinova3``, ``jaco``, ``sawyer``, ``spot_arm``: its raw ``robot.xml``, servos turned into torque motors;
 needs the robosuite extra).
 --speed sets the missions' speed ("fast", "normal", "slow" or a duration factor >= 1, as ArmMissions' speed;
-fast missions get three segments, the others two).
+fast missions get three segments, the others two; ``--set segments=N`` chooses).
 --drive-inertia S2 gives every joint whose armature is below S2 × its torque limit that armature, in the plant and
 the belief alike (:func:`robofdi.mjcf.compile_arm`): the reflected rotor inertia of a geared drive, which
 robosuite's raw robot.xml files leave out (robosuite's own loader adds 5/(i+1) kg·m² to every joint instead).
@@ -102,13 +102,13 @@ def acceptance_spec(name: str, speed: str, inertia: str = "auto", seed: int | No
     missions get three segments, the others two), with its --drive-inertia option, and optionally another seed,
     diagnosers or more [system] fields (``system``, e.g. from :func:`settings_option`)."""
     spec = tomllib.loads(Path(path or HERE / "arm_acceptance.toml").read_text())
-    spec["system"].update(system or {})
     if seed is not None:
         spec["seed"] = seed
     if diagnosers is not None:
         spec["diagnosers"] = list(diagnosers)
     spec["system"]["speed"] = speed
     spec["system"]["segments"] = 3 if speed == "fast" else 2
+    spec["system"].update(system or {})      # --set segments=N wins over the speed's default
     spec["system"]["robot"], spec["system"]["torque_motors"] = robot_file(name)
     value = drive_inertia(inertia, name)
     if value:           # else the file's armature as written (and the campaign's options as before the flag)
