@@ -3,25 +3,28 @@ scaled until its fault-free runs are just all quiet.
 
     python benchmarks/arm_equal_far.py --robots iiwa [--speed fast] [--drive-inertia auto] [--runs N] [--seed S]
                                        [--diagnosers momentum consistency] [--workers W] [--set NAME=VALUE …]
+                                       [--classes actuator_incipient component_mass component_friction]
 
 Issue 24 asks that the consistency scheme detect incipient faults "at least as well as momentum at equal FAR".
 At their calibrated thresholds the two do not have equal false-alarm rates on every arm (momentum: 14 of 300
 fault-free runs on robosuite's panda). This script re-runs the fault-free runs and the incipient actuator faults
-of ``benchmarks/arm_acceptance.toml`` (the same seeds, missions, faults and calibrations as
-``arm_acceptance.py``) and takes from every diagnoser's trace its peak ratio max_j |r_j| / threshold_j: over the
-whole run after the start-up blanking for a fault-free run, over [onset, end) for a faulty one. A diagnoser's
-*0-FA scale* is its largest fault-free peak ratio: the factor on all its thresholds (above 1 or below) at which
-its fault-free runs are just all quiet. At that scale every diagnoser has the same empirical false-alarm rate,
-0 of the fault-free runs, and a fault counts as detected when its peak ratio exceeds it. (The scale is read off
-the same fault-free runs it is then applied to: a comparison of detection power at equal false-alarm rate, not
-a calibration. Only the thresholds are scaled: a scheme whose decision also holds evidence would isolate
-differently, not detect differently.)
-Prints per diagnoser: fault-free runs with an alarm at its own thresholds, its 0-FA scale, and incipient faults
-detected at its own thresholds and at its 0-FA scale. For a diagnoser whose rows come in sets (the consistency
-scheme: dynamic ``joint<i>``, ``_kin``, ``_step``, ``payload``) also each set's peak ratio, and the incipient
-faults detected with every set at its own 0-FA scale ("balanced"): the fault-free runs stay all quiet, and a
-fault counts when any set exceeds its scale — what thresholds balanced across the sets could detect at the same
-empirical rate (a bound, read off the runs it is applied to, like the 0-FA scale).
+(or the faults of --classes) of ``benchmarks/arm_acceptance.toml`` (the same seeds, missions, faults and
+calibrations as ``arm_acceptance.py``) and takes from every diagnoser's trace its peak ratio
+max_j |r_j| / threshold_j: over the whole run after the start-up blanking for a fault-free run, over [onset, end)
+for a faulty one. A diagnoser's *0-FA scale* is its largest fault-free peak ratio: the factor on all its
+thresholds (above 1 or below) at which its fault-free runs are just all quiet. At that scale every diagnoser has
+the same empirical false-alarm rate, 0 of the fault-free runs, and a fault counts as detected when its peak ratio
+exceeds it. (The scale is read off the same fault-free runs it is then applied to: a comparison of detection
+power at equal false-alarm rate, not a calibration. Only the thresholds are scaled: a scheme whose decision also
+holds evidence would isolate differently, not detect differently.)
+Prints per diagnoser: fault-free runs with an alarm at its own thresholds, its 0-FA scale, and the faults detected
+at its own thresholds and at its 0-FA scale. For a diagnoser whose rows come in sets (the consistency scheme:
+dynamic ``joint<i>``, ``_kin``, ``_step``, ``payload``) also each set's peak ratio, and the faults detected with
+every set at its own 0-FA scale ("balanced"): the fault-free runs stay all quiet, and a fault counts when any set
+exceeds its scale — what thresholds balanced across the sets could detect at the same empirical rate (a bound,
+read off the runs it is applied to, like the 0-FA scale).
+--classes chooses the faulty runs (the fault classes of arm_quality.py; default: the incipient actuator faults):
+e.g. ``component_mass`` (payload changes) and ``component_friction`` (friction rises), each summarised on its own.
 """
 from __future__ import annotations
 
@@ -48,14 +51,17 @@ from robofdi.seeding import rng  # noqa: E402
 _SPEC, _CALIBRATIONS = None, {}
 
 
-def _incipient(fault) -> bool:
-    """Whether ``fault`` is of the class arm_quality.py counts as "incipient detected"."""
-    return _class({"kind": fault.kind, "target": fault.target, "profile": fault.profile.type_name}) \
-        == "actuator_incipient"
+INCIPIENT = "actuator_incipient"
 
 
-def peak_ratios(data: dict, index: int) -> dict:
-    """One run: {"index", "faulty", diagnoser: peak ratio} (module docstring); None for a run not asked for."""
+def fault_class(fault) -> str:
+    """``fault``'s class as arm_quality.py counts it (e.g. "actuator_incipient" for "incipient detected")."""
+    return _class({"kind": fault.kind, "target": fault.target, "profile": fault.profile.type_name})
+
+
+def peak_ratios(data: dict, index: int, classes=(INCIPIENT,)) -> dict:
+    """One run: {"index", "faulty", "class", diagnoser: peak ratio} (module docstring); None for a faulty run whose
+    fault is not of ``classes``."""
     global _SPEC
     if _SPEC is None:
         _SPEC = parse_spec(data)
@@ -69,10 +75,10 @@ def peak_ratios(data: dict, index: int) -> dict:
     seed = run_seed(spec.seed, index)
     mission = system.mission(spec.options, key, rng(seed, "mission"))
     fault = draw_fault(spec, seed, mission.duration)[0] if faulty_indices(spec)[index] else None
-    if fault is not None and not _incipient(fault):
+    if fault is not None and fault_class(fault) not in classes:
         return None
     record = system.run(spec.options, cal, key, mission, [] if fault is None else [fault], seed, spec.diagnosers)
-    out = {"index": index, "faulty": fault is not None}
+    out = {"index": index, "faulty": fault is not None, "class": "" if fault is None else fault_class(fault)}
     for name in spec.diagnosers:
         trace = record.diagnosers[name]
         t = np.asarray(trace.time)
@@ -100,8 +106,12 @@ def _row_set(component: str) -> str:
     return suffix if suffix in ("kin", "step") else "dynamic"
 
 
-def summary(rows: pd.DataFrame, diagnosers) -> pd.DataFrame:
-    free, faulty = rows[~rows["faulty"]], rows[rows["faulty"]]
+def summary(rows: pd.DataFrame, diagnosers, fault_class: str = INCIPIENT) -> pd.DataFrame:
+    """Per diagnoser: its fault-free alarms and 0-FA scale, and the faults of ``fault_class`` it detects at its own
+    thresholds, at its 0-FA scale and with its row sets balanced (module docstring)."""
+    if "class" not in rows:                 # a CSV from before --classes: incipient faults only
+        rows = rows.assign(**{"class": np.where(rows["faulty"], INCIPIENT, "")})
+    free, faulty = rows[~rows["faulty"]], rows[rows["faulty"] & (rows["class"] == fault_class)]
     table = []
     for name in diagnosers:
         disagree = int(((rows[name] > 1) != rows[f"{name} alarm"]).sum())
@@ -116,8 +126,8 @@ def summary(rows: pd.DataFrame, diagnosers) -> pd.DataFrame:
         table.append({"diagnoser": name,
                       "fault-free runs alarmed": f"{int((free[name] > 1).sum())}/{len(free)}",
                       "0-FA scale": f"{scale:.3f}",
-                      "incipient detected": f"{int((faulty[name] > 1).sum())}/{len(faulty)}",
-                      "incipient detected at 0-FA scale": f"{int((faulty[name] > scale).sum())}/{len(faulty)}",
+                      "detected": f"{int((faulty[name] > 1).sum())}/{len(faulty)}",
+                      "detected at 0-FA scale": f"{int((faulty[name] > scale).sum())}/{len(faulty)}",
                       "sets' 0-FA scales": ", ".join(f"{c[len(name) + 1:-1]} {float(free[c].max()):.3f}" for c in sets)
                       or "-",
                       "balanced": f"{int(balanced.sum())}/{len(faulty)}" if sets else "-"})
@@ -136,12 +146,15 @@ def main() -> None:
     ap.add_argument("--out", default=None, help="folder for one CSV of peak ratios per robot")
     ap.add_argument("--set", nargs="+", default=None, metavar="NAME=VALUE", help="more [system] fields, as in arm_acceptance.py")
     ap.add_argument("--from-csv", nargs="+", default=None, help="only summarise CSVs an earlier --out wrote")
+    ap.add_argument("--classes", nargs="+", default=[INCIPIENT],
+                    help="the faulty runs' classes, as arm_quality.py names them (default: actuator_incipient)")
     args = ap.parse_args()
     for path in args.from_csv or ():
         if not Path(path).is_file():
             raise SystemExit(f"--from-csv: no file {path!r} (expected a CSV an earlier --out wrote)")
-        print(f"\n## {Path(path).stem}")
-        print(summary(pd.read_csv(path), args.diagnosers).to_string())
+        for name in args.classes:
+            print(f"\n## {Path(path).stem}: {name}")
+            print(summary(pd.read_csv(path), args.diagnosers, name).to_string())
     for robot in args.robots if not args.from_csv else ():
         data = acceptance_spec(robot, args.speed, args.drive_inertia, args.seed, diagnosers=args.diagnosers,
                                system=settings_option(args.set))
@@ -154,7 +167,7 @@ def main() -> None:
         rows = []
         with Progress(f"{Path(robot).stem}-{args.speed}").stage("runs", total=n, unit="run") as tick, \
                 ProcessPoolExecutor(args.workers) as pool:
-            for row in pool.map(peak_ratios, [data] * n, range(n), chunksize=4):
+            for row in pool.map(peak_ratios, [data] * n, range(n), [tuple(args.classes)] * n, chunksize=4):
                 tick(1)
                 if row is not None:
                     rows.append(row)
@@ -162,8 +175,9 @@ def main() -> None:
         if args.out:
             Path(args.out).mkdir(parents=True, exist_ok=True)
             table.to_csv(Path(args.out) / f"{Path(robot).stem}-{args.speed}.csv", index=False)
-        print(f"\n## {robot}, {args.speed}, drive inertia {drive_inertia(args.drive_inertia, robot)} s²")
-        print(summary(table, args.diagnosers).to_string())
+        for name in args.classes:
+            print(f"\n## {robot}, {args.speed}, drive inertia {drive_inertia(args.drive_inertia, robot)} s²: {name}")
+            print(summary(table, args.diagnosers, name).to_string())
 
 
 if __name__ == "__main__":
