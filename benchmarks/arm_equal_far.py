@@ -22,7 +22,8 @@ at its own thresholds and at its 0-FA scale. For a diagnoser whose rows come in 
 dynamic ``joint<i>``, ``_kin``, ``_step``, ``payload``) also each set's peak ratio, and the faults detected with
 every set at its own 0-FA scale ("balanced"): the fault-free runs stay all quiet, and a fault counts when any set
 exceeds its scale — what thresholds balanced across the sets could detect at the same empirical rate (a bound,
-read off the runs it is applied to, like the 0-FA scale).
+read off the runs it is applied to, like the 0-FA scale). The CSV of --out also keeps each row's peak ratio
+(column ``diagnoser:component``), which benchmarks/threshold_tails.py rescales.
 --classes chooses the faulty runs (the fault classes of arm_quality.py; default: the incipient actuator faults):
 e.g. ``component_mass`` (payload changes) and ``component_friction`` (friction rises), each summarised on its own.
 """
@@ -95,6 +96,8 @@ def peak_ratios(data: dict, index: int, classes=(INCIPIENT,)) -> dict:
             for group in sorted(set(sets)):
                 columns = [j for j, g in enumerate(sets) if g == group]
                 out[f"{name}[{group}]"] = float(rows[np.ix_(window, columns)].max()) if window.any() else 0.0
+            peaks = rows[window].max(axis=0) if window.any() else np.zeros(len(sets))
+            out.update({f"{name}:{c}": float(v) for c, v in zip(trace.components, peaks)})   # each row's peak ratio
     return out
 
 
