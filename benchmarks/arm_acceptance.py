@@ -45,6 +45,7 @@ from arm_quality import per_class, quality, settings_option  # noqa: E402
 
 from robofdi.campaign import run_campaign  # noqa: E402
 from robofdi.campaign.results import load  # noqa: E402
+from robofdi.control.motions import SPEEDS  # noqa: E402
 from robofdi.mjcf import compile_arm  # noqa: E402
 
 ROBOSUITE_ARMS = ("panda", "iiwa", "ur5e", "kinova3", "jaco", "sawyer", "spot_arm")
@@ -82,9 +83,8 @@ def drive_inertia(option: str, name: str) -> float:
     return value
 
 
-def mission_speed(text: str):
+def mission_speed(text: str) -> str | float:
     """--speed: a name of :data:`robofdi.control.motions.SPEEDS` or a duration factor >= 1 (ArmMissions' speed)."""
-    from robofdi.control.motions import SPEEDS
     if text in SPEEDS:
         return text
     try:
@@ -96,7 +96,7 @@ def mission_speed(text: str):
     return value
 
 
-def acceptance_spec(name: str, speed: str, inertia: str = "auto", seed: int | None = None,
+def acceptance_spec(name: str, speed: str | float, inertia: str = "auto", seed: int | None = None,
                     diagnosers=None, system: dict | None = None, path: str | Path | None = None) -> dict:
     """benchmarks/arm_acceptance.toml (or the campaign TOML at ``path``) for robot ``name`` at ``speed`` (fast
     missions get three segments, the others two), with its --drive-inertia option, and optionally another seed,

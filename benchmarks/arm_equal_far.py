@@ -109,12 +109,12 @@ def _row_set(component: str) -> str:
     return suffix if suffix in ("kin", "step") else "dynamic"
 
 
-def summary(rows: pd.DataFrame, diagnosers, fault_class: str = INCIPIENT) -> pd.DataFrame:
-    """Per diagnoser: its fault-free alarms and 0-FA scale, and the faults of ``fault_class`` it detects at its own
-    thresholds, at its 0-FA scale and with its row sets balanced (module docstring)."""
+def summary(rows: pd.DataFrame, diagnosers, of_class: str = INCIPIENT) -> pd.DataFrame:
+    """Per diagnoser: its fault-free alarms and 0-FA scale, and the faults of class ``of_class`` it detects at its
+    own thresholds, at its 0-FA scale and with its row sets balanced (module docstring)."""
     if "class" not in rows:                 # a CSV from before --classes: incipient faults only
         rows = rows.assign(**{"class": np.where(rows["faulty"], INCIPIENT, "")})
-    free, faulty = rows[~rows["faulty"]], rows[rows["faulty"] & (rows["class"] == fault_class)]
+    free, faulty = rows[~rows["faulty"]], rows[rows["faulty"] & (rows["class"] == of_class)]
     table = []
     for name in diagnosers:
         disagree = int(((rows[name] > 1) != rows[f"{name} alarm"]).sum())

@@ -26,9 +26,7 @@ that ``arm_equal_far.py`` writes since 2026-12-07.
 from __future__ import annotations
 
 import argparse
-import os
 import sys
-import tempfile
 import warnings
 from pathlib import Path
 
@@ -80,8 +78,9 @@ def levels(residuals, column: int, T: float, skip: int, rate_per_hour: float) ->
 
 
 def held_out_residuals(system, options, key):
-    """The consistency scheme's calibration (thresholds as the campaign has them) and its residuals on the
-    held-out calibration motions, for robot instance ``key`` (what :func:`robofdi.systems.arm.calibrate` fits)."""
+    """The consistency scheme's calibration (thresholds as the campaign has them, re-made: the calibration cache
+    keeps thresholds, not the runs) and its residuals on the held-out calibration motions, for robot instance
+    ``key`` (what :func:`robofdi.systems.arm.calibrate` fits). ``system._scenario``: the campaign's own scenario."""
     from robofdi.decision.isolation import startup_samples
     from robofdi.loop import Diagnosis, diagnose_record
     from robofdi.observers.arm_schemes import arm_schemes
@@ -111,7 +110,6 @@ def main() -> None:
     args = ap.parse_args()
     if len(args.csv) != len(args.robots):
         raise SystemExit(f"--csv: expected one CSV per robot ({len(args.robots)}), got {len(args.csv)}")
-    os.environ.setdefault("ROBOFDI_CACHE", tempfile.mkdtemp())     # the calibration is re-made, not loaded
     from robofdi.campaign.spec import parse_spec
 
     for robot, csv in zip(args.robots, args.csv):
