@@ -97,6 +97,25 @@ def test_malformed_mjcf_names_file(tmp_path):
         MeshcatScene(bad)
 
 
+def test_a_mesh_too_thin_for_a_solid_is_drawn_as_the_simulator_compiles_it(tmp_path):
+    """An arm file MuJoCo's own loader refuses ("mesh volume is too small": robosuite's raw baxter and sawyer files)
+    runs, because robofdi.mjcf gives that mesh shell inertia; the replay of the run loads the file the same way
+    instead of failing after the run (measured on baxter: 70 s of calibration and runs, then the error)."""
+    import mujoco
+
+    path = tmp_path / "flat.xml"
+    path.write_text("""<mujoco model="flat">
+      <asset><mesh name="plate" vertex="0 0 0  0.1 0 0  0.1 0.1 0  0 0.1 0" face="0 1 2  0 2 3  0 2 1  0 3 2"/></asset>
+      <worldbody><body name="link"><joint name="j1" axis="0 0 1"/>
+        <geom type="mesh" mesh="plate" contype="0" conaffinity="0" mass="0.2"/></body></worldbody>
+      <actuator><motor name="m1" joint="j1" ctrlrange="-10 10"/></actuator></mujoco>""")
+    with pytest.raises(ValueError, match="mesh volume is too small"):
+        mujoco.MjModel.from_xml_path(str(path))
+    scene = MeshcatScene(path)
+    assert scene.model.nmesh == 1 and scene.joint_names == ["j1"]
+    assert [spec.type for spec in scene.geoms] == ["mesh"]
+
+
 def test_record_without_mjcf_or_with_bad_diagnoser(tmp_path):
     rec = make_record()
     with pytest.raises(RobofdiError, match="diagnoser 'nope'"):

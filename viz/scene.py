@@ -24,6 +24,7 @@ import mujoco
 import numpy as np
 
 from robofdi import RobofdiError
+from robofdi.mjcf import load_model
 
 __all__ = ["MeshcatScene", "GeomSpec", "rgba_to_material", "cluster_vertices", "MESH_CELL"]
 
@@ -172,12 +173,14 @@ class MeshcatScene:
             path = Path(mjcf)
             if not path.is_file():
                 raise RobofdiError(f"mjcf file {str(path)!r}: does not exist (expected an MJCF XML file or an .mjb)")
-            try:
-                load = mujoco.MjModel.from_binary_path if path.suffix == ".mjb" else mujoco.MjModel.from_xml_path
-                self.model = load(str(path))
-            except Exception as exc:  # mujoco raises ValueError with the parser's message
-                msg = str(exc).strip().replace("\n", " ")
-                raise RobofdiError(f"mjcf file {str(path)!r}: not a valid MuJoCo model ({msg})") from exc
+            if path.suffix == ".mjb":
+                try:
+                    self.model = mujoco.MjModel.from_binary_path(str(path))
+                except Exception as exc:  # mujoco raises ValueError with the loader's message
+                    msg = str(exc).strip().replace("\n", " ")
+                    raise RobofdiError(f"mjcf file {str(path)!r}: not a valid MuJoCo model ({msg})") from exc
+            else:       # as the simulator compiles it (a mesh too thin to be a solid gets shell inertia, robofdi.mjcf)
+                self.model = load_model(path)
         if not (isinstance(mesh_cell, (int, float)) and mesh_cell >= 0):
             raise RobofdiError(f"mesh_cell: expected a clustering cell >= 0 m, got {mesh_cell!r}")
         self.path = path
