@@ -465,11 +465,41 @@ def test_the_step_row_counts_nu_only_where_the_increments_do_not_refute_a_readin
     z, estimate = np.empty(4), np.empty(4)
     _step_rows(np.zeros(1), np.array([nu]), np.zeros(1), np.array([moved * made]), np.ones(1),
                np.array([[single, 1.0]]), 0, np.array([skew]), np.array([move]), np.array([bound]), np.zeros(1), 2.0,
-               steps, jumps, previous, 3, 2, T, z, estimate, np.zeros(1), np.zeros(1), np.zeros((14, 1)), 0.99,
+               steps, jumps, previous, 3, 2, T, z, estimate, np.zeros(1), np.zeros(1), np.zeros((15, 1)), 0.99,
                np.zeros(1), np.zeros(1), np.zeros((8, 1)), np.zeros((4, 1)), 0, np.zeros(1), np.zeros(1), np.zeros(1),
                np.zeros(1))
     assert z[2] == (pytest.approx(nu / bound) if counted else 0.0)
     assert z[1] == 0.0                                # no position step: |e| is within what ν makes
+
+
+@pytest.mark.parametrize("case, held", [("encoder frozen while the joint moves", False),
+                                        ("velocity step while the joint moves", True),
+                                        ("velocity step at rest", True)])
+def test_the_agreement_holds_no_velocity_step_where_the_encoder_reading_stopped_in_motion(case, held):
+    """A frozen encoder on a moving joint makes e = −T q̇ from its onset, what a step of q̇ in the velocity reading
+    would make; with ν near that step by its noise, the agreement held it as a velocity step (robosuite's baxter,
+    left_w0 at 0.01 rad/s, named the velocity sensor). Where the encoder's reading stopped (unchanged at the step's
+    sample and the next) while the velocity readings said the joint moved by more than a single-sample scale a
+    sample, it holds nothing. The same increments with the reading moving, or a velocity step at rest (the
+    reading still, the velocity reading 0 before the step), are held: 4e-5 rad over twice the 1e-5 scale."""
+    T, skew, single, v0, hold = 0.002, 0.001, 10e-6, 0.02, 50
+    steps, jumps, previous = np.zeros((hold, 1)), np.zeros((hold, 1)), np.zeros((3, 1))
+    z, estimate = np.empty(4), np.empty(4)
+    sums = np.zeros((15, 1))
+    sums[10] = sums[14] = np.nan
+    frozen, moving = case.startswith("encoder"), case.endswith("moves")
+    for k in range(5):
+        onset = k >= 3                    # the step (or the freeze) at sample 3, judged at sample 4
+        q = 0.5 + T * v0 * (min(k, 2) if frozen else k if moving else 0)
+        v = v0 if (moving or onset) else 0.0
+        e = -T * v0 if onset else 0.0
+        nu = 0.015 if k == 3 else 0.0     # ν at the step: near the step of 0.02 the increments imply
+        _step_rows(np.zeros(1), np.array([nu]), np.zeros(1), np.array([e]), np.ones(1), np.array([[single, 1.0]]), 0,
+                   np.array([skew]), np.array([1.0]), np.array([1.0]), np.zeros(1), 2.0, steps, jumps, previous,
+                   k % hold, (k - 1) % hold, T, z, estimate, np.array([q]), np.array([v]), sums, 0.99, np.zeros(1),
+                   np.zeros(1), np.zeros((8, 1)), np.zeros((4, 1)), k, np.zeros(1), np.zeros(1), np.zeros(1),
+                   np.zeros(1))
+    assert z[2] == (pytest.approx(2.0) if held else pytest.approx(0.015))    # the agreement, or ν over its bound
 
 
 def test_the_kinematic_windows_do_not_sum_what_a_velocity_change_within_the_sample_made():

@@ -327,8 +327,8 @@ class ConsistencyResidual:
         self._previous = np.zeros((3, self.n))  # the last sample's e [rad] and ν [rad/s], the e before it [rad]
         self._steps = np.zeros((self._hold, self.n))     # ring buffer of |ν| / scale (or agreement) over the hold
         self._jumps = np.zeros((self._hold, self.n))    # ring buffer of position-step ratios
-        self._gain_sums = np.zeros((14, self.n))    # the gain evidence's sums, the last readings, encoder stepped
-        self._gain_sums[10] = np.nan
+        self._gain_sums = np.zeros((15, self.n))    # the gain evidence's sums, the last readings, encoder stepped
+        self._gain_sums[10] = self._gain_sums[14] = np.nan
         self.gain_evidence = np.zeros(self.n)       # its last value (dimensionless)
         self._trend_ring = np.zeros((4 * self._trend_samples, self.n))  # the increments counted, sample k at k mod 4m
         self._trend_sums = np.zeros((4, self.n))    # their sums over the four windows, newest first
@@ -442,7 +442,10 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, move, step_bou
     increments measure the step with the encoder's noise, ν with the dynamics' (2.5–4× more on arm6 and arm7),
     so a velocity step below the step row's fault-free bound is still told from an encoder drift, which makes no
     ν and starts anywhere within a sample (its share at k is arbitrary). Not while a position step is held: its
-    increment returning looks like a step too.
+    increment returning looks like a step too. Nor where the encoder's reading stopped (unchanged at k and k+1)
+    while the velocity readings at k−1 and k say the joint moved by more than a single-sample scale a sample: a
+    frozen encoder's e = −T q̇ is what a reading's step of q̇ would make, and near ν's noise the agreement
+    test then errs (row 14 of ``gain_sums`` keeps the reading before the last).
 
     Refutation: ν_k counts in the step row only where e_k − e_{k−1} is within |m|/2 + ``move`` single-sample
     scales of m = −(T/2 + τ_s) ν_k, what a reading's step of ν_k would have made of it; a real velocity change
@@ -479,8 +482,14 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, move, step_bou
                 if h != row and jumps[h, i] > held_step:
                     held_step = jumps[h, i]
             agreed = abs(span) / (2 * single_scale)
-            if held_step == 0 and abs(share) < single_scale and abs(previous[1, i] - implied) < abs(implied) / 2 \
-                    and agreed > steps[previous_row, i]:
+            # the encoder's reading stopped at that sample while the velocity readings around it say the joint moved
+            # by more than a single-sample scale a sample: a frozen encoder, whose e = −T q̇ a reading's step of q̇
+            # would make too (robosuite's baxter, left_w0 at 0.01 rad/s)
+            stopped = abs(gain_sums[10, i] - gain_sums[14, i]) <= FROZEN_CHANGE \
+                and abs(q[i] - gain_sums[10, i]) <= FROZEN_CHANGE \
+                and T * min(abs(gain_sums[8, i]), abs(gain_sums[9, i])) > single_scale
+            if held_step == 0 and not stopped and abs(share) < single_scale \
+                    and abs(previous[1, i] - implied) < abs(implied) / 2 and agreed > steps[previous_row, i]:
                 steps[previous_row, i] = agreed
         previous[2, i] = previous[0, i]
         previous[0, i], previous[1, i] = e[i], innovation[i]
@@ -520,7 +529,8 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, move, step_bou
         if gain_sums[13, i] > 0:
             gain[i] = 0.0
             trend[i] = 0.0
-        gain_sums[9, i], gain_sums[8, i], gain_sums[10, i] = gain_sums[8, i], v[i], q[i]
+        gain_sums[9, i], gain_sums[8, i] = gain_sums[8, i], v[i]
+        gain_sums[14, i], gain_sums[10, i] = gain_sums[10, i], q[i]
         if gain_scale[i] > 0 and gain[i] / gain_scale[i] > step:
             step = gain[i] / gain_scale[i]
         if trend_scale[i] > 0 and trend[i] / trend_scale[i] > step:
@@ -615,11 +625,11 @@ def _gain_evidence(sums, i, e, x, add, lam, floor):
     single-sample scale ``floor`` [rad]: √(max(0, SS_gain − SS_drift) / (Σw e² − max(SS_gain, SS_drift) + Σw
     floor²)), with SS the explained sums of squares of the weighted least-squares fits over an exponential window
     of weight λ per sample — a likelihood ratio's statistic, so a noisier sensor raises no evidence by its noise
-    alone, and a smooth drift's increments no more than the noise-free few µrad they vary by. ``sums`` (14, n):
+    alone, and a smooth drift's increments no more than the noise-free few µrad they vary by. ``sums`` (15, n):
     Σw, Σw·a, Σw·a², Σw·e, Σw·a·e, Σw·x², Σw·x·e, Σw·e² (a: the sample's age), updated in place when ``add``
     (see :func:`_step_rows`; rows 8–10 hold the last two velocity readings and the last position reading, rows
     11–12 the weight of the moving samples that were position steps and of all of them, row 13 whether the
-    encoder stepped by more than :data:`ENCODER_STEP`). 0 until the window
+    encoder stepped by more than :data:`ENCODER_STEP`, row 14 the position reading before the last). 0 until the window
     holds half its weight, and where more than :data:`GAIN_JUMPS` of its moving samples were position steps (the
     encoder, not the velocity, is what the increments show)."""
     if not add:
