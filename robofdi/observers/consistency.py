@@ -442,13 +442,12 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, move, step_bou
     increments measure the step with the encoder's noise, ν with the dynamics' (2.5–4× more on arm6 and arm7),
     so a velocity step below the step row's fault-free bound is still told from an encoder drift, which makes no
     ν and starts anywhere within a sample (its share at k is arbitrary). Not while a position step is held: its
-    increment returning looks like a step too. Nor where the encoder's reading stopped at sample k in motion
-    (:func:`_reading_stopped`): a frozen encoder's e = −T q̇ is what a reading's step of q̇ would make, and near
-    ν's noise the agreement test then errs (row 14 of ``gain_sums`` keeps the reading before the last).
+    increment returning looks like a step too. Nor where the encoder's reading stood still at samples k and k+1
+    in motion (:func:`_reading_stopped`): a frozen encoder's e = −T q̇ is what a reading's step of q̇ would make,
+    and near ν's noise the agreement test then errs; ν held at sample k is cleared there too (row 14 of
+    ``gain_sums`` keeps the reading before the last).
 
-    Refutation: ν_k counts in the step row only where the encoder's reading did not stop at sample k in motion
-    (a frozen encoder's increment −T q̇ matches the −(T/2 + τ_s) ν_k of a large enough ν by chance: baxter's
-    left_w0, ν at 2.5 σ), and where e_k − e_{k−1} is within |m|/2 + ``move`` single-sample
+    Refutation: ν_k counts in the step row only where e_k − e_{k−1} is within |m|/2 + ``move`` single-sample
     scales of m = −(T/2 + τ_s) ν_k, what a reading's step of ν_k would have made of it; a real velocity change
     (a torque) leaves the increments near 0 and is the dynamic row's. ``move`` (n,) is the largest fault-free
     |e_k − e_{k−1}| in single-sample scales (``ConsistencyDesign.move_scale``): the noise of the change itself,
@@ -475,6 +474,12 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, move, step_bou
         span = e[i] - previous[2, i]        # a velocity-reading step at the last sample: −T b (docstring)
         rise, fall = previous[0, i] - previous[2, i], previous[0, i] - e[i]     # the last increment stood out
         spiked = rise * fall > 0 and min(abs(rise), abs(fall)) > ENCODER_STEP * single_scale   # (ENCODER_STEP)
+        # the encoder's reading stood still at the last sample and this one in motion (a frozen encoder, docstring):
+        # no velocity step at the last sample, neither agreed nor by its ν
+        stopped = _reading_stopped(q[i], gain_sums[10, i], gain_sums[14, i], v[i], gain_sums[8, i], gain_sums[9, i],
+                                   T, single_scale)
+        if stopped:
+            steps[previous_row, i] = 0.0
         if abs(span) > 2 * single_scale:
             share = previous[0, i] - previous[2, i] - (T / 2 + skew[i]) / T * span    # its sample's share, ≈ 0
             implied = -span / T
@@ -483,9 +488,6 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, move, step_bou
                 if h != row and jumps[h, i] > held_step:
                     held_step = jumps[h, i]
             agreed = abs(span) / (2 * single_scale)
-            # not where the encoder's reading stopped at that sample in motion (a frozen encoder, docstring)
-            stopped = _reading_stopped(gain_sums[10, i], gain_sums[14, i], gain_sums[8, i], gain_sums[9, i], T,
-                                       single_scale)
             if held_step == 0 and not stopped and abs(share) < single_scale \
                     and abs(previous[1, i] - implied) < abs(implied) / 2 and agreed > steps[previous_row, i]:
                 steps[previous_row, i] = agreed
@@ -504,8 +506,7 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, move, step_bou
         # refuted: the increment did not move by the −(T/2 + τ_s) ν a reading's step of ν makes (docstring)
         made = -(T / 2 + skew[i]) * innovation[i]
         refuted = abs(moved - made) > abs(made) / 2 + move[i] * single_scale
-        stopped = _reading_stopped(q[i], gain_sums[10, i], v[i], gain_sums[8, i], T, single_scale)
-        steps[row, i] = 0.0 if jump > 0 or refuted or stopped else abs(innovation[i]) / step_bound[i]
+        steps[row, i] = 0.0 if jump > 0 or refuted else abs(innovation[i]) / step_bound[i]
         step = steps[0, i]
         for h in range(1, hold):
             if steps[h, i] > step or steps[h, i] != steps[h, i]:
@@ -546,11 +547,14 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, move, step_bou
 
 
 @kernel
-def _reading_stopped(q, q_before, v, v_before, T, single_scale):
-    """Whether the encoder's reading q stood still since q_before while both velocity readings say the joint moved
-    by more than ``single_scale`` (the increments' fault-free single-sample scale, which a quantised encoder's
-    count exceeds) in a sample: a frozen encoder, not a joint at rest nor a velocity step from rest."""
-    return abs(q - q_before) <= FROZEN_CHANGE and T * min(abs(v), abs(v_before)) > single_scale
+def _reading_stopped(q, q_last, q_before, v, v_last, v_before, T, single_scale):
+    """Whether the encoder's readings q_before, q_last, q (samples k−1, k, k+1) stood still while the three velocity
+    readings say the joint moved by more than ``single_scale`` (the increments' fault-free single-sample scale,
+    which a quantised encoder's count exceeds) in a sample: a frozen encoder. Not a joint at rest, nor a velocity
+    step from rest (the reading before it ≈ 0), nor a reading that stands still for one sample as the joint
+    reverses (it moves again at k+1)."""
+    return abs(q - q_last) <= FROZEN_CHANGE and abs(q_last - q_before) <= FROZEN_CHANGE \
+        and T * min(abs(v), abs(v_last), abs(v_before)) > single_scale
 
 
 @kernel
