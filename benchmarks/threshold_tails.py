@@ -42,7 +42,6 @@ from arm_quality import settings_option  # noqa: E402
 
 LAWS = ("gumbel", "exponential", "gev", "gumbel-1s", "margin-1.5")
 BLOCK = 0.25          # [s], the calibration's block (extreme_value_thresholds' default)
-TAIL_FRACTION = 0.3   # the exponential tail's share of the block maxima (its default)
 
 
 def block_maxima(residuals, column: int, T: float, skip: int, block: float = BLOCK) -> np.ndarray:
@@ -58,23 +57,22 @@ def block_maxima(residuals, column: int, T: float, skip: int, block: float = BLO
 
 
 def levels(residuals, column: int, T: float, skip: int, rate_per_hour: float) -> dict[str, float]:
-    """Each law's threshold for one row (module docstring), never below the held-out maximum."""
-    from scipy.stats import genextreme, gumbel_r
+    """Each law's threshold for one row (module docstring), never below the held-out maximum: the Gumbel and
+    exponential fits and the 1 s blocks are the calibration's own function, the GEV and the margin added here."""
+    from scipy.stats import genextreme
 
+    from robofdi.decision.thresholds import extreme_value_thresholds
+
+    rows = [np.asarray(r)[:, [column]] for r in residuals]
+    fit = {law: float(extreme_value_thresholds(rows, T, rate_per_hour, block=block, skip=skip, tail=tail)[0])
+           for law, block, tail in (("gumbel", BLOCK, "gumbel"), ("exponential", BLOCK, "exponential"),
+                                    ("gumbel-1s", 1.0, "gumbel"))}
     maxima = block_maxima(residuals, column, T, skip)
-    p = rate_per_hour * BLOCK / 3600.0
     top = float(maxima.max())
-    u = float(np.quantile(maxima, 1.0 - TAIL_FRACTION))
-    excess = maxima[maxima > u] - u
-    long = block_maxima(residuals, column, T, skip, 1.0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")        # genextreme.fit's optimiser on short samples
-        out = {"gumbel": float(gumbel_r.isf(p, *gumbel_r.fit(maxima))),
-               "exponential": u + float(excess.mean()) * float(np.log(TAIL_FRACTION / p)) if excess.size else u,
-               "gev": float(genextreme.isf(p, *genextreme.fit(maxima))),
-               "gumbel-1s": float(gumbel_r.isf(rate_per_hour / 3600.0, *gumbel_r.fit(long))),
-               "margin-1.5": 1.5 * top}
-    return {law: max(value, top) for law, value in out.items()}
+        gev = float(genextreme.isf(rate_per_hour * BLOCK / 3600.0, *genextreme.fit(maxima)))
+    return {**fit, "gev": max(gev, top), "margin-1.5": 1.5 * top}
 
 
 def held_out_residuals(system, options, key):

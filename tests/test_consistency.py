@@ -490,13 +490,12 @@ def test_the_step_row_holds_no_velocity_step_where_the_encoder_reading_stopped_i
     z, estimate = np.empty(4), np.empty(4)
     sums = np.zeros((15, 1))
     sums[10] = sums[14] = np.nan
-    frozen, moving, paused = case.startswith("encoder"), case.endswith("moves"), "one sample" in case
+    frozen, paused, in_motion = case.startswith("encoder"), "one sample" in case, not case.endswith("at rest")
     for k in range(5):
         onset = k >= 3                    # the step (or the freeze) at sample 3, judged at sample 4
-        counts = min(k, 2) if frozen else (k if k != 3 else 2) if paused else k if moving else 0
+        counts = (min(k, 2) if frozen else 2 if paused and k == 3 else k) if in_motion else 0
         q = 0.5 + T * v0 * counts
-        moving = moving or paused
-        v = v0 if (moving or onset) else 0.0
+        v = v0 if (in_motion or onset) else 0.0
         e = -T * v0 if onset else 0.0
         nu = 0.015 if k == 3 else 0.0     # ν at the step: near the step of 0.02 the increments imply
         _step_rows(np.zeros(1), np.array([nu]), np.zeros(1), np.array([e]), np.ones(1), np.array([[single, 1.0]]), 0,

@@ -640,8 +640,8 @@ def _gain_evidence(sums, i, e, x, add, lam, floor):
     Σw, Σw·a, Σw·a², Σw·e, Σw·a·e, Σw·x², Σw·x·e, Σw·e² (a: the sample's age), updated in place when ``add``
     (see :func:`_step_rows`; rows 8–10 hold the last two velocity readings and the last position reading, rows
     11–12 the weight of the moving samples that were position steps and of all of them, row 13 whether the
-    encoder stepped by more than :data:`ENCODER_STEP`, row 14 the position reading before the last). 0 until the window
-    holds half its weight, and where more than :data:`GAIN_JUMPS` of its moving samples were position steps (the
+    encoder stepped by more than :data:`ENCODER_STEP`, row 14 the position reading before the last). 0 until the
+    window holds half its weight, and where more than :data:`GAIN_JUMPS` of its moving samples were position steps (the
     encoder, not the velocity, is what the increments show)."""
     if not add:
         return _gain_fit(sums, i, lam, floor)
