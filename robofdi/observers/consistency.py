@@ -4,9 +4,11 @@ Two structurally separated residual sets, each normalised by its own fault-free 
 the design runs):
 
 * ``joint<i>`` — dynamic consistency: the generalised-momentum residual (De Luca & Mattone 2003, eq. (10)) with
-  friction identified from fault-free runs (:func:`~robofdi.observers.momentum.identify_friction`), divided by
-  an operating-point bound (:mod:`robofdi.decision.envelope`). It estimates the unmodelled joint torque, so an
-  actuator fault raises exactly its own joint, and no estimation runs inside it that could absorb a slow fault.
+  friction and the payload the arm carries identified from fault-free runs
+  (:func:`~robofdi.observers.momentum.identify_friction_and_load`: a tool or load the robot file lacks is a
+  pose-dependent torque no friction term or bound feature follows), divided by an operating-point bound
+  (:mod:`robofdi.decision.envelope`). It estimates the unmodelled joint torque, so an actuator fault raises
+  exactly its own joint, and no estimation runs inside it that could absorb a slow fault.
   The bound's torque feature is the smaller of the command ū and the torque the motion took, ū + r (the
   command and the residual's estimate of what else acted, at the previous sample), so that no actuator fault
   inflates the bound that should reveal it: the command grows as the controller answers a slow fault (on
@@ -119,7 +121,7 @@ from robofdi.observers.kinematic import (
     WINDOWS, KinematicConsistency, design_window_scales, identify_noise_walk, identify_ripple, identify_skew,
     kinematic_increments, window_reach,
 )
-from robofdi.observers.momentum import MomentumObserver, identify_friction
+from robofdi.observers.momentum import MomentumObserver, identify_friction_and_load
 from robofdi.observers import payload as payload_module
 from robofdi.observers.payload import PayloadRegressor
 from robofdi.observers.residual import Residual, shared_measurement
@@ -194,7 +196,9 @@ class ConsistencyDesign:
     allows (:func:`_step_rows`; None: 2, the two samples' bounds added), and ``repeat_scale`` (n,), the longest run
     of unchanged velocity readings on the design runs over :data:`FROZEN_SAMPLES` (dimensionless; 0 for a drive
     whose reading carries noise): where it is 0, a held reading is also the kinematic row's evidence (a frozen
-    velocity sensor at rest; :func:`_step_rows`; None: never)."""
+    velocity sensor at rest; :func:`_step_rows`; None: never), and ``payload`` [kg], the mass at the payload point
+    the arm carried on the design runs and the nominal model lacks (identified with the friction,
+    :func:`~robofdi.observers.momentum.identify_friction_and_load`; its torque is the dynamic rows' model too)."""
 
     friction: JointFriction
     envelope: np.ndarray
@@ -213,6 +217,7 @@ class ConsistencyDesign:
     trend_scale: np.ndarray | None = None
     move_scale: np.ndarray | None = None
     repeat_scale: np.ndarray | None = None
+    payload: float = 0.0
 
     #: The optional arrays of :meth:`arrays` (absent when None).
     OPTIONAL = ("reach", "ripple_orders", "ripple_amplitude", "impulse_scale", "noise_walk", "gain_scale",
@@ -242,7 +247,7 @@ class ConsistencyDesign:
         out = {"friction": f.coefficients, "friction_shape": np.array([f.stribeck_velocity, f.smoothing]),
                "envelope": self.envelope, "skew": self.skew, "window_scales": self.window_scales,
                "step_scale": self.step_scale, "gain_T": np.array([self.gain, self.T]),
-               "windows": np.array(self.windows, dtype=float)}
+               "windows": np.array(self.windows, dtype=float), "payload": np.array([self.payload])}
         return out | {k: getattr(self, k) for k in self.OPTIONAL if getattr(self, k) is not None}
 
     @classmethod
@@ -252,7 +257,8 @@ class ConsistencyDesign:
         return cls(JointFriction.from_coefficients(a["friction"], float(shape[0]), float(shape[1])),
                    np.asarray(a["envelope"]), np.asarray(a["skew"]), np.asarray(a["window_scales"]),
                    np.asarray(a["step_scale"]), float(a["gain_T"][0]), float(a["gain_T"][1]),
-                   tuple(float(w) for w in a["windows"]), **optional)
+                   tuple(float(w) for w in a["windows"]), **optional,
+                   payload=float(np.asarray(a["payload"]).reshape(-1)[0]) if "payload" in a else 0.0)
 
 
 class ConsistencyResidual:
@@ -272,6 +278,9 @@ class ConsistencyResidual:
         self._kinematic = KinematicConsistency(design.T, design.skew, design.window_scales, design.windows,
                                                design.reach, design.ripple_orders, design.ripple_amplitude)
         self._payload = PayloadRegressor(model, design.T, design.gain)
+        if not np.isfinite(design.payload):
+            raise RobofdiError(f"ConsistencyResidual: field 'payload' must be a finite mass [kg], got {design.payload!r}")
+        self._carried = float(design.payload)
         scale = np.ones(n) if design.impulse_scale is None else np.asarray(design.impulse_scale, dtype=float)
         if scale.shape != (n,) or not np.all(np.isfinite(scale) & (scale > 0)):
             raise RobofdiError(f"ConsistencyResidual: field 'impulse_scale' must be {n} finite values > 0 [N·m·s], "
@@ -384,6 +393,9 @@ class ConsistencyResidual:
         u = shared_measurement(u, n, "u")
         r = self._momentum.update(y, u).r
         q, v = y[:n], y[n:]
+        load = self._payload.update(q, v)           # LP(Y) [N·m/kg]: the payload row's direction
+        if self._carried:       # the residual of the model with the carried payload: r is linear in the model's mass
+            r = r + self._carried * load
         design, point = self.design, self._point
         # ν, the features' low pass and the dynamic rows' bound, the step rows' bound and the onset of a velocity
         # change beyond it, whose increment is not the kinematic windows' to sum (module docstring, "onset")
@@ -399,7 +411,7 @@ class ConsistencyResidual:
                    self._previous, self._k % self._hold, (self._k - 1) % self._hold, self.T, z, estimate,
                    q, v, self._gain_sums, self._gain_lambda, self._gain_scale, self.gain_evidence,
                    self._trend_ring, self._trend_sums, self._k, self._trend_scale, self.trend_evidence,
-                   self._payload.update(q, v), self._held_kinematic)
+                   load, self._held_kinematic)
         self._k += 1
         return Residual(z, estimate)
 
@@ -714,9 +726,9 @@ def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray,
                        gain: float = DEFAULT_GAIN, skip: int = 0, windows: Sequence[float] = WINDOWS,
                        ripple_orders: np.ndarray | None = None) -> ConsistencyDesign:
     """Learn a :class:`ConsistencyDesign` from fault-free runs, each given as the (Y, U) the diagnoser sees
-    ((N, 2n) measurements, (N, n) inputs ū(k−1); see :func:`robofdi.loop.diagnoser_inputs`): friction, then the
-    operating-point bound of the friction-compensated residual and the step scale, then the kinematic skew,
-    window scales and envelope, and, given the drives' ``ripple_orders`` (n, n_orders) [cycles/rad]
+    ((N, 2n) measurements, (N, n) inputs ū(k−1); see :func:`robofdi.loop.diagnoser_inputs`): friction and the
+    carried payload, then the operating-point bound of the compensated residual and the step scale, then the
+    kinematic skew, window scales and envelope, and, given the drives' ``ripple_orders`` (n, n_orders) [cycles/rad]
     (:func:`~robofdi.observers.kinematic.ripple_orders`), their aliased per-sample errors
     (:func:`~robofdi.observers.kinematic.identify_ripple`; the single-sample scale where the runs never came
     near an alias)."""
@@ -736,9 +748,13 @@ def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray,
         return out
 
     plain = replay(MomentumObserver(model, T, gain))
-    friction = identify_friction(plain, [np.asarray(Y)[:, n:] for Y, _ in runs], gain, T, skip)
+    regressor, loads = PayloadRegressor(model, T, gain), []
+    for Y, _ in runs:
+        regressor.reset()
+        loads.append(np.array([regressor.update(y[:n], y[n:]) for y in np.asarray(Y)]))
+    friction, payload = identify_friction_and_load(plain, [np.asarray(Y)[:, n:] for Y, _ in runs], loads, gain, T, skip)
     unit = ConsistencyDesign(friction, np.ones((n, 4)), np.zeros(n), np.ones((n, len(windows), 3)),
-                             np.column_stack([np.ones(n), np.zeros((n, 2))]), gain, T, tuple(windows))
+                             np.column_stack([np.ones(n), np.zeros((n, 2))]), gain, T, tuple(windows), payload=payload)
     features, residuals, speeds, masses = [], [], [], []
     for Y, U in runs:
         d = ConsistencyResidual(model, unit)
@@ -777,7 +793,7 @@ def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray,
     amplitude = None if orders is None else identify_ripple(qs, vs, T, skew, orders, skip,
                                                             fallback=scales[:, int(np.argmin(windows)), 0])
     design = ConsistencyDesign(friction, envelope, skew, scales, step, gain, T, tuple(windows), reach, orders,
-                               amplitude, impulse_scale, walk)
+                               amplitude, impulse_scale, walk, payload=payload)
     evidence, trend = np.zeros(n), np.zeros(n)      # the gain and trend evidence's largest fault-free values
     move = np.full(n, MOVE_FLOOR)                   # |e_k − e_{k−1}| over the single-sample scale, largest
     held = np.zeros(n)                              # the longest run of unchanged velocity readings, / FROZEN_SAMPLES

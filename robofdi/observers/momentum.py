@@ -22,7 +22,8 @@ from robofdi.models.manipulator import ManipulatorModel
 from robofdi.observers.evaluations import evaluations
 from robofdi.observers.residual import Residual, check_measurement, shared_measurement
 
-__all__ = ["MomentumObserver", "JointMomentumDiagnoser", "identify_friction", "observer_filter"]
+__all__ = ["MomentumObserver", "JointMomentumDiagnoser", "identify_friction", "identify_friction_and_load",
+           "observer_filter"]
 
 
 @kernel
@@ -102,23 +103,51 @@ def identify_friction(residuals: Sequence[np.ndarray], velocities: Sequence[np.n
     r ≈ −LP(Φ(q̇) c) with Φ the :meth:`JointFriction.regressors` and LP :func:`observer_filter`, per joint
     (the residual-based identification of e.g. Lee & Song, IEEE ICRA 2016). ``residuals``/``velocities``: one
     (N_i, n) array per run at the diagnosis rate; samples k < ``skip`` are left out of the fit."""
-    if len(residuals) == 0 or len(residuals) != len(velocities):
-        raise RobofdiError(f"identify_friction: expected as many residual as velocity runs (>= 1), got "
-                           f"{len(residuals)} and {len(velocities)}")
-    rows, targets = [], []
+    return identify_friction_and_load(residuals, velocities, None, gain, T, skip, stribeck_velocity, smoothing)[0]
+
+
+def identify_friction_and_load(residuals: Sequence[np.ndarray], velocities: Sequence[np.ndarray],
+                               loads: Sequence[np.ndarray] | None, gain: float, T: float, skip: int = 0,
+                               stribeck_velocity: float = 0.05, smoothing: float = 0.01) -> tuple[JointFriction, float]:
+    """:func:`identify_friction` with one more unknown shared by every joint: r ≈ −LP(Φ(q̇) c) − m L, where
+    ``loads`` L (one (N_i, n) array per run) is what a unit of m does to the residual — the payload regressor
+    LP(Y) per kg (:class:`~robofdi.observers.payload.PayloadRegressor`) for a payload of m kg the nominal model
+    lacks. The joint least-squares fit: with each joint's friction fitted out (the projection P⊥ onto the
+    complement of its regressors), m = −Σ_j (P⊥L_j)·(P⊥r_j) / Σ_j |P⊥L_j|², then c_j for r_j + m L_j.
+    Returns (friction, m); m = 0 without ``loads`` (then exactly :func:`identify_friction`'s fit)."""
+    if len(residuals) == 0 or len(residuals) != len(velocities) or (loads is not None and len(loads) != len(residuals)):
+        raise RobofdiError(f"identify_friction: expected as many residual as velocity (and load) runs (>= 1), got "
+                           f"{len(residuals)}, {len(velocities)}" + ("" if loads is None else f" and {len(loads)}"))
+    rows, targets, shared = [], [], []
     for i, (r, v) in enumerate(zip(residuals, velocities)):
         r, v = np.asarray(r, dtype=float), np.asarray(v, dtype=float)
         if r.ndim != 2 or r.shape != v.shape:
             raise RobofdiError(f"identify_friction: run {i}: residual {r.shape} and velocity {v.shape} must be "
                                "(N, n) arrays of the same shape")
+        if loads is not None:
+            load = np.asarray(loads[i], dtype=float)
+            if load.shape != r.shape:
+                raise RobofdiError(f"identify_friction: run {i}: load {load.shape} must have the residual's shape {r.shape}")
+            shared.append(load[skip:])
         phi = observer_filter(JointFriction.regressors(v, stribeck_velocity, smoothing), gain, T)
         rows.append(phi[skip:])
         targets.append(r[skip:])
     phi, r = np.concatenate(rows), np.concatenate(targets)
     if phi.shape[0] < 4 * 10:
         raise RobofdiError(f"identify_friction: {phi.shape[0]} samples after skip; expected at least 40")
+    m = 0.0
+    if loads is not None:
+        load, num, den = np.concatenate(shared), 0.0, 0.0
+        for j in range(r.shape[1]):
+            a = phi[:, j]
+            load_out = load[:, j] - a @ np.linalg.lstsq(a, load[:, j], rcond=None)[0]
+            r_out = r[:, j] - a @ np.linalg.lstsq(a, r[:, j], rcond=None)[0]
+            num, den = num + load_out @ r_out, den + load_out @ load_out
+        if den > 1e-12 * max(1.0, float(np.sum(load * load))):      # else no sample moved the load: m stays 0
+            m = -num / den
+            r = r + m * load
     coef = np.array([np.linalg.lstsq(-phi[:, j], r[:, j], rcond=None)[0] for j in range(r.shape[1])])
-    return JointFriction.from_coefficients(coef, stribeck_velocity, smoothing)
+    return JointFriction.from_coefficients(coef, stribeck_velocity, smoothing), float(m)
 
 
 class JointMomentumDiagnoser:
