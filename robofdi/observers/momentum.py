@@ -108,13 +108,17 @@ def identify_friction(residuals: Sequence[np.ndarray], velocities: Sequence[np.n
 
 def identify_friction_and_load(residuals: Sequence[np.ndarray], velocities: Sequence[np.ndarray],
                                loads: Sequence[np.ndarray] | None, gain: float, T: float, skip: int = 0,
-                               stribeck_velocity: float = 0.05, smoothing: float = 0.01) -> tuple[JointFriction, float]:
+                               stribeck_velocity: float = 0.05, smoothing: float = 0.01,
+                               min_share: float = 0.0) -> tuple[JointFriction, float]:
     """:func:`identify_friction` with one more unknown shared by every joint: r ≈ −LP(Φ(q̇) c) − m L, where
     ``loads`` L (one (N_i, n) array per run) is what a unit of m does to the residual — the payload regressor
     LP(Y) per kg (:class:`~robofdi.observers.payload.PayloadRegressor`) for a payload of m kg the nominal model
     lacks. The joint least-squares fit: with each joint's friction fitted out (the projection P⊥ onto the
     complement of its regressors), m = −Σ_j (P⊥L_j)·(P⊥r_j) / Σ_j |P⊥L_j|², then c_j for r_j + m L_j.
-    Returns (friction, m); m = 0 without ``loads`` (then exactly :func:`identify_friction`'s fit)."""
+    ``min_share``: m is kept only when it explains at least this share of the residual's energy beyond friction,
+    (Σ_j (P⊥L_j)·(P⊥r_j))² / (Σ_j |P⊥L_j|² Σ_j |P⊥r_j|²) (model selection: a smaller m is the model's other
+    errors, which it would only redistribute). Returns (friction, m); m = 0 without ``loads`` or below
+    ``min_share`` (then exactly :func:`identify_friction`'s fit)."""
     if len(residuals) == 0 or len(residuals) != len(velocities) or (loads is not None and len(loads) != len(residuals)):
         raise RobofdiError(f"identify_friction: expected as many residual as velocity (and load) runs (>= 1), got "
                            f"{len(residuals)}, {len(velocities)}" + ("" if loads is None else f" and {len(loads)}"))
@@ -137,13 +141,14 @@ def identify_friction_and_load(residuals: Sequence[np.ndarray], velocities: Sequ
         raise RobofdiError(f"identify_friction: {phi.shape[0]} samples after skip; expected at least 40")
     m = 0.0
     if loads is not None:
-        load, num, den = np.concatenate(shared), 0.0, 0.0
+        load, num, den, energy = np.concatenate(shared), 0.0, 0.0, 0.0
         for j in range(r.shape[1]):
             a = phi[:, j]
             load_out = load[:, j] - a @ np.linalg.lstsq(a, load[:, j], rcond=None)[0]
             r_out = r[:, j] - a @ np.linalg.lstsq(a, r[:, j], rcond=None)[0]
-            num, den = num + load_out @ r_out, den + load_out @ load_out
-        if den > 1e-12 * max(1.0, float(np.sum(load * load))):      # else no sample moved the load: m stays 0
+            num, den, energy = num + load_out @ r_out, den + load_out @ load_out, energy + r_out @ r_out
+        # no sample moved the load, or it explains too little: m stays 0
+        if den > 1e-12 * max(1.0, float(np.sum(load * load))) and num * num >= min_share * den * energy:
             m = -num / den
             r = r + m * load
     coef = np.array([np.linalg.lstsq(-phi[:, j], r[:, j], rcond=None)[0] for j in range(r.shape[1])])
