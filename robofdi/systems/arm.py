@@ -249,8 +249,10 @@ def _check_inside_limits(name: str, record: Record, sim: ArmSimulator) -> None:
                            f"error up to {err:.3g}); thresholds would be meaningless")
     if np.any(np.abs(record.signals["u_cmd"]) >= sim.torque_limit):
         i = int(np.argmax((np.abs(record.signals["u_cmd"]) / sim.torque_limit).max(axis=0)))
+        load = (f"; the motions were planned with the nominal model, which lacks the plant's {sim.payload:g} kg payload: "
+                "a slower speed leaves it room" if sim.payload > 0 else "")
         raise RobofdiError(f"calibration motion {name!r} saturates the motor of {sim.joint_names[i]!r} (limit "
-                           f"{sim.torque_limit[i]:.4g}); thresholds would be meaningless")
+                           f"{sim.torque_limit[i]:.4g}){load}; thresholds would be meaningless")
 
 
 def calibration_records(scenario: ArmScenario, progress: Callable[[int], None] | None = None) -> dict[str, Record]:
