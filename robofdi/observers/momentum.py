@@ -119,6 +119,8 @@ def identify_friction_and_load(residuals: Sequence[np.ndarray], velocities: Sequ
     (Σ_j (P⊥L_j)·(P⊥r_j))² / (Σ_j |P⊥L_j|² Σ_j |P⊥r_j|²) (model selection: a smaller m is the model's other
     errors, which it would only redistribute). Returns (friction, m); m = 0 without ``loads`` or below
     ``min_share`` (then exactly :func:`identify_friction`'s fit)."""
+    if not 0.0 <= min_share <= 1.0:
+        raise RobofdiError(f"identify_friction_and_load: field 'min_share' must be a share in [0, 1], got {min_share!r}")
     if len(residuals) == 0 or len(residuals) != len(velocities) or (loads is not None and len(loads) != len(residuals)):
         raise RobofdiError(f"identify_friction: expected as many residual as velocity (and load) runs (>= 1), got "
                            f"{len(residuals)}, {len(velocities)}" + ("" if loads is None else f" and {len(loads)}"))
