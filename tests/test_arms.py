@@ -309,3 +309,15 @@ def test_campaign_sizes_a_continuous_joints_sensor_faults_on_one_turn():
     (entry,) = spec.faults
     for target, (limit, unit) in entry.limits.items():
         assert unit == "rad" and limit == pytest.approx(spans[target.removesuffix("_pos")])
+
+
+def test_a_load_the_calibration_motions_cannot_carry_is_refused_naming_it():
+    """arm7 carrying 1.5 kg its file lacks: the high-acceleration calibration motion, planned with the nominal
+    model at 60 % of each motor's torque, saturates a motor (joint 2 or 6, by the robot instance); calibration is
+    refused with the load named."""
+    from robofdi.config import evolve
+    from robofdi.systems.arm import calibration_records
+
+    loaded = evolve(arm_scenario("arm7.xml", seed=6121, schemes=("momentum",)), payload=1.5)
+    with pytest.raises(RobofdiError, match=r"'high_acceleration' saturates the motor of 'joint[0-9]'.*lacks the plant's 1.5 kg payload"):
+        calibration_records(loaded)

@@ -250,7 +250,8 @@ def _check_inside_limits(name: str, record: Record, sim: ArmSimulator) -> None:
     if np.any(np.abs(record.signals["u_cmd"]) >= sim.torque_limit):
         i = int(np.argmax((np.abs(record.signals["u_cmd"]) / sim.torque_limit).max(axis=0)))
         load = (f"; the motions were planned with the nominal model, which lacks the plant's {sim.payload:g} kg payload: "
-                "a slower speed leaves it room" if sim.payload > 0 else "")
+                "add the load to the robot file, or carry a lighter one (a slower speed helps the random motions "
+                "only)" if sim.payload > 0 else "")
         raise RobofdiError(f"calibration motion {name!r} saturates the motor of {sim.joint_names[i]!r} (limit "
                            f"{sim.torque_limit[i]:.4g}){load}; thresholds would be meaningless")
 
