@@ -15,9 +15,10 @@ import numpy as np
 import pytest
 
 from robofdi import ASSETS, RobofdiError
+from robofdi.config import evolve
 from robofdi.control import MotionLimits
 from robofdi.mjcf import compile_arm, find_package_root, load_model, urdf_to_mjcf
-from robofdi.systems.arm import arm_scenario, calibration_trajectories
+from robofdi.systems.arm import arm_scenario, calibration_records, calibration_trajectories
 from robofdi.sims import ArmSimulator
 from robofdi.sims.arm import full_mass_matrix
 
@@ -315,9 +316,7 @@ def test_a_load_the_calibration_motions_cannot_carry_is_refused_naming_it():
     """arm7 carrying 1.5 kg its file lacks: the high-acceleration calibration motion, planned with the nominal
     model at 60 % of each motor's torque, saturates a motor (joint 2 or 6, by the robot instance); calibration is
     refused with the load named."""
-    from robofdi.config import evolve
-    from robofdi.systems.arm import calibration_records
-
     loaded = evolve(arm_scenario("arm7.xml", seed=6121, schemes=("momentum",)), payload=1.5)
-    with pytest.raises(RobofdiError, match=r"'high_acceleration' saturates the motor of 'joint[0-9]'.*lacks the plant's 1.5 kg payload"):
+    refused = r"'high_acceleration' saturates the motor of 'joint[0-9]'.*lacks the plant's 1.5 kg payload"
+    with pytest.raises(RobofdiError, match=refused):
         calibration_records(loaded)
