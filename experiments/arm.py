@@ -2,7 +2,7 @@
 the first fault-tolerant control — compensation of the identified actuator fault after isolation.
 
     robofdi run arm [--robot MJCF] [--fault SPEC ...] [--joints J1,J2,...] [--torque-motors]
-                    [--drive-inertia S2] [--seed N] [--out DIR]
+                    [--drive-inertia S2] [--payload KG] [--nominal-payload KG] [--seed N] [--out DIR]
 
 SPEC = KIND:TARGET:MAGNITUDE@ONSET[-END][~PROFILE][;NAME=VALUE] (see :mod:`robofdi.faults.spec`), e.g.
 ``actuator_additive:joint2:20@1.0``. Without ``--fault``: a step of 25 % of the motor torque limit on a seeded
@@ -15,6 +15,10 @@ same compensation with the true fault (the oracle bound). summary.json["accommod
 of each after the first actuator fault's onset, and summary.json["recovery"] the same in the shape every experiment
 shares (:mod:`robofdi.evaluate.headline`; ``robofdi run`` prints it). The table and the replay lead with
 ``HEALTH_SOURCE``, whose health drives the compensation.
+
+``--payload`` puts a load in the simulated arm only (the truth); ``--nominal-payload`` declares one to the
+diagnosers (the nominal model carries it). When either is set, or the consistency scheme's calibration identified a
+carried mass, summary.json["payload"] holds the three [kg].
 """
 from __future__ import annotations
 
@@ -35,7 +39,7 @@ EXPERIMENTS = {"arm": "Any MJCF arm (--robot, --fault SPEC): seeded motion, all 
 HEALTH_SOURCE = "consistency"
 #: The three runs, as summary.json["recovery"] names them.
 RECOVERY_VARIANTS = ("no accommodation", "compensation", "oracle compensation")
-OPTIONS = ("robot", "faults", "joints", "torque_motors", "drive_inertia")
+OPTIONS = ("robot", "faults", "joints", "torque_motors", "drive_inertia", "payload", "nominal_payload")
 
 
 def tracking_rms(record: Record, since: float) -> float:
@@ -44,6 +48,16 @@ def tracking_rms(record: Record, since: float) -> float:
     keep = record.time >= since
     err = record.signals["reference"][keep, :n] - record.truth_state[keep, :n]
     return float(np.sqrt(np.mean(err**2)))
+
+
+def payload_section(sc, cal) -> dict | None:
+    """The loads of a run [kg]: the plant's, the declared one (the nominal model's) and the mass the consistency
+    scheme's calibration identified beyond it (:class:`~robofdi.observers.consistency.ConsistencyDesign`); None
+    when all three are 0."""
+    design = cal.designs.get("consistency")
+    loads = {"plant": float(sc.plant.payload), "declared": float(sc.nominal_payload),
+             "identified_beyond_declared": float(design.payload) if design is not None else 0.0}
+    return {**loads, "unit": "kg"} if any(loads.values()) else None
 
 
 def run(name: str = "arm", out: str | Path = "runs", seed: int = 0, progress: bool = True, replay: bool = True,
@@ -73,6 +87,9 @@ def run(name: str = "arm", out: str | Path = "runs", seed: int = 0, progress: bo
     summary = summarize(record, name, fault_dicts, robot=str(robot), joints=list(sim.joint_names),
                         injection=sc.injection, calibration_cached=cached,
                         motion={"start_pose": sc.start_pose.tolist(), "duration": sc.motion.end, "unit": "rad, s"})
+    payload = payload_section(sc, cal)
+    if payload:
+        summary["payload"] = payload
     actuator_onsets = [f.onset for f in sc.faults if f.family == "actuator"]
     if actuator_onsets:
         since = min(actuator_onsets)

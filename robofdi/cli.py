@@ -24,7 +24,7 @@ from robofdi.faults.spec import PROFILE_HELP
 
 # options of `robofdi run` that only some experiments take (module attribute OPTIONS lists them)
 EXPERIMENT_OPTIONS = {"robot": "--robot", "faults": "--fault", "joints": "--joints", "torque_motors": "--torque-motors",
-                      "drive_inertia": "--drive-inertia"}
+                      "drive_inertia": "--drive-inertia", "payload": "--payload", "nominal_payload": "--nominal-payload"}
 
 
 def _experiments() -> dict[str, tuple[str, object]]:
@@ -93,6 +93,7 @@ def _cmd_run(args) -> int:
         print(f"robofdi: error: {exc} ({where})", file=sys.stderr)
         return 1
     print(run_report(summary))
+    _payload_note(summary)
     _armature_note(args.name, options)
     print(f"\nrun folder: {run_dir}  ({', '.join(sorted(p.name + '/' * p.is_dir() for p in run_dir.iterdir()))})")
     for replay in sorted(run_dir.glob("replay.html")) + sorted(run_dir.glob("*/replay.html")):   # ch6: per system
@@ -101,6 +102,14 @@ def _cmd_run(args) -> int:
         print(f"3-D replay: open {replay} in a browser{view}")
     _figures_note(run_dir)
     return 0
+
+
+def _payload_note(summary: dict) -> None:
+    """One line when an arm run carried or declared a load, or its calibration identified one (summary["payload"])."""
+    load = summary.get("payload")
+    if load:
+        print(f"\npayload: the plant carries {load['plant']:g} kg, the nominal model {load['declared']:g} kg (declared); "
+              f"the consistency scheme's calibration identified {load['identified_beyond_declared']:+.3g} kg beyond it")
 
 
 def _armature_note(name: str, options: dict) -> None:
@@ -275,6 +284,11 @@ def build_parser() -> argparse.ArgumentParser:
                      help="replace the arm's position/velocity servos by torque motors (limit: their forcerange)")
     arm.add_argument("--drive-inertia", type=float, metavar="S2",
                      help="rotor inertia floor per N·m of torque limit [s²] for files without armature (e.g. 0.002)")
+    arm.add_argument("--payload", type=float, metavar="KG",
+                     help="a load the simulated arm carries at its payload point [kg] (the truth; default 0)")
+    arm.add_argument("--nominal-payload", type=float, metavar="KG",
+                     help="the load you declare to the diagnosers [kg]: the nominal model carries it, motions are "
+                          "planned with it (default 0: the robot file's model)")
     run.set_defaults(func=_cmd_run)
     demo = sub.add_parser("demo", help="the chapter-3 actuator-fault experiment (= run ch3-actuator)")
     demo.add_argument("--out", default="runs")

@@ -18,7 +18,7 @@ from robofdi import ASSETS, RobofdiError
 from robofdi.config import evolve
 from robofdi.control import MotionLimits
 from robofdi.mjcf import compile_arm, find_package_root, load_model, urdf_to_mjcf
-from robofdi.systems.arm import arm_scenario, calibration_records, calibration_trajectories
+from robofdi.systems.arm import arm_scenario, calibration, calibration_records, calibration_trajectories
 from robofdi.sims import ArmSimulator
 from robofdi.sims.arm import full_mass_matrix
 
@@ -320,3 +320,18 @@ def test_a_load_the_calibration_motions_cannot_carry_is_refused_naming_it():
     refused = r"'high_acceleration' saturates the motor of 'joint[0-9]'.*lacks the plant's 1.5 kg payload"
     with pytest.raises(RobofdiError, match=refused):
         calibration_records(loaded)
+
+
+def test_a_declared_load_is_planned_with_and_what_it_lacks_is_identified():
+    """The same arm7 and load, 1 kg of it declared (nominal_payload): the calibration motions are planned with the
+    declared load and calibrate; the consistency scheme identifies the 0.5 kg the declaration lacks."""
+    sc = arm_scenario("arm7.xml", seed=6121, schemes=("consistency",), payload=1.5, nominal_payload=1.0)
+    assert sc.nominal_model(sc.simulator()).payload == 1.0
+    cal, _ = calibration(sc)
+    assert cal.designs["consistency"].payload == pytest.approx(0.5, rel=0.2)
+
+
+@pytest.mark.parametrize("value", [-1.0, float("nan"), "heavy"])
+def test_an_invalid_declared_load_is_refused_naming_the_field(value):
+    with pytest.raises(RobofdiError, match="'nominal_payload' must be a finite mass >= 0 kg"):
+        arm_scenario("arm6.xml", nominal_payload=value)

@@ -133,6 +133,38 @@ def test_drive_mismatch_changes_damping_and_armature(nominal):
     np.testing.assert_allclose(mm.bias(Q0, v) - nominal.bias(Q0, v), (mm.damping - nominal.damping) * v, atol=1e-9)
 
 
+@pytest.mark.parametrize("robot", ["arm6.xml", "arm7.xml"])
+def test_a_declared_load_is_the_plants_payload_in_mujoco(robot):
+    """The nominal model carrying a declared 1.5 kg changes the inverse dynamics exactly as the plant's 1.5 kg payload
+    changes MuJoCo's (mj_inverse with and without it, frictionloss off); the mismatch draw is unchanged by it."""
+    rng = np.random.default_rng(7)
+    plain, loaded = (ArmSimulator(robot, payload=kg) for kg in (0.0, 1.5))
+    m0, m1 = plain.nominal_model(), plain.nominal_model(payload=1.5)
+    lo, hi = plain.joint_range.T
+    for _ in range(5):
+        q = lo + (hi - lo) * rng.uniform(0.1, 0.9, plain.n)          # inside the ranges: no limit forces
+        v, a = rng.uniform(-1, 1, (2, plain.n))
+        diff = []
+        for s in (plain, loaded):
+            s.model.dof_frictionloss[:] = 0.0
+            d = mujoco.MjData(s.model)
+            d.qpos[s._qadr], d.qvel[s._dofs], d.qacc[s._dofs] = q, v, a
+            mujoco.mj_inverse(s.model, d)
+            diff.append(d.qfrc_inverse[s._dofs].copy())
+        effect = diff[1] - diff[0]
+        assert np.abs(effect).max() > 0.5                         # the load matters at these states
+        np.testing.assert_allclose(m1.inverse_dynamics(q, v, a) - m0.inverse_dynamics(q, v, a), effect, atol=1e-9)
+    seeded = (plain.nominal_model(ModelMismatch(mass=0.1, seed=3), payload=p) for p in (0.0, 1.5))
+    masses = [[model.model.inertias[i].mass for i in range(1, model.model.njoints - 1)] for model in seeded]
+    assert masses[0] == masses[1]                                  # every link but the payload's, drawn alike
+
+
+@pytest.mark.parametrize("value", [-0.5, np.nan, np.inf, True, "1"])
+def test_an_invalid_declared_load_names_the_field(value):
+    with pytest.raises(RobofdiError, match="'payload'.*finite mass >= 0 kg"):
+        ManipulatorModel(ARM, payload=value)
+
+
 @pytest.mark.parametrize("field", ["mass", "inertia", "damping", "armature"])
 @pytest.mark.parametrize("value", [-0.01, np.nan, np.inf, 0.6])
 def test_invalid_mismatch_names_the_field(field, value):

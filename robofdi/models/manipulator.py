@@ -12,7 +12,8 @@ carries them. The compiled model is fresh for every nominal model, so nothing a 
 Parameters are perturbed on purpose (:class:`ModelMismatch`) so that diagnosers face real model error.
 Pinocchio's ``crba``/``aba``/``rnea`` include the joint armature; ``nonLinearEffects`` does not include damping,
 so the nominal bias is n̂ = nle(q, q̇) + D̂ q̇ (viscous friction, eq. (2) of Caccavale & Villani). Coulomb and
-Stribeck friction, torque ripple, joint springs and any payload are deliberately left out of the belief.
+Stribeck friction, torque ripple, joint springs and the plant's payload are deliberately left out of the belief;
+a load the user declares (``payload``) is a point mass at the file's payload point (:func:`payload_inertia`).
 """
 from __future__ import annotations
 
@@ -29,7 +30,8 @@ from robofdi.jit import kernel
 from robofdi.mjcf import _JOINT_KINDS, VELOCITY_LIMIT, _name, compile_arm, gear_ratio, payload_point
 from robofdi.seeding import rng
 
-__all__ = ["ModelMismatch", "ManipulatorModel", "pinocchio_model", "sensor_channel_names", "mirror_upper"]
+__all__ = ["ModelMismatch", "ManipulatorModel", "pinocchio_model", "payload_inertia", "sensor_channel_names",
+           "mirror_upper"]
 
 
 def sensor_channel_names(joints: Sequence[str]) -> list[str]:
@@ -139,21 +141,34 @@ class ManipulatorModel:
     file gives none (a URDF's ``<limit velocity>``, see :func:`robofdi.mjcf.urdf_to_mjcf`); ``gear_ratio`` (n,)
     the drives' datasheet gear ratios (:func:`robofdi.mjcf.gear_ratio`); ``payload_body`` and ``payload_offset``
     (3,) [m] the payload point (:func:`robofdi.mjcf.payload_point`).
+
+    ``payload`` [kg]: a load the user declares (a tool or part the file lacks), added exactly as a point mass at
+    the payload point after the mismatch is drawn: the belief carries it, the controller compensates it and the
+    motions are planned with it. 0 (default): the file's model as it is.
     """
 
     def __init__(self, mjcf: str | Path, mismatch: ModelMismatch | None = None,
-                 joints: Sequence[str] | None = None, torque_motors: bool = False, drive_inertia: float = 0.0):
+                 joints: Sequence[str] | None = None, torque_motors: bool = False, drive_inertia: float = 0.0,
+                 payload: float = 0.0):
         mismatch = mismatch or ModelMismatch()
         if not isinstance(mismatch, ModelMismatch):
             raise RobofdiError(f"mismatch: expected a ModelMismatch, got {type(mismatch).__name__}")
+        if isinstance(payload, bool) or not isinstance(payload, (int, float)) or not (np.isfinite(payload)
+                                                                                      and payload >= 0):
+            raise RobofdiError(f"nominal model: field 'payload' must be a finite mass >= 0 kg, got {payload!r}")
         arm = compile_arm(mjcf, joints, torque_motors, drive_inertia)
         m = arm.model
         self.path = arm.path
         self.system = arm.system
         self.mismatch = mismatch
+        self.payload_body, self.payload_offset = payload_point(arm)
+        self.payload = float(payload)
         model = pinocchio_model(m, [d.joint_id for d in arm.drives])
         model.name = arm.system
         self._perturb(model, mismatch)
+        if self.payload:
+            joint, load = payload_inertia(model, self.payload_body, self.payload_offset, self.payload)
+            model.inertias[joint] = model.inertias[joint] + load
         self.model = model
         self.data = model.createData()
         self.joint_names = arm.joint_names
@@ -166,7 +181,6 @@ class ManipulatorModel:
         self.joint_range = np.where(m.jnt_limited[ids, None].astype(bool), m.jnt_range[ids], [-np.inf, np.inf])
         self.velocity_limit = _velocity_limit(m, self.n, arm.path)
         self.gear_ratio = gear_ratio(arm)
-        self.payload_body, self.payload_offset = payload_point(arm)
         self._ref = np.array([m.qpos0[d.qpos] for d in arm.drives])
         self._has_ref = bool(np.any(self._ref != 0))
         self._lower = np.tril_indices(self.n, -1)
@@ -229,6 +243,15 @@ class ManipulatorModel:
     def acceleration(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """q̈ = M̂⁻¹(τ − n̂) (forward dynamics with viscous friction) [rad/s²]."""
         return pin.aba(self.model, self.data, self._q(q), v, tau - self.damping * v)
+
+
+def payload_inertia(model: pin.Model, body: str, offset: np.ndarray, mass: float) -> tuple[int, pin.Inertia]:
+    """(joint index, inertia) of a point mass ``mass`` [kg] at ``offset`` (3,) [m] in ``body``'s frame of the
+    Pinocchio ``model`` (no rotational inertia of its own), for the joint that carries the body."""
+    if not model.existFrame(body):
+        raise RobofdiError(f"payload: the nominal model has no body frame {body!r} for the payload point")
+    frame = model.frames[model.getFrameId(body)]
+    return frame.parentJoint, pin.Inertia(float(mass), frame.placement.act(np.asarray(offset, float)), np.zeros((3, 3)))
 
 
 def mirror_upper(M: np.ndarray) -> np.ndarray:

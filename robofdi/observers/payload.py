@@ -25,7 +25,7 @@ import pinocchio as pin
 
 from robofdi import RobofdiError
 from robofdi.jit import kernel
-from robofdi.models.manipulator import ManipulatorModel, mirror_upper
+from robofdi.models.manipulator import ManipulatorModel, mirror_upper, payload_inertia
 from robofdi.observers.momentum import _momentum_step
 
 __all__ = ["unit_payload_model", "PayloadRegressor", "payload_evidence"]
@@ -35,14 +35,10 @@ def unit_payload_model(model: ManipulatorModel) -> pin.Model:
     """A copy of the nominal Pinocchio model whose only inertia is a 1 kg point mass at the payload point (no
     armature, no damping): its dynamics are the payload regressor Y per kg."""
     unit = pin.Model(model.model)
-    body = model.payload_body
-    if not unit.existFrame(body):
-        raise RobofdiError(f"payload: the nominal model has no body frame {body!r} for the payload point")
-    frame = unit.frames[unit.getFrameId(body)]
+    joint, load = payload_inertia(unit, model.payload_body, model.payload_offset, 1.0)
     for j in range(unit.njoints):
         unit.inertias[j] = pin.Inertia.Zero()
-    unit.inertias[frame.parentJoint] = pin.Inertia(1.0, frame.placement.act(np.asarray(model.payload_offset, float)),
-                                                   np.zeros((3, 3)))
+    unit.inertias[joint] = load
     unit.armature = np.zeros(unit.nv)
     unit.damping = np.zeros(unit.nv)
     return unit

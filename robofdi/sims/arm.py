@@ -650,11 +650,12 @@ class ArmSimulator:
             self._apply_mass(b)
 
     # ----------------------------------------------------------------------------------------- belief
-    def nominal_model(self, mismatch: ModelMismatch | None = None) -> ManipulatorModel:
+    def nominal_model(self, mismatch: ModelMismatch | None = None, payload: float = 0.0) -> ManipulatorModel:
         """The belief: a Pinocchio model compiled afresh from the same file (never from this simulator's model,
-        so no payload or component fault leaks in), with deliberate parameter errors ``mismatch``."""
+        so no payload or component fault leaks in), with deliberate parameter errors ``mismatch`` and the load
+        ``payload`` [kg] the user declares at the payload point (:class:`ManipulatorModel`)."""
         model = ManipulatorModel(self.path, mismatch or ModelMismatch(), self.joint_names, self.torque_motors,
-                                 self.drive_inertia)
+                                 self.drive_inertia, payload)
         model.check_joints(self.joint_names)
         return model
 

@@ -89,6 +89,9 @@ class ArmScenario:
     random motions like them, :func:`calibration_trajectories`).
     ``accommodation``: None or "compensation" (subtract the identified
     actuator fault after isolation) with health from ``health_source`` (a scheme name or "oracle").
+    ``nominal_payload`` [kg]: a load the user declares (a tool or part the robot file lacks), carried by the
+    nominal model at the payload point: the calibration motions are planned with it and the controller
+    compensates it. The plant's own ``payload`` is the truth; the two are set separately (0 and 0 by default).
     """
 
     name: str
@@ -109,6 +112,7 @@ class ArmScenario:
     envelope_segments: int = 1
     accommodation: str | None = None
     health_source: str | None = None
+    nominal_payload: float = 0.0
 
     def __post_init__(self):
         if not all(isinstance(f, Fault) for f in self.faults):
@@ -133,6 +137,7 @@ class ArmScenario:
             ("rates", self.rates is None or isinstance(self.rates, Rates), "None or a Rates"),
             ("envelope_speed", _is_speed(self.envelope_speed), "one of ['fast', 'normal', 'slow'] or a number >= 1"),
             ("envelope_segments", is_int(self.envelope_segments, 1), "an integer >= 1"),
+            ("nominal_payload", _is_mass(self.nominal_payload), "a finite mass >= 0 kg"),
         ])
         unknown = [s for s in self.schemes if s not in ALL_SCHEMES]
         if unknown:
@@ -159,8 +164,9 @@ class ArmScenario:
         return self.plant.simulator(self.seed, None if self.rates is None else 1.0 / self.rates.control_hz)
 
     def nominal_model(self, sim: ArmSimulator) -> ManipulatorModel:
-        """The diagnosers' belief: the same file read into Pinocchio, with this scenario's seeded errors."""
-        return sim.nominal_model(replace(self.mismatch, seed=self.seed))
+        """The diagnosers' belief: the same file read into Pinocchio, with this scenario's seeded errors and the
+        declared load."""
+        return sim.nominal_model(replace(self.mismatch, seed=self.seed), self.nominal_payload)
 
     def loop_rates(self, sim: ArmSimulator) -> Rates:
         if self.rates is not None:
@@ -179,6 +185,10 @@ CALIBRATION_SEGMENTS = 3
 #: Random motions added to the calibration suite at the declared envelope's speed and segments, when it is wider
 #: than the suite's own (half of them design the learnt schemes, half set their thresholds: :func:`design_split`).
 ENVELOPE_MOTIONS = 4
+
+
+def _is_mass(value) -> bool:
+    return is_number(value) and value >= 0
 
 
 def _is_speed(value) -> bool:
@@ -238,7 +248,9 @@ def _controller(model: ManipulatorModel) -> ComputedTorque:
     return ComputedTorque(model, torque_limit=model.torque_limit)
 
 
-def _check_inside_limits(name: str, record: Record, sim: ArmSimulator) -> None:
+def _check_inside_limits(name: str, record: Record, sim: ArmSimulator, declared: float = 0.0) -> None:
+    """Raise if a calibration run left a joint's range or saturated a motor (``declared`` [kg]: the load the nominal
+    model carries, named with the plant's payload when it is less)."""
     q = record.truth_state[:, :sim.n]
     lo, hi = sim.joint_range.T
     if np.any(q < lo) or np.any(q > hi):
@@ -249,9 +261,10 @@ def _check_inside_limits(name: str, record: Record, sim: ArmSimulator) -> None:
                            f"error up to {err:.3g}); thresholds would be meaningless")
     if np.any(np.abs(record.signals["u_cmd"]) >= sim.torque_limit):
         i = int(np.argmax((np.abs(record.signals["u_cmd"]) / sim.torque_limit).max(axis=0)))
-        load = (f"; the motions were planned with the nominal model, which lacks the plant's {sim.payload:g} kg payload: "
-                "add the load to the robot file, or carry a lighter one (a slower speed helps the random motions "
-                "only)" if sim.payload > 0 else "")
+        carried = f"carries {declared:g} kg of" if declared else "lacks"
+        load = (f"; the motions were planned with the nominal model, which {carried} the plant's {sim.payload:g} kg "
+                "payload: declare the load (nominal_payload), add it to the robot file, or carry a lighter one (a "
+                "slower speed helps the random motions only)" if sim.payload > declared else "")
         raise RobofdiError(f"calibration motion {name!r} saturates the motor of {sim.joint_names[i]!r} (limit "
                            f"{sim.torque_limit[i]:.4g}){load}; thresholds would be meaningless")
 
@@ -266,7 +279,7 @@ def calibration_records(scenario: ArmScenario, progress: Callable[[int], None] |
         loop = ClosedLoop(sim, _controller(model), ref, rates=rates)
         records[name] = loop.run(ref.end, np.asarray(ref(0.0)[0]), seed=scenario.seed, run_key=f"calibration/{name}",
                                  scenario=f"calibration:{name}", progress=progress)
-        _check_inside_limits(name, records[name], sim)
+        _check_inside_limits(name, records[name], sim, scenario.nominal_payload)
     return records
 
 
@@ -369,7 +382,8 @@ def _calibration_description(scenario: ArmScenario, sim: ArmSimulator, trajector
         "mismatch": repr(scenario.mismatch), "rates": repr(scenario.loop_rates(sim)), "settings": repr(scenario.settings),
         "schemes": list(scenario.schemes), "margin": scenario.threshold_margin, "blanking": scenario.startup_blanking,
         "motions": {k: repr(v) for k, v in trajectories.items()},
-    } | ({"drive_inertia": float(scenario.plant.drive_inertia)} if scenario.plant.drive_inertia else {})
+    } | ({"drive_inertia": float(scenario.plant.drive_inertia)} if scenario.plant.drive_inertia else {}) \
+      | ({"nominal_payload": float(scenario.nominal_payload)} if scenario.nominal_payload else {})
 
 
 def calibration(scenario: ArmScenario, progress: Callable[[int], None] | None = None,
@@ -438,7 +452,7 @@ def parts(scenario: ArmScenario, cal: Calibration, run_key: str = "run", seed: i
         "sensors": asdict(plant.sensors),
         "mismatch": {k: getattr(scenario.mismatch, k) for k in ("mass", "inertia", "damping", "armature")},
         "payload": plant.payload,
-    }
+    } | ({"nominal_payload": scenario.nominal_payload} if scenario.nominal_payload else {})
     return Parts(loop, scenario.run_duration, scenario.start_pose, scenario.seed if seed is None else seed, run_key,
                  scenario.name, meta)
 
@@ -470,7 +484,10 @@ def arm_scenario(robot: str | Path = "arm6.xml", faults=(), seed: int = 0, joint
         faults = parse_fault_specs(faults)
     plant = ArmPlant(robot, joints, torque_motors, drive_inertia)
     sim = plant.simulator(seed)
-    model = sim.nominal_model()          # the catalogue model plans the motion (belief, never the plant)
+    declared = overrides.get("nominal_payload", 0.0)
+    if not _is_mass(declared):
+        raise RobofdiError(f"ArmScenario: field 'nominal_payload' must be a finite mass >= 0 kg, got {declared!r}")
+    model = sim.nominal_model(payload=declared)   # the catalogue model plans the motion (belief, never the plant)
     limits = MotionLimits.from_ranges(sim.joint_range[:, 0], sim.joint_range[:, 1], model.torque_limit)
     motion = random_point_to_point(model, limits, seed)
     if not faults:
@@ -512,7 +529,8 @@ class ArmOptions:
     segments, tail) and the diagnosers' ``settings`` (:class:`~robofdi.observers.arm_schemes.ArmSchemeSettings`,
     e.g. ``consistency_gain``; every robot instance is calibrated with them); fields are named flat or as nested
     tables (:mod:`robofdi.config`). robot_seeds: one robot instance per seed (ripple phases, nominal-model
-    errors), one calibration each, runs cycle through them; injection: "online" | "offline"."""
+    errors), one calibration each, runs cycle through them; injection: "online" | "offline"; nominal_payload [kg]:
+    a load the user declares, carried by the nominal model (:class:`ArmScenario`; the plant's is ``payload``)."""
 
     plant: ArmPlant = part(ArmPlant)
     mismatch: ModelMismatch = part(ModelMismatch, lambda: ARM_MISMATCH)
@@ -520,22 +538,25 @@ class ArmOptions:
     settings: ArmSchemeSettings = part(ArmSchemeSettings)
     robot_seeds: tuple = (0,)
     injection: str = ArmScenario.injection
+    nominal_payload: float = 0.0
 
     def __post_init__(self):
         check_robot_seeds(self)
         check_not_set("system", self.settings, ArmSchemeSettings(), ["T"],
                       "the diagnosis sample time follows the loop's diagnosis rate")
-        check_fields("system", self, [("injection", self.injection in ("online", "offline"), "'online' or 'offline'")])
+        check_fields("system", self, [("injection", self.injection in ("online", "offline"), "'online' or 'offline'"),
+                                      ("nominal_payload", _is_mass(self.nominal_payload), "a finite mass >= 0 kg")])
         if self.mismatch.seed:
             raise RobofdiError("system: field 'seed' is not an option of the arm: each robot instance's seed "
                                "(robot_seeds) seeds its nominal-model errors, and the campaign's seed its runs")
 
 
 @functools.lru_cache(maxsize=8)
-def _arm(robot: str, joints, torque_motors: bool, drive_inertia: float):
-    """(simulator, catalogue model, motion limits) of a robot, once per process (the catalogue model plans motions)."""
+def _arm(robot: str, joints, torque_motors: bool, drive_inertia: float, nominal_payload: float = 0.0):
+    """(simulator, catalogue model, motion limits) of a robot, once per process (the catalogue model, with the
+    declared load, plans motions)."""
     sim = ArmPlant(robot, joints, torque_motors, drive_inertia).simulator()
-    model = sim.nominal_model()
+    model = sim.nominal_model(payload=nominal_payload)
     return sim, model, MotionLimits.from_ranges(sim.joint_range[:, 0], sim.joint_range[:, 1], model.torque_limit)
 
 
@@ -550,7 +571,7 @@ class ArmSystem(RobotInstances):
     def _base(self, options: ArmOptions):
         try:
             p = options.plant
-            return _arm(p.robot, p.joints, p.torque_motors, p.drive_inertia)
+            return _arm(p.robot, p.joints, p.torque_motors, p.drive_inertia, options.nominal_payload)
         except RobofdiError as exc:
             raise RobofdiError(f"system.robot: {exc}") from None
 
@@ -584,7 +605,8 @@ class ArmSystem(RobotInstances):
         return ArmScenario("campaign-arm", motion=motion, duration=duration, faults=tuple(faults),
                            injection=options.injection, plant=replace(options.plant, joints=tuple(sim.joint_names)),
                            mismatch=options.mismatch, settings=options.settings, seed=int(key), schemes=tuple(diagnosers),
-                           envelope_speed=options.missions.speed, envelope_segments=options.missions.segments)
+                           envelope_speed=options.missions.speed, envelope_segments=options.missions.segments,
+                           nominal_payload=options.nominal_payload)
 
     def calibrate(self, options, key, diagnosers):
         return calibration(self._scenario(options, key, diagnosers))
