@@ -41,7 +41,7 @@ except ModuleNotFoundError:        # Python 3.10
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from arm_quality import per_class, quality, settings_option  # noqa: E402
+from arm_quality import SAMPLE, per_class, quality, settings_option  # noqa: E402
 
 from robofdi.campaign import run_campaign  # noqa: E402
 from robofdi.campaign.results import load  # noqa: E402
@@ -159,7 +159,8 @@ def main() -> None:
         table = load(out).table
         print(f"\n## {name}, {args.speed}, drive inertia {inertia} s²: "
               f"{table['index'].nunique()} runs, {time.perf_counter() - t0:.0f} s wall")
-        print(quality(table).to_string())
+        diagnosis_hz = spec["system"].get("diagnosis_hz")
+        print(quality(table, 1.0 / diagnosis_hz if diagnosis_hz else SAMPLE).to_string())
         print(eventually(table).to_string())
         if "consistency" in spec["diagnosers"]:
             print("\nconsistency by fault class:")

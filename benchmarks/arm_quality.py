@@ -11,7 +11,8 @@ Each robot's campaign is resumable (re-running the command continues it). Per di
 - fault-free runs with a false alarm, with the 95 % Clopper–Pearson upper bound of the rate;
 - detection and correct isolation of the faults at or above twice the minimum detectable size of their
   (kind, target) — the size at which that diagnoser's isotonic detection curve reaches 90 %;
-- the median detection delay of abrupt actuator faults, in diagnosis samples (2 ms): every additive fault that is
+- the median detection delay of abrupt actuator faults, in diagnosis samples (2 ms, or the campaign's
+  ``diagnosis_hz``): every additive fault that is
   not an exponential rise (steps, 2 s ramps, intermittent ones; the column kept as the campaigns before reported
   it), and of the steps alone ("step delay", the issue's "abrupt actuator steps"), all detected and those at
   ≥ 2× their minimum detectable size;
@@ -77,7 +78,8 @@ def minimum_detectable(rows: pd.DataFrame, level: float = 0.9) -> dict:
     return out
 
 
-def quality(table: pd.DataFrame) -> pd.DataFrame:
+def quality(table: pd.DataFrame, sample: float = SAMPLE) -> pd.DataFrame:
+    """The per-diagnoser quality table (module docstring); delays in diagnosis samples of ``sample`` [s]."""
     table = table[table["error"].isna()] if "error" in table else table
     faulty = table[table["faulty"]].copy()
     faulty["class"] = faulty.apply(_class, axis=1)
@@ -120,8 +122,8 @@ def quality(table: pd.DataFrame) -> pd.DataFrame:
             "≥2×MDF detected": f"{int(det.sum())}/{len(big)}",
             "≥2×MDF correct first": f"{int(correct.sum())}/{len(big)}",
             "≥2×MDF correct at the end": f"{int(final.sum())}/{len(big)}" if "final_correct" in big else "-",
-            "abrupt delay [samples]": f"{np.median(abrupt['delay']) / SAMPLE:.1f}" if len(abrupt) else "-",
-            "step delay, all / ≥2×MDF [samples]": " / ".join(f"{np.median(g['delay']) / SAMPLE:.1f}" if len(g) else "-"
+            "abrupt delay [samples]": f"{np.median(abrupt['delay']) / sample:.1f}" if len(abrupt) else "-",
+            "step delay, all / ≥2×MDF [samples]": " / ".join(f"{np.median(g['delay']) / sample:.1f}" if len(g) else "-"
                                                               for g in (steps, big_steps)),
             "incipient detected": f"{int(incipient['detected'].fillna(False).sum())}/{len(incipient)}",
             "drift offset at detection / MDF bias [mrad]":

@@ -107,3 +107,30 @@ def test_a_campaign_sets_the_arm_diagnosers_settings_and_its_scenarios_carry_the
         load_spec(base + "consistency_gain = -5\n")
     with pytest.raises(RobofdiError, match=r"consistency_tail' must be one of \['gumbel', 'exponential', 'exponent"):
         load_spec(base + 'consistency_tail = "pareto"\n')
+
+
+def test_a_campaign_sets_the_arms_loop_rates_and_its_calibration_follows_them():
+    """control_hz / diagnosis_hz reach every scenario of the campaign (and so its calibration's key); rates the
+    robot cannot run are refused when the spec is read, naming the field and what would do."""
+    from robofdi.loop import Rates
+    from robofdi.systems import get_system
+    from robofdi.systems.arm import _calibration_description, calibration_trajectories
+
+    base = 'seed = 0\nfault_free_runs = 1\nfaulty_runs = 0\n[system]\nname = "arm"\n'
+    arm = get_system("arm")
+    default = arm._scenario(load_spec(base).options, 3, ["momentum"])
+    assert default.rates is None and default.loop_rates(default.simulator()) == Rates(1000.0, 500.0)
+    fine = arm._scenario(load_spec(base + "diagnosis_hz = 1000.0\n").options, 3, ["momentum"])
+    fast = arm._scenario(load_spec(base + "control_hz = 2000\n").options, 3, ["momentum"])
+    assert fine.rates == Rates(1000.0, 1000.0) and fast.rates == Rates(2000.0, 500.0)
+    assert fast.simulator().control_dt == pytest.approx(5e-4)
+    keys = [_calibration_description(sc, sc.simulator(), calibration_trajectories(sc))["rates"]
+            for sc in (default, fine, fast)]
+    assert len(set(keys)) == 3
+    with pytest.raises(RobofdiError, match="field 'diagnosis_hz' must divide the control rate 1000 Hz, got 300"):
+        load_spec(base + "diagnosis_hz = 300.0\n")
+    with pytest.raises(RobofdiError, match="field 'control_hz' must make the control period a multiple of the physics "
+                                           "step 0.0005 s of arm6.xml"):
+        load_spec(base + "control_hz = 1500.0\n")
+    with pytest.raises(RobofdiError, match="field 'control_hz' must be none or a rate > 0 Hz"):
+        load_spec(base + "control_hz = -1.0\n")

@@ -172,9 +172,7 @@ class ArmScenario:
         if self.rates is not None:
             return self.rates
         control_hz = 1.0 / sim.control_dt
-        ratio = control_hz / 500.0
-        diagnosis_hz = 500.0 if ratio >= 1 and abs(ratio - round(ratio)) < 1e-9 else control_hz
-        return Rates(control_hz, diagnosis_hz)
+        return Rates(control_hz, default_diagnosis_hz(control_hz))
 
     def scheme_settings(self, rates: Rates) -> ArmSchemeSettings:
         return replace(self.settings, T=1.0 / rates.diagnosis_hz)
@@ -187,8 +185,19 @@ CALIBRATION_SEGMENTS = 3
 ENVELOPE_MOTIONS = 4
 
 
+def default_diagnosis_hz(control_hz: float) -> float:
+    """The arm's diagnosis rate [Hz] at a control rate: 500 Hz where that divides the control rate, else the
+    control rate itself."""
+    ratio = control_hz / 500.0
+    return 500.0 if ratio >= 1 and abs(ratio - round(ratio)) < 1e-9 else float(control_hz)
+
+
 def _is_mass(value) -> bool:
     return is_number(value) and value >= 0
+
+
+def _is_rate(value) -> bool:
+    return value is None or (is_number(value) and value > 0)
 
 
 def _is_speed(value) -> bool:
@@ -530,7 +539,10 @@ class ArmOptions:
     e.g. ``consistency_gain``; every robot instance is calibrated with them); fields are named flat or as nested
     tables (:mod:`robofdi.config`). robot_seeds: one robot instance per seed (ripple phases, nominal-model
     errors), one calibration each, runs cycle through them; injection: "online" | "offline"; nominal_payload [kg]:
-    a load the user declares, carried by the nominal model (:class:`ArmScenario`; the plant's is ``payload``)."""
+    a load the user declares, carried by the nominal model (:class:`ArmScenario`; the plant's is ``payload``).
+    control_hz, diagnosis_hz [Hz]: the loop's rates (None: the robot's, :meth:`ArmScenario.loop_rates`; the control
+    period a multiple of the file's physics step, the diagnosis rate a divisor of the control rate); every robot
+    instance is calibrated at them."""
 
     plant: ArmPlant = part(ArmPlant)
     mismatch: ModelMismatch = part(ModelMismatch, lambda: ARM_MISMATCH)
@@ -539,13 +551,17 @@ class ArmOptions:
     robot_seeds: tuple = (0,)
     injection: str = ArmScenario.injection
     nominal_payload: float = 0.0
+    control_hz: float | None = None
+    diagnosis_hz: float | None = None
 
     def __post_init__(self):
         check_robot_seeds(self)
         check_not_set("system", self.settings, ArmSchemeSettings(), ["T"],
                       "the diagnosis sample time follows the loop's diagnosis rate")
         check_fields("system", self, [("injection", self.injection in ("online", "offline"), "'online' or 'offline'"),
-                                      ("nominal_payload", _is_mass(self.nominal_payload), "a finite mass >= 0 kg")])
+                                      ("nominal_payload", _is_mass(self.nominal_payload), "a finite mass >= 0 kg"),
+                                      ("control_hz", _is_rate(self.control_hz), "none or a rate > 0 Hz"),
+                                      ("diagnosis_hz", _is_rate(self.diagnosis_hz), "none or a rate > 0 Hz")])
         if self.mismatch.seed:
             raise RobofdiError("system: field 'seed' is not an option of the arm: each robot instance's seed "
                                "(robot_seeds) seeds its nominal-model errors, and the campaign's seed its runs")
@@ -575,6 +591,26 @@ class ArmSystem(RobotInstances):
         except RobofdiError as exc:
             raise RobofdiError(f"system.robot: {exc}") from None
 
+    def _rates(self, options: ArmOptions, check: bool = False) -> Rates | None:
+        """The loop's rates the options set (None: the robot's own); ``check``: against the robot's physics step."""
+        if options.control_hz is None and options.diagnosis_hz is None:
+            return None
+        sim = self._base(options)[0]
+        control = float(options.control_hz) if options.control_hz is not None else 1.0 / sim.control_dt
+        try:
+            if check:
+                options.plant.simulator(control_dt=1.0 / control)
+        except RobofdiError:
+            raise RobofdiError(f"system: field 'control_hz' must make the control period a multiple of the physics "
+                               f"step {sim.physics_dt:g} s of {sim.path.name} (e.g. {1.0 / sim.control_dt:g} Hz), got "
+                               f"{control:g}") from None
+        diagnosis = float(options.diagnosis_hz) if options.diagnosis_hz is not None else default_diagnosis_hz(control)
+        ratio = control / diagnosis
+        if not (ratio >= 1 and abs(ratio - round(ratio)) < 1e-9):
+            raise RobofdiError(f"system: field 'diagnosis_hz' must divide the control rate {control:g} Hz, got "
+                               f"{diagnosis:g}")
+        return Rates(control, diagnosis)
+
     def diagnosers(self, options):
         return ALL_SCHEMES
 
@@ -584,6 +620,7 @@ class ArmSystem(RobotInstances):
         return SCHEMES
 
     def targets(self, options):
+        self._rates(options, check=True)         # a spec's options are checked here, before any calibration
         sim, model, _ = self._base(options)
         n = sim.n
         width = sim.joint_range[:, 1] - sim.joint_range[:, 0]
@@ -606,7 +643,7 @@ class ArmSystem(RobotInstances):
                            injection=options.injection, plant=replace(options.plant, joints=tuple(sim.joint_names)),
                            mismatch=options.mismatch, settings=options.settings, seed=int(key), schemes=tuple(diagnosers),
                            envelope_speed=options.missions.speed, envelope_segments=options.missions.segments,
-                           nominal_payload=options.nominal_payload)
+                           nominal_payload=options.nominal_payload, rates=self._rates(options))
 
     def calibrate(self, options, key, diagnosers):
         return calibration(self._scenario(options, key, diagnosers))
