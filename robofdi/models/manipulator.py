@@ -26,6 +26,7 @@ import numpy as np
 import pinocchio as pin
 
 from robofdi import RobofdiError
+from robofdi.checks import is_number
 from robofdi.jit import kernel
 from robofdi.mjcf import _JOINT_KINDS, VELOCITY_LIMIT, _name, compile_arm, gear_ratio, payload_point
 from robofdi.seeding import rng
@@ -153,8 +154,7 @@ class ManipulatorModel:
         mismatch = mismatch or ModelMismatch()
         if not isinstance(mismatch, ModelMismatch):
             raise RobofdiError(f"mismatch: expected a ModelMismatch, got {type(mismatch).__name__}")
-        if isinstance(payload, bool) or not isinstance(payload, (int, float)) or not (np.isfinite(payload)
-                                                                                      and payload >= 0):
+        if not (is_number(payload) and payload >= 0):
             raise RobofdiError(f"nominal model: field 'payload' must be a finite mass >= 0 kg, got {payload!r}")
         arm = compile_arm(mjcf, joints, torque_motors, drive_inertia)
         m = arm.model

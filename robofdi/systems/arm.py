@@ -597,13 +597,13 @@ class ArmSystem(RobotInstances):
             return None
         sim = self._base(options)[0]
         control = float(options.control_hz) if options.control_hz is not None else 1.0 / sim.control_dt
-        try:
-            if check:
+        if check:
+            try:
                 options.plant.simulator(control_dt=1.0 / control)
-        except RobofdiError:
-            raise RobofdiError(f"system: field 'control_hz' must make the control period a multiple of the physics "
-                               f"step {sim.physics_dt:g} s of {sim.path.name} (e.g. {1.0 / sim.control_dt:g} Hz), got "
-                               f"{control:g}") from None
+            except RobofdiError:
+                raise RobofdiError(f"system: field 'control_hz' must make the control period a multiple of the "
+                                   f"physics step {sim.physics_dt:g} s of {sim.path.name} (e.g. "
+                                   f"{1.0 / sim.control_dt:g} Hz), got {control:g}") from None
         diagnosis = float(options.diagnosis_hz) if options.diagnosis_hz is not None else default_diagnosis_hz(control)
         ratio = control / diagnosis
         if not (ratio >= 1 and abs(ratio - round(ratio)) < 1e-9):
