@@ -236,7 +236,9 @@ class System(Protocol):
     def diagnosers(self, options) -> Sequence[str]:
         """Every diagnoser this system can run, best (or the one driving the accommodation) first. A system may
         also define ``default_diagnosers(options)``, the subset a campaign runs when its spec names none (the
-        others are opt-in: run only when named)."""
+        others are opt-in: run only when named), and ``calibration_notes(calibration)``, what a calibration
+        identified that a user reads ({name with its unit: number}; campaign.json's
+        ``execution.calibration.per_key[key]["identified"]`` and report.md)."""
 
     def targets(self, options) -> dict[str, dict[str, TargetLimit]]:
         """Fault targets and their limits: {"actuator": {name: limit}, "sensor": {...}, "component_<kind>": {...}}."""

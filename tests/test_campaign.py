@@ -94,6 +94,8 @@ def test_arm_table_is_identical_in_process_on_two_workers_and_on_a_dask_cluster(
     cached = {k: json.loads((tmp_path / k / "campaign.json").read_text())["execution"]["calibration"]["per_key"]["0"]["cached"]
               for k in ("w1", "w2", "dask")}
     assert cached == {"w1": False, "w2": True, "dask": True}        # calibrated once, then from the cache
+    per_key = summary["execution"]["calibration"]["per_key"]["0"]
+    assert per_key["identified"] == {}             # the arm's notes: the consistency scheme's payload, not run here
     assert "Dask cluster" in json.loads((tmp_path / "dask" / "campaign.json").read_text())["execution"]["backend"]
     for name in ("results.parquet", "report.md", "figures/confusion_momentum.png", "figures/detection_vs_size.png",
                  "figures/delay_cdf.png"):

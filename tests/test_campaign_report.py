@@ -57,3 +57,13 @@ def test_the_confusion_counts_are_the_crosstab_cells_in_its_order():
     got = _confusion(rows)
     assert got == expected
     assert list(got) == list(expected) and all(list(got[t]) == list(expected[t]) for t in got)
+
+
+def test_what_the_calibrations_identified_is_reported_where_it_is_not_zero():
+    summary = _summary(100, 100, (100, 100), 20)
+    per_key = {"20": {"cached": False, "seconds": 9.0, "identified": {"consistency_payload_kg": 0.912}},
+               "21": {"cached": True, "seconds": 0.2, "identified": {"consistency_payload_kg": 0.0}}}
+    summary["execution"] = {"calibration": {"keys": ["20", "21"], "wall_time": 9.2, "per_key": per_key}}
+    assert "Identified at calibration: 20: consistency_payload_kg 0.912." in report_markdown(summary)
+    per_key["20"]["identified"]["consistency_payload_kg"] = 0.0
+    assert "Identified at calibration" not in report_markdown(summary)

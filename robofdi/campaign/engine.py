@@ -164,9 +164,11 @@ def run_campaign(spec, out: str | Path, *, workers: int | None = None, scheduler
             bars = Progress.of(progress, f"campaign {spec.system}")
             if todo:
                 with bars.stage("calibration", len(keys), unit="calibration") as tick:
+                    notes = getattr(spec.campaign_system, "calibration_notes", None)
                     for key, cal, cached, seconds in pool.map_unordered(_calibrate, [(spec, k) for k in keys]):
                         calibrations[key] = cal
-                        cal_info[str(key)] = {"cached": bool(cached), "seconds": seconds}
+                        cal_info[str(key)] = {"cached": bool(cached), "seconds": seconds} \
+                            | ({"identified": notes(cal)} if notes else {})
                         tick(1)
             session.calibration = {"keys": [str(k) for k in keys], "wall_time": time.perf_counter() - start,
                                    "per_key": cal_info}

@@ -284,6 +284,10 @@ def report_markdown(summary: dict) -> str:
               f"throughput: {ex.get('runs_per_minute') and round(ex['runs_per_minute'], 1)} runs/min; calibration "
               f"{cal.get('wall_time') and round(cal['wall_time'], 2)} s for {len(cal.get('keys', []))} key(s) "
               f"(cached: {[v['cached'] for v in cal.get('per_key', {}).values()]})."]
+    found = {k: {n: v for n, v in info.get("identified", {}).items() if v} for k, info in cal.get("per_key", {}).items()}
+    if any(found.values()):
+        lines += ["", "Identified at calibration: " + "; ".join(
+            f"{k}: " + ", ".join(f"{n} {v:.3g}" for n, v in notes.items()) for k, notes in found.items() if notes) + "."]
     if summary.get("errors"):
         lines += ["", "## Runs that raised", ""] + [f"- run {e['index']}: {e['error']}" for e in summary["errors"][:20]]
     if summary.get("figures"):

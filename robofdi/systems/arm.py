@@ -648,6 +648,11 @@ class ArmSystem(RobotInstances):
     def calibrate(self, options, key, diagnosers):
         return calibration(self._scenario(options, key, diagnosers))
 
+    def calibration_notes(self, calibration: Calibration) -> dict:
+        """The mass the consistency scheme identified at the payload point beyond the declared load [kg]."""
+        design = calibration.designs.get("consistency")
+        return {"consistency_payload_kg": float(design.payload)} if design is not None else {}
+
     def mission(self, options, key, generator):
         _, model, limits = self._base(options)
         missions = options.missions
