@@ -117,7 +117,7 @@ def test_an_aliased_ripple_is_identified_and_its_coherent_sum_covered(designed):
     cruise, _ = _wrist_run(base, ALIAS)             # its peak dwells on it
     assert np.abs(cruise[:, 2 * n - 1]).max() == pytest.approx(ALIAS, rel=0.03)
     orders = ripple_orders(model.gear_ratio)
-    ripple = identify_ripple([sweep[:, :n]], [sweep[:, n:]], design.T, design.skew, orders, SKIP)
+    ripple, _ = identify_ripple([sweep[:, :n]], [sweep[:, n:]], design.T, design.skew, orders, SKIP)
     # the fundamental (1 % of the torque limit, 2 % of the load torque in the plant) dominates its harmonics
     assert ripple[5, 0] > 1e-6 and ripple[5, 0] > 2 * ripple[5, 1:3].max()
     plain = KinematicConsistency(design.T, design.skew, design.window_scales, design.windows)
@@ -696,3 +696,29 @@ def test_a_carried_payload_the_file_lacks_is_identified_with_the_friction(design
     carried = design_consistency(model, runs, 1.0 / rates.diagnosis_hz, skip=SKIP)
     assert carried.payload == pytest.approx(1.5, rel=0.15), carried.payload
     assert ConsistencyDesign.from_arrays(carried.arrays()).payload == carried.payload
+
+
+def test_a_ripple_that_grows_with_the_torque_is_identified_with_it():
+    """e_k = Re((A + B τ_k) exp(i m q_k)) + noise on samples near the alias of order m, τ_k varied: the fit finds
+    |A| and |B| (its Wald statistic far above RIPPLE_LOAD_WALD); with the torque held constant, or none given, B is
+    not separable and the constant amplitude alone is kept. Every sample lies near the alias."""
+    gen = np.random.default_rng(11)
+    T, m, K = 0.002, 360.0, 600
+    v = np.full(K, 2 * np.pi / (m * T)) * (1 + gen.uniform(-0.02, 0.02, K))          # one ripple turn per sample
+    q = np.cumsum(v) * T
+    A, B = 2e-6 * np.exp(0.7j), 1.5e-7 * np.exp(-2.1j)
+
+    def run(tau):
+        e = np.real((A + B * tau) * np.exp(1j * m * q)) + gen.normal(0, 3e-7, K)
+        # positions whose increments are e beyond the trapezoid (no skew): q_k = q_{k−1} + T(v_k + v_{k−1})/2 + e_k
+        qm = np.concatenate([[0.0], np.cumsum(T * (v[1:] + v[:-1]) / 2 + e[1:])])
+        return qm[:, None], v[:, None], tau[:, None]
+
+    q1, v1, u1 = run(gen.uniform(-20, 20, K))
+    amp, load = identify_ripple([q1], [v1], T, np.zeros(1), np.array([[m]]), us=[u1])
+    assert amp[0, 0] == pytest.approx(abs(A), rel=0.05) and load[0, 0] == pytest.approx(abs(B), rel=0.05)
+    q2, v2, u2 = run(np.full(K, 5.0))
+    amp2, load2 = identify_ripple([q2], [v2], T, np.zeros(1), np.array([[m]]), us=[u2])
+    assert load2[0, 0] == 0 and amp2[0, 0] == pytest.approx(abs(A + 5 * B), rel=0.05)
+    _, none = identify_ripple([q1], [v1], T, np.zeros(1), np.array([[m]]))
+    assert none[0, 0] == 0

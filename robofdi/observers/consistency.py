@@ -190,7 +190,8 @@ class ConsistencyDesign:
     (n, len(windows), 2) (:func:`~robofdi.observers.kinematic.window_reach`; None: unbounded), and the drives'
     nominal ripple orders (n, n_orders) [cycles/rad] whose aliasing the kinematic rows cover
     (:func:`~robofdi.observers.kinematic.ripple_orders`) with their identified per-sample errors
-    ``ripple_amplitude`` (n, n_orders) [rad] (:func:`~robofdi.observers.kinematic.identify_ripple`; None: none),
+    ``ripple_amplitude`` (n, n_orders) [rad] and their torque-dependent parts ``ripple_load`` (n, n_orders)
+    [rad/(N·m)] (:func:`~robofdi.observers.kinematic.identify_ripple`; None: none),
     ``impulse_scale`` (n,) [N·m·s], the fault-free spread of the torque impulse (r_k − r_{k−1}) / K_O per
     joint that weighs the velocity innovation (:meth:`ConsistencyResidual.velocity_innovation`; None: equal),
     and ``noise_walk`` (n,) [rad], the long-run standard deviation per sample of the kinematic increments' noise
@@ -218,6 +219,7 @@ class ConsistencyDesign:
     reach: np.ndarray | None = None
     ripple_orders: np.ndarray | None = None
     ripple_amplitude: np.ndarray | None = None
+    ripple_load: np.ndarray | None = None
     impulse_scale: np.ndarray | None = None
     noise_walk: np.ndarray | None = None
     gain_scale: np.ndarray | None = None
@@ -227,8 +229,8 @@ class ConsistencyDesign:
     payload: float = 0.0
 
     #: The optional arrays of :meth:`arrays` (absent when None).
-    OPTIONAL = ("reach", "ripple_orders", "ripple_amplitude", "impulse_scale", "noise_walk", "gain_scale",
-                "trend_scale", "move_scale", "repeat_scale")
+    OPTIONAL = ("reach", "ripple_orders", "ripple_amplitude", "ripple_load", "impulse_scale", "noise_walk",
+                "gain_scale", "trend_scale", "move_scale", "repeat_scale")
 
     def step_bound(self, speed: np.ndarray, spread: np.ndarray) -> np.ndarray:
         """(n,) bound [rad/s] of the fault-free |ν| at joint speeds ``speed`` (n,) [rad/s] and the pose's ν spread
@@ -283,7 +285,8 @@ class ConsistencyResidual:
         self.model, self.design, self.n, self.T = model, design, n, design.T
         self._momentum = MomentumObserver(model, design.T, design.gain, design.friction)
         self._kinematic = KinematicConsistency(design.T, design.skew, design.window_scales, design.windows,
-                                               design.reach, design.ripple_orders, design.ripple_amplitude)
+                                               design.reach, design.ripple_orders, design.ripple_amplitude,
+                                               design.ripple_load)
         self._payload = PayloadRegressor(model, design.T, design.gain)
         if not np.isfinite(design.payload):
             raise RobofdiError(f"ConsistencyResidual: field 'payload' must be a finite mass [kg], got {design.payload!r}")
@@ -411,7 +414,7 @@ class ConsistencyResidual:
                                   self._hold, self._a, design.gain, self.T, REST_VELOCITY, LOW_SPEED_VELOCITY,
                                   FROZEN_CHANGE, point)
         self._started = True
-        kin, e = self._kinematic.update(q, v, point[3] if beyond else None)
+        kin, e = self._kinematic.update(q, v, point[3] if beyond else None, u)
         z, estimate = np.empty(3 * n + 1), np.empty(3 * n + 1)
         _step_rows(r, point[0], kin, e, point[4], self._kinematic.scale, self._single, design.skew, self._move,
                    point[2], self._state[2], FROZEN_SAMPLES, self._steps, self._jumps,
@@ -798,10 +801,11 @@ def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray,
         raise RobofdiError(f"design_consistency: field 'ripple_orders' must be an ({n}, n_orders) array "
                            f"[cycles/rad], got shape {orders.shape}")
     reach = window_reach(vs, T, skip, windows)
-    amplitude = None if orders is None else identify_ripple(qs, vs, T, skew, orders, skip,
-                                                            fallback=scales[:, int(np.argmin(windows)), 0])
+    amplitude, load = (None, None) if orders is None else identify_ripple(
+        qs, vs, T, skew, orders, skip, fallback=scales[:, int(np.argmin(windows)), 0], us=[np.asarray(U) for _, U in runs])
     design = ConsistencyDesign(friction, envelope, skew, scales, step, gain, T, tuple(windows), reach, orders,
-                               amplitude, impulse_scale, walk, payload=payload)
+                               amplitude, load if load is not None and load.any() else None, impulse_scale, walk,
+                               payload=payload)
     evidence, trend = np.zeros(n), np.zeros(n)      # the gain and trend evidence's largest fault-free values
     move = np.full(n, MOVE_FLOOR)                   # |e_k − e_{k−1}| over the single-sample scale, largest
     held = np.zeros(n)                              # the longest run of unchanged velocity readings, / FROZEN_SAMPLES

@@ -46,6 +46,13 @@ Near an alias a velocity bias and the ripple cannot be told apart; the term is w
 alias no design run came near gets the single-sample scale as |c_m| (:func:`identify_ripple`'s fallback). The
 orders are nominal (:func:`ripple_orders`, from the file's gear ratios), not the plant's.
 
+A drive's ripple also grows with the torque it carries (the load-dependent ripple of a permanent-magnet drive:
+Jahns & Soong 1996), so c_m = A_m + B_m τ_k, with τ_k the joint's torque command over the sample. Where the design
+runs' near-alias samples show B_m (its Wald statistic above :data:`RIPPLE_LOAD_WALD`), the window sum is at most
+|A_m| |Σ_W a_k exp(i m q_k)| + |B_m| |Σ_W a_k τ_k exp(i m q_k)|; elsewhere B_m = 0 and the term is the one above
+(arm6's wrist passing the alias only on the top-speed motion, at −20 to +25 N·m: |c| 1.8 µrad as a constant,
+5.2 µrad at −18 N·m with the torque, where a fault-free fast run cruising there showed 5.8 µrad).
+
 Valid only when the velocity does not come from differentiating the same encoder (then e ≡ 0 by construction
 and encoder faults must be found through the dynamics).
 """
@@ -86,6 +93,9 @@ NOISE_WALK_LAGS = 3
 ALIAS_BAND = 0.1
 #: Fewest near-alias samples of a joint and order from which :func:`identify_ripple` estimates |c_m|.
 ALIAS_SAMPLES = 20
+#: The Wald statistic (two degrees of freedom) above which :func:`identify_ripple` keeps a torque-dependent ripple
+#: B_m: far beyond chance (χ²₂ exceeds 25 with probability 4e-6), since the increments' errors are not white.
+RIPPLE_LOAD_WALD = 25.0
 
 #: Torque-ripple periods per motor revolution whose aliasing the kinematic rows guard against: the permanent-magnet
 #: drive's 6th harmonic of the electrical period and its 2nd and 3rd multiples (Jahns & Soong 1996, IEEE TIE 43(2)),
@@ -244,48 +254,69 @@ def window_reach(velocities: Sequence[np.ndarray], T: float, skip: int = 0,
 
 
 def identify_ripple(qs: Sequence[np.ndarray], vs: Sequence[np.ndarray], T: float, skew: np.ndarray,
-                    orders: np.ndarray, skip: int = 0, fallback: np.ndarray | None = None) -> np.ndarray:
-    """(n, n_orders) per-sample error |c_m| [rad] of each aliased ripple order (module docstring): e_k regressed
-    on (cos m q_k, sin m q_k) by least squares over the fault-free runs' samples whose ripple phase advance
-    m|q̇_k| T is within :data:`ALIAS_BAND` of a turn of a non-zero whole number of turns (near an alias, where
-    e_k ≈ Re(c_m exp(i m q_k))). Where fewer than :data:`ALIAS_SAMPLES` such samples exist, ``fallback`` (n,)
-    (e.g. the single-sample scale) for every order of that joint, or 0 if None."""
+                    orders: np.ndarray, skip: int = 0, fallback: np.ndarray | None = None,
+                    us: Sequence[np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(|A_m|, |B_m|), each (n, n_orders), of each aliased ripple order (module docstring): the per-sample error
+    |c_m| = |A_m + B_m τ| [rad] with B_m [rad/(N·m)]. e_k is regressed on (cos m q_k, sin m q_k) and, given the
+    torque commands ``us`` (one (K, n) array per run, τ_k the command over the sample ending at k), on τ_k times
+    them, by least squares over the fault-free runs' samples whose ripple phase advance m|q̇_k| T is within
+    :data:`ALIAS_BAND` of a turn of a non-zero whole number of turns (near an alias, where e_k ≈ Re(c_m exp(i m q_k))).
+    B_m is kept where its Wald statistic exceeds :data:`RIPPLE_LOAD_WALD`; elsewhere B_m = 0 and A_m is the fit
+    without it. Where fewer than :data:`ALIAS_SAMPLES` such samples exist, A_m is ``fallback`` (n,) (e.g. the
+    single-sample scale) for every order of that joint, or 0 if None."""
     orders = np.asarray(orders, dtype=float)
     n, n_orders = orders.shape
-    gram = np.zeros((n, n_orders, 2, 2))
-    moment = np.zeros((n, n_orders, 2))
+    gram = np.zeros((n, n_orders, 4, 4))
+    moment = np.zeros((n, n_orders, 4))
+    square = np.zeros((n, n_orders))
     count = np.zeros((n, n_orders), dtype=int)
-    for q, v in zip(qs, vs):
+    for r, (q, v) in enumerate(zip(qs, vs)):
         q, v = np.asarray(q, dtype=float), np.asarray(v, dtype=float)
+        tau = np.zeros_like(q) if us is None else np.asarray(us[r], dtype=float)
         e = kinematic_increments(q, v, T, skew)[max(skip, 1):, :, None]
-        q, v = q[max(skip, 1):, :, None], v[max(skip, 1):, :, None]
+        q, v, tau = q[max(skip, 1):, :, None], v[max(skip, 1):, :, None], tau[max(skip, 1):, :, None]
         turns = orders[None] * np.abs(v) * T / (2 * np.pi)
         whole = np.floor(turns + 0.5)
         near = (whole >= 1) & (np.abs(turns - whole) < ALIAS_BAND)
-        x = np.stack([np.cos(orders[None] * q), np.sin(orders[None] * q)], axis=-1) * near[..., None]
+        c, s = np.cos(orders[None] * q), np.sin(orders[None] * q)
+        x = np.stack([c, s, tau * c, tau * s], axis=-1) * near[..., None]
         gram += np.einsum("kjoa,kjob->joab", x, x)
         moment += np.einsum("kjoa,kjo->joa", x, e * near)
+        square += np.einsum("kjo,kjo->jo", e * near, e * near)
         count += near.sum(axis=0)
-    amplitude = np.zeros((n, n_orders))
+    amplitude, load = np.zeros((n, n_orders)), np.zeros((n, n_orders))
     enough = count >= ALIAS_SAMPLES
     for i, o in zip(*np.nonzero(enough)):
-        amplitude[i, o] = np.hypot(*np.linalg.lstsq(gram[i, o], moment[i, o], rcond=None)[0])
+        amplitude[i, o] = np.hypot(*np.linalg.lstsq(gram[i, o, :2, :2], moment[i, o, :2], rcond=None)[0])
+        if us is None or count[i, o] < 2 * ALIAS_SAMPLES:
+            continue
+        g, m = gram[i, o], moment[i, o]
+        if np.linalg.cond(g) > 1e12:
+            continue
+        coef = np.linalg.solve(g, m)
+        dof = count[i, o] - 4
+        variance = max(square[i, o] - coef @ m, 0.0) / dof              # the residual variance of the full fit
+        wald = coef[2:] @ np.linalg.solve(np.linalg.inv(g)[2:, 2:] * variance, coef[2:]) if variance > 0 else np.inf
+        if wald > RIPPLE_LOAD_WALD:
+            amplitude[i, o], load[i, o] = np.hypot(*coef[:2]), np.hypot(*coef[2:])
     if fallback is not None:
         amplitude = np.where(enough, amplitude, np.asarray(fallback, dtype=float)[:, None])
-    return amplitude
+    return amplitude, load
 
 
 class KinematicConsistency:
     """Stepping form: ``update(q, v)`` → (per joint: max_W |Σ_W e| / σ_W (dimensionless), e_k [rad]).
     ``reach`` (n, len(windows), 2): the designed operating envelope (:func:`window_reach`); None = unbounded.
     ``orders`` (n, n_orders) [cycles/rad] and ``ripple`` (n, n_orders) [rad]: the drives' ripple orders
-    (:func:`ripple_orders`) and their aliased per-sample errors |c_m| (:func:`identify_ripple`), whose coherent
-    sums widen σ_W (module docstring); None = none. :attr:`outside` (n,) says, per joint, whether the last
+    (:func:`ripple_orders`) and their aliased per-sample errors |A_m| (:func:`identify_ripple`), whose coherent
+    sums widen σ_W (module docstring); None = none. ``ripple_load`` (n, n_orders) [rad/(N·m)]: |B_m|, the part
+    that grows with the joint's torque command (``update``'s ``tau``); None = none. :attr:`outside` (n,) says, per joint, whether the last
     sample was outside the reach in some window, and :attr:`outside_samples` counts such samples since
     :meth:`reset`; :attr:`scale` (n, len(windows)) holds the last sample's σ_W [rad]."""
 
     def __init__(self, T: float, skew: np.ndarray, scales: np.ndarray, windows: Sequence[float] = WINDOWS,
-                 reach: np.ndarray | None = None, orders: np.ndarray | None = None, ripple: np.ndarray | None = None):
+                 reach: np.ndarray | None = None, orders: np.ndarray | None = None, ripple: np.ndarray | None = None,
+                 ripple_load: np.ndarray | None = None):
         self.T = float(T)
         self.skew = np.asarray(skew, dtype=float)
         self.scales = np.asarray(scales, dtype=float)
@@ -308,8 +339,15 @@ class KinematicConsistency:
             raise RobofdiError(f"KinematicConsistency: fields 'orders' and 'ripple' must be ({n}, n_orders) arrays of "
                                f"ripple orders > 0 [cycles/rad] and amplitudes >= 0 [rad], got shapes "
                                f"{self.orders.shape} and {self.ripple.shape}")
+        self.ripple_load = np.zeros_like(self.ripple) if ripple_load is None else np.asarray(ripple_load, dtype=float)
+        if self.ripple_load.shape != self.ripple.shape or not np.all(np.isfinite(self.ripple_load) & (self.ripple_load >= 0)):
+            raise RobofdiError(f"KinematicConsistency: field 'ripple_load' must be None or an array of the shape of "
+                               f"'ripple' {self.ripple.shape} of amplitudes >= 0 [rad/(N·m)], got shape "
+                               f"{self.ripple_load.shape}")
+        self.ripple_load = np.ascontiguousarray(self.ripple_load)
         self.sizes = _window_samples(self.T, windows)
         self._none = np.zeros(0)
+        self._no_torque = np.zeros(n)
         self._sizes = np.array(self.sizes, dtype=np.int64)
         self._reach = np.ones((n, len(windows), 2)) if self.reach is None else np.ascontiguousarray(self.reach)
         self.scales = np.ascontiguousarray(self.scales)
@@ -320,16 +358,18 @@ class KinematicConsistency:
     def reset(self) -> None:
         self._prev = None
         n = self.skew.shape[0]
-        # ring buffer of cumulative sums of e, |q̇|, Δq̇ and, per ripple order, cos and sin of m q
-        self._history = np.zeros((max(self.sizes) + 1, 3 + 2 * self.orders.shape[1], n))
+        # ring buffer of cumulative sums of e, |q̇|, Δq̇ and, per ripple order, cos and sin of m q, and τ times them
+        self._history = np.zeros((max(self.sizes) + 1, 3 + 4 * self.orders.shape[1], n))
         self._k = 0
         self.outside = np.zeros(n, dtype=bool)
         self.outside_samples = np.zeros(n, dtype=int)
 
-    def update(self, q: np.ndarray, v: np.ndarray, explained: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def update(self, q: np.ndarray, v: np.ndarray, explained: np.ndarray | None = None,
+               tau: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """One sample: (the ratios, the increments e_k [rad]). ``explained`` (n,) [rad]: the part of e_k that a
         velocity change within the sample makes (:class:`~robofdi.observers.consistency.ConsistencyResidual`): the
-        window sums take e_k shrunk towards 0 by up to it where it has e_k's sign; None: all of e_k."""
+        window sums take e_k shrunk towards 0 by up to it where it has e_k's sign; None: all of e_k. ``tau`` (n,)
+        [N·m]: the torque commands over the sample, which the load-dependent ripple follows; None: 0."""
         n, windows = self.skew.shape[0], len(self.sizes)
         q, v = np.asarray(q, dtype=float), np.asarray(v, dtype=float)
         ratio, e = np.empty(n), np.empty(n)
@@ -338,7 +378,8 @@ class KinematicConsistency:
         _kinematic_step(q, v, qp, vp, self._prev is None, self.T, self.skew,
                         self._none if explained is None else explained, self._history, self._k, self._sizes,
                         self.scales, self.orders, self.ripple, self._reach, self.reach is not None, ratio, e, outside,
-                        scales, self.outside_samples)
+                        scales, self.outside_samples, self._no_torque if tau is None else np.asarray(tau, dtype=float),
+                        self.ripple_load)
         self._prev = (q, v)
         self._k += 1
         self.outside, self.scale = outside, scales
@@ -347,12 +388,13 @@ class KinematicConsistency:
 
 @kernel
 def _kinematic_step(q, v, qp, vp, first, T, skew, explained, history, k, sizes, scales, orders, ripple, reach,
-                    bounded, ratio, e, outside, scale, outside_samples):
+                    bounded, ratio, e, outside, scale, outside_samples, tau, ripple_load):
     """One sample of :meth:`KinematicConsistency.update`, joint by joint in the order of operations of its array
     form: e_k (summed shrunk towards 0 by up to ``explained``, where that has its sign; length 0: none), the
     cumulative sums in the ring buffer ``history`` at sample ``k`` (e, |q̇|, Δq̇, then cos and
-    sin of m q per ripple order of ``orders`` on samples near an alias), each window's sum over its scale σ_W (plus
-    the ``ripple`` amplitude times each order's coherent sum; widened outside ``reach`` when ``bounded``); writes
+    sin of m q per ripple order of ``orders`` on samples near an alias, and ``tau`` times them), each window's sum
+    over its scale σ_W (plus the ``ripple`` amplitude times each order's coherent sum and ``ripple_load`` times its
+    torque-weighted one; widened outside ``reach`` when ``bounded``); writes
     ``ratio``, ``e``, ``outside``, ``scale`` and counts ``outside_samples``."""
     size, n_orders = history.shape[0], orders.shape[1]
     now, before = k % size, (k - 1) % size
@@ -379,9 +421,12 @@ def _kinematic_step(q, v, qp, vp, first, T, skew, explained, history, k, sizes, 
                 cos, sin = math.cos(phase), math.sin(phase)
             else:
                 cos, sin = 0.0, 0.0
+            tcos, tsin = tau[i] * cos, tau[i] * sin
             if k:
-                cos, sin = history[before, 3 + 2 * o, i] + cos, history[before, 4 + 2 * o, i] + sin
-            history[now, 3 + 2 * o, i], history[now, 4 + 2 * o, i] = cos, sin
+                cos, sin = history[before, 3 + 4 * o, i] + cos, history[before, 4 + 4 * o, i] + sin
+                tcos, tsin = history[before, 5 + 4 * o, i] + tcos, history[before, 6 + 4 * o, i] + tsin
+            history[now, 3 + 4 * o, i], history[now, 4 + 4 * o, i] = cos, sin
+            history[now, 5 + 4 * o, i], history[now, 6 + 4 * o, i] = tcos, tsin
         peak, out = 0.0, False
         for j in range(sizes.shape[0]):
             w = sizes[j]
@@ -402,10 +447,15 @@ def _kinematic_step(q, v, qp, vp, first, T, skew, explained, history, k, sizes, 
                 out = out or excess > 1.0
                 sigma = sigma * excess
             for o in range(n_orders):       # the aliased ripple's largest contribution to this window's sum
-                wc, ws = history[now, 3 + 2 * o, i], history[now, 4 + 2 * o, i]
+                wc, ws = history[now, 3 + 4 * o, i], history[now, 4 + 4 * o, i]
                 if k >= w:
-                    wc, ws = wc - history[back, 3 + 2 * o, i], ws - history[back, 4 + 2 * o, i]
+                    wc, ws = wc - history[back, 3 + 4 * o, i], ws - history[back, 4 + 4 * o, i]
                 sigma = sigma + ripple[i, o] * math.sqrt(wc * wc + ws * ws)
+                if ripple_load[i, o] > 0:   # and its load-dependent part's
+                    wc, ws = history[now, 5 + 4 * o, i], history[now, 6 + 4 * o, i]
+                    if k >= w:
+                        wc, ws = wc - history[back, 5 + 4 * o, i], ws - history[back, 6 + 4 * o, i]
+                    sigma = sigma + ripple_load[i, o] * math.sqrt(wc * wc + ws * ws)
             scale[i, j] = sigma
             x = abs(w0) / sigma
             if x > peak or x != x:
