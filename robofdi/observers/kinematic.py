@@ -310,9 +310,9 @@ class KinematicConsistency:
     ``orders`` (n, n_orders) [cycles/rad] and ``ripple`` (n, n_orders) [rad]: the drives' ripple orders
     (:func:`ripple_orders`) and their aliased per-sample errors |A_m| (:func:`identify_ripple`), whose coherent
     sums widen σ_W (module docstring); None = none. ``ripple_load`` (n, n_orders) [rad/(N·m)]: |B_m|, the part
-    that grows with the joint's torque command (``update``'s ``tau``); None = none. :attr:`outside` (n,) says, per joint, whether the last
-    sample was outside the reach in some window, and :attr:`outside_samples` counts such samples since
-    :meth:`reset`; :attr:`scale` (n, len(windows)) holds the last sample's σ_W [rad]."""
+    that grows with the joint's torque command (``update``'s ``tau``); None = none. :attr:`outside` (n,) says,
+    per joint, whether the last sample was outside the reach in some window, and :attr:`outside_samples` counts
+    such samples since :meth:`reset`; :attr:`scale` (n, len(windows)) holds the last sample's σ_W [rad]."""
 
     def __init__(self, T: float, skew: np.ndarray, scales: np.ndarray, windows: Sequence[float] = WINDOWS,
                  reach: np.ndarray | None = None, orders: np.ndarray | None = None, ripple: np.ndarray | None = None,
