@@ -133,6 +133,9 @@ def test_the_design_covers_its_runs_and_its_cache_round_trip(designed):
     _, _, model, _, runs, design = designed
     again = ConsistencyDesign.from_arrays(design.arrays())
     np.testing.assert_array_equal(again.ripple_amplitude, design.ripple_amplitude)
+    assert (again.ripple_load is None) == (design.ripple_load is None)
+    if design.ripple_load is not None:
+        np.testing.assert_array_equal(again.ripple_load, design.ripple_load)
     for Y, U in runs[:1]:
         d, e = ConsistencyResidual(model, design), ConsistencyResidual(model, again)
         z = np.array([d.update(y, u).r for y, u in zip(Y, U)])
@@ -722,3 +725,21 @@ def test_a_ripple_that_grows_with_the_torque_is_identified_with_it():
     assert load2[0, 0] == 0 and amp2[0, 0] == pytest.approx(abs(A + 5 * B), rel=0.05)
     _, none = identify_ripple([q1], [v1], T, np.zeros(1), np.array([[m]]))
     assert none[0, 0] == 0
+
+
+def test_the_kinematic_rows_cover_a_ripple_grown_with_the_torque():
+    """A window that cruises on the alias at a torque the design's constant amplitude never saw: with |B| the
+    bound covers the coherent sum that |A| alone leaves outside it."""
+    gen = np.random.default_rng(12)
+    T, m, K = 0.002, 360.0, 400
+    v = np.full(K, 2 * np.pi / (m * T)) * (1 + gen.uniform(-0.002, 0.002, K))      # the aliased phase creeps
+    A, B, tau = 1e-6 * np.exp(0.3j), 2e-7 * np.exp(0.3j), np.full(K, 20.0)
+    q = np.concatenate([[0.0], np.cumsum(T * (v[1:] + v[:-1]) / 2)])
+    q = q + np.concatenate([[0.0], np.cumsum(np.real((A + B * tau[1:]) * np.exp(1j * m * q[1:])))])
+    scales = np.tile([2e-6, 0.0, 0.0], (1, len(WINDOWS), 1))
+    plain = KinematicConsistency(T, np.zeros(1), scales, WINDOWS, None, np.array([[m]]), np.array([[abs(A)]]))
+    loaded = KinematicConsistency(T, np.zeros(1), scales, WINDOWS, None, np.array([[m]]), np.array([[abs(A)]]),
+                                  np.array([[abs(B)]]))
+    a = np.array([plain.update(q[k:k + 1], v[k:k + 1], None, tau[k:k + 1])[0] for k in range(K)])
+    b = np.array([loaded.update(q[k:k + 1], v[k:k + 1], None, tau[k:k + 1])[0] for k in range(K)])
+    assert a.max() > 2 and b.max() < 1 and np.all(b <= a)
