@@ -53,10 +53,11 @@ DRIFT_ORACLE_Z = 5.0    # the z an oracle test needs (one-sided Gaussian tail 3e
 VELOCITY_NOISE = SensorModel().velocity_noise       # σ_v of the campaign's (default) sensors [rad/s]
 
 
-def drift_oracle_z(rate: float, seconds: float) -> float:
+def drift_oracle_z(rate: float, seconds: float, sample: float = SAMPLE) -> float:
     """z of the known-onset, known-rate test for an encoder drift of ``rate`` [rad/s] after ``seconds``: its offset
-    over the standard deviation of the integrated velocity noise, σ_v·√(T·t)."""
-    return abs(rate) * np.sqrt(seconds / SAMPLE) / VELOCITY_NOISE
+    over the standard deviation of the integrated velocity noise, σ_v·√(T·t), with T = ``sample`` [s] the period
+    of the velocity readings the diagnosis integrates."""
+    return abs(rate) * np.sqrt(seconds / sample) / VELOCITY_NOISE
 
 
 def _class(row) -> str:
@@ -103,7 +104,7 @@ def quality(table: pd.DataFrame, sample: float = SAMPLE) -> pd.DataFrame:
         offsets, biases = [], []      # [rad]: a drift's accumulated offset at detection; the joint's MDF bias
         reached = caught = 0          # drifts whose final offset reached DRIFT_FACTOR × the MDF bias; detected
         detectable = [bool(r["detected"]) if pd.notna(r["detected"]) else False for _, r in drift.iterrows()
-                      if drift_oracle_z(r["magnitude"], r["duration"] - r["onset"]) >= DRIFT_ORACLE_Z]
+                      if drift_oracle_z(r["magnitude"], r["duration"] - r["onset"], sample) >= DRIFT_ORACLE_Z]
         for _, r in drift.iterrows():
             bias = mdf.get(("sensor_bias_pos", r["target"]))
             if not bias:
