@@ -54,9 +54,8 @@ def payload_section(sc, cal) -> dict | None:
     """The loads of a run [kg]: the plant's, the declared one (the nominal model's) and the mass the consistency
     scheme's calibration identified beyond it (:class:`~robofdi.observers.consistency.ConsistencyDesign`); None
     when all three are 0."""
-    design = cal.designs.get("consistency")
     loads = {"plant": float(sc.plant.payload), "declared": float(sc.nominal_payload),
-             "identified_beyond_declared": float(design.payload) if design is not None else 0.0}
+             "identified_beyond_declared": cal.payload}
     return {**loads, "unit": "kg"} if any(loads.values()) else None
 
 

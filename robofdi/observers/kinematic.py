@@ -421,12 +421,14 @@ def _kinematic_step(q, v, qp, vp, first, T, skew, explained, history, k, sizes, 
                 cos, sin = math.cos(phase), math.sin(phase)
             else:
                 cos, sin = 0.0, 0.0
-            tcos, tsin = tau[i] * cos, tau[i] * sin
+            if ripple_load[i, o] > 0:       # the torque-weighted sums, read only where a load part was kept
+                tcos, tsin = tau[i] * cos, tau[i] * sin
+                if k:
+                    tcos, tsin = history[before, 5 + 4 * o, i] + tcos, history[before, 6 + 4 * o, i] + tsin
+                history[now, 5 + 4 * o, i], history[now, 6 + 4 * o, i] = tcos, tsin
             if k:
                 cos, sin = history[before, 3 + 4 * o, i] + cos, history[before, 4 + 4 * o, i] + sin
-                tcos, tsin = history[before, 5 + 4 * o, i] + tcos, history[before, 6 + 4 * o, i] + tsin
             history[now, 3 + 4 * o, i], history[now, 4 + 4 * o, i] = cos, sin
-            history[now, 5 + 4 * o, i], history[now, 6 + 4 * o, i] = tcos, tsin
         peak, out = 0.0, False
         for j in range(sizes.shape[0]):
             w = sizes[j]

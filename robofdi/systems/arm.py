@@ -306,6 +306,13 @@ class Calibration:
     designs: dict[str, Any] = field(default_factory=dict)
     evidence: dict[str, np.ndarray] = field(default_factory=dict)
 
+    @property
+    def payload(self) -> float:
+        """The mass [kg] the consistency scheme's design identified at the payload point beyond the declared load
+        (0 without that scheme, or where none entered the design)."""
+        design = self.designs.get("consistency")
+        return float(design.payload) if design is not None else 0.0
+
 
 def calibrate(scenario: ArmScenario, records: dict[str, Record],
               progress: Callable[[int], None] | None = None) -> Calibration:
@@ -605,11 +612,11 @@ class ArmSystem(RobotInstances):
                                    f"physics step {sim.physics_dt:g} s of {sim.path.name} (e.g. "
                                    f"{1.0 / sim.control_dt:g} Hz), got {control:g}") from None
         diagnosis = float(options.diagnosis_hz) if options.diagnosis_hz is not None else default_diagnosis_hz(control)
-        ratio = control / diagnosis
-        if not (ratio >= 1 and abs(ratio - round(ratio)) < 1e-9):
+        try:
+            return Rates(control, diagnosis)
+        except RobofdiError:
             raise RobofdiError(f"system: field 'diagnosis_hz' must divide the control rate {control:g} Hz, got "
-                               f"{diagnosis:g}")
-        return Rates(control, diagnosis)
+                               f"{diagnosis:g}") from None
 
     def diagnosers(self, options):
         return ALL_SCHEMES
@@ -650,8 +657,7 @@ class ArmSystem(RobotInstances):
 
     def calibration_notes(self, calibration: Calibration) -> dict:
         """The mass the consistency scheme identified at the payload point beyond the declared load [kg]."""
-        design = calibration.designs.get("consistency")
-        return {"consistency_payload_kg": float(design.payload)} if design is not None else {}
+        return {"consistency_payload_kg": calibration.payload} if "consistency" in calibration.designs else {}
 
     def mission(self, options, key, generator):
         _, model, limits = self._base(options)
