@@ -47,7 +47,7 @@ from robofdi.mjcf import CompiledArm, compile_arm, gear_ratio, payload_point
 from robofdi.models.manipulator import ManipulatorModel, ModelMismatch, sensor_channel_names
 from robofdi.protocols import returns_state
 from robofdi.seeding import stream
-from robofdi.sims import kernels
+from robofdi.sims import capi, kernels
 from robofdi.sims.noise import ChannelNoise
 
 __all__ = ["TorqueRipple", "StribeckFriction", "SensorModel", "ArmSettings", "ArmSimulator", "ArmPlant", "add_point_mass",
@@ -373,6 +373,8 @@ class ArmSimulator:
         self._other_act = np.array([a for a in range(m.nu) if a not in arm_acts], dtype=int)
         self.data = mujoco.MjData(m)
         self._scratch = mujoco.MjData(m)
+        # the C step the compiled control period calls (0: step through the bindings, the same C function)
+        self._mj_step, self._model_at, self._data_at = capi.MJ_STEP, m._address, self.data._address
         # the hot path's views of the data (valid as long as self.data lives) and its preallocated buffers
         d = self.data
         self._qpos, self._qvel, self._qfrc, self._ctrl = d.qpos, d.qvel, d.qfrc_applied, d.ctrl
@@ -412,8 +414,8 @@ class ArmSimulator:
         self._r_A = np.zeros((n, k * n))
         self._r_A[np.tile(np.arange(n), k), np.arange(k * n)] = amp.ravel()
         self._r_split = k * n
-        self._r_s, self._r_t, self._r_dot = np.empty(self._r_F.size), np.empty(n), np.zeros(n)
-        self._r_s_fixed = self._r_s[:k * n]               # the sines of the position-dependent terms (A's columns)
+        self._r_amp = np.ascontiguousarray(amp)           # the kernel's form of A: A[i, k·n + i] = amp[k, i]
+        self._r_s = np.empty(self._r_F.size)
         d = self._scratch
         mujoco.mj_resetData(m, d)
         mujoco.mj_forward(m, d)
@@ -530,37 +532,56 @@ class ArmSimulator:
     def step(self, u: np.ndarray) -> np.ndarray:
         """Apply torques u (n, [N·m or N], saturated) for one control period; return the measurement.
 
-        The hot path runs the compiled kernels of :mod:`robofdi.sims.kernels` on preallocated arrays (the same
-        numbers as :meth:`disturbance` and :meth:`measure`'s NumPy expressions: bit for bit where NumPy's float64
-        ``exp`` is the C library's, to rounding on AVX-512 CPUs, :mod:`robofdi.sims.kernels`)."""
+        One compiled kernel (:func:`robofdi.sims.kernels.control_tick`) does the period: the saturation, every
+        physics sub-step's ripple and Stribeck torques (:meth:`disturbance`'s effects) and MuJoCo's ``mj_step``
+        through its C API; then the sensors (:meth:`measure`)."""
         u = np.asarray(u, dtype=float)
-        tau = np.empty(self.n)
-        if u.shape != (self.n,) or not kernels.apply_torque(u, self._torque_lo, self._torque_hi, self._inv_gain_k,
-                                                            self._act, self._ctrl, tau):
-            raise RobofdiError(f"step: u must be {self.n} finite joint torques for {self.joint_names}, got shape "
-                               f"{u.shape}: {u.tolist()}")
-        m, d = self.model, self.data
+        n = self.n
+        if u.shape != (n,):
+            self._refuse(u)
+        tau, y = np.empty(n), np.empty(2 * n)
+        zq = self._pos_draws.draw() if self._pos_draws is not None else self._empty
+        zv = self._vel_draws.draw() if self._vel_draws is not None else self._empty
+        if self._mj_step:
+            status = kernels.control_tick(
+                self._mj_step, self._model_at, self._data_at, self.substeps, u, self._torque_lo, self._torque_hi,
+                self._inv_gain_k, self._act, self._ctrl, self._other_act, self._other_ctrl, tau, self._qpos,
+                self._qvel, self._qadr, self._dofs, self._r_index, self._r_F, self._r_P, self._r_amp, self._r_load,
+                self._r_s, self._ripple_on, self._stribeck, self._stribeck_inv_v, self._stribeck_inv_eps,
+                self._stribeck_on, self._qfrc, self._resolution, self._inv_resolution, self._pos_noise, zq,
+                self._vel_noise, zv, y)
+        else:
+            status = self._step_through_bindings(u, tau, zq, zv, y)
+        if status == 0:                     # u not finite: the plant is untouched
+            self._refuse(u)
         self.u_applied = tau
-        if self._other_act.size:
-            d.ctrl[self._other_act] = self._other_ctrl
-        ripple_on, stribeck_on = self._ripple_on, self._stribeck_on
-        qpos, qvel, qadr, dofs = self._qpos, self._qvel, self._qadr, self._dofs
-        s, t, dot, A, s_fixed = self._r_s, self._r_t, self._r_dot, self._r_A, self._r_s_fixed
-        step = mujoco.mj_step
+        if status == 2:
+            raise RobofdiError(f"simulation diverged at t={self.data.time:.4f} s: non-finite joint state")
+        return y
+
+    def _refuse(self, u: np.ndarray):
+        raise RobofdiError(f"step: u must be {self.n} finite joint torques for {self.joint_names}, got shape "
+                           f"{u.shape}: {u.tolist()}")
+
+    def _step_through_bindings(self, u: np.ndarray, tau: np.ndarray, zq: np.ndarray, zv: np.ndarray,
+                               y: np.ndarray) -> int:
+        """:func:`~robofdi.sims.kernels.control_tick` with ``mujoco.mj_step`` between the kernels, for a ``mujoco``
+        whose C library :mod:`robofdi.sims.capi` cannot find: the same C function, the same numbers."""
+        if not kernels.apply_torque(u, self._torque_lo, self._torque_hi, self._inv_gain_k, self._act, self._ctrl, tau):
+            return 0
+        self._ctrl[self._other_act] = self._other_ctrl
+        m, d = self.model, self.data
         for _ in range(self.substeps):
-            if ripple_on or stribeck_on:
-                kernels.ripple_arguments(qpos, qvel, qadr, dofs, self._r_index, self._r_F, self._r_P,
-                                         self._stribeck_inv_eps, s, t)
-                if ripple_on:
-                    np.matmul(A, s_fixed, out=dot)          # NumPy's product: the same sums as A @ s
-                if stribeck_on:
-                    np.tanh(t, out=t)                        # NumPy's tanh (not the C library's: last-bit equal)
-                kernels.disturbance(qvel, dofs, tau, s, self._r_split, self._r_load, dot, ripple_on, self._stribeck,
-                                    self._stribeck_inv_v, t, stribeck_on, self._qfrc)
-            step(m, d)
-        if not (all_finite(qpos) and all_finite(qvel)):
-            raise RobofdiError(f"simulation diverged at t={d.time:.4f} s: non-finite joint state")
-        return self.measure()
+            if self._ripple_on or self._stribeck_on:
+                kernels.physics_forces(self._qpos, self._qvel, self._qadr, self._dofs, tau, self._r_index, self._r_F,
+                                       self._r_P, self._r_amp, self._r_load, self._r_s, self._ripple_on, self._stribeck,
+                                       self._stribeck_inv_v, self._stribeck_inv_eps, self._stribeck_on, self._qfrc)
+            mujoco.mj_step(m, d)
+        if not (all_finite(self._qpos) and all_finite(self._qvel)):
+            return 2
+        kernels.measure(self._qpos, self._qvel, self._qadr, self._dofs, self._resolution, self._inv_resolution,
+                        self._pos_noise, zq, self._vel_noise, zv, y)
+        return 1
 
     def disturbance(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """δ(q, q̇, τ) [N·m] of eq. (3): torque ripple plus the Stribeck term (the friction torque opposes motion,
