@@ -15,7 +15,7 @@ which a valid model meets while stepping) cannot become a Python exception on th
 from __future__ import annotations
 
 import ctypes
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 
 import mujoco
@@ -46,7 +46,7 @@ def _mj_step_address() -> int:
 MJ_STEP: int = _mj_step_address()
 
 
-@lru_cache(maxsize=None)
+@cache
 def _ctypes_function(address: int):
     return ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_void_p)(address)
 
