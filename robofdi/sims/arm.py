@@ -414,13 +414,11 @@ class ArmSimulator:
         self._r_A = np.zeros((n, k * n))
         self._r_A[np.tile(np.arange(n), k), np.arange(k * n)] = amp.ravel()
         self._r_split = k * n
-        self._r_amp = np.ascontiguousarray(amp)           # the kernel's form of A: A[i, k·n + i] = amp[k, i]
-        self._r_s = np.empty(self._r_F.size)
+        ripple = {"amp": amp.ravel(), "freq": self._r_F, "phase": self._r_P, "load": c_load, "sines": np.zeros(self._r_F.size)}
         d = self._scratch
         mujoco.mj_resetData(m, d)
         mujoco.mj_forward(m, d)
         self._inertia_ref = np.diag(full_mass_matrix(m, d))[self._dofs].copy()
-        self._set_friction(np.zeros(n))
 
         s = self.sensors
         self._resolution = np.where(slide, s.linear_resolution, s.position_resolution)
@@ -429,6 +427,24 @@ class ArmSimulator:
         self._inv_resolution = 1.0 / np.where(self._resolution > 0, self._resolution, 1.0)
         self._pos_noise = np.where(slide, s.linear_position_noise, s.position_noise)
         self._vel_noise = np.where(slide, s.linear_velocity_noise, s.velocity_noise)
+
+        # one control period's parameters packed for the compiled tick; the attributes below are views of them
+        self._tick_f, self._tick_fo, f = kernels.pack(kernels.TICK_FLOATS, {
+            "lo": self._torque_lo, "hi": self._torque_hi, "inv_gain": self._inv_gain_k, **ripple,
+            "excess": np.zeros(n), "inv_eps": np.zeros(n), "inv_v": 1.0 / self.friction.velocity,
+            "other_ctrl": np.zeros(self._other_act.size), "resolution": self._resolution,
+            "inv_resolution": self._inv_resolution, "pos_noise": self._pos_noise, "vel_noise": self._vel_noise}, float)
+        self._tick_i, self._tick_io, i = kernels.pack(kernels.TICK_INTS, {
+            "qadr": self._qadr, "dofs": self._dofs, "act": self._act, "index": self._r_index,
+            "other_act": self._other_act}, np.int64)
+        self._torque_lo, self._torque_hi, self._inv_gain_k = f["lo"], f["hi"], f["inv_gain"]
+        self._r_amp_k, self._r_F, self._r_P, self._r_load_k, self._r_s = (f[k] for k in ("amp", "freq", "phase", "load", "sines"))
+        self._stribeck, self._stribeck_inv_eps, self._other_ctrl = f["excess"], f["inv_eps"], f["other_ctrl"]
+        self._resolution, self._inv_resolution, self._pos_noise, self._vel_noise = (
+            f[k] for k in ("resolution", "inv_resolution", "pos_noise", "vel_noise"))
+        self._qadr, self._dofs, self._act, self._r_index, self._other_act = (
+            i[k] for k in ("qadr", "dofs", "act", "index", "other_act"))
+        self._set_friction(np.zeros(n))
         self.reset()
 
     # ----------------------------------------------------------------------------------------- configuration
@@ -459,11 +475,11 @@ class ArmSimulator:
         scale = 1.0 + rise
         m.dof_frictionloss[self._dofs] = np.where(rise == 0, self._frictionloss0, self._frictionloss0 * scale)
         m.dof_damping[self._dofs] = np.where(rise == 0, self._damping0, self._damping0 * scale)
-        self._stribeck = self.friction.breakaway * m.dof_frictionloss[self._dofs]
+        self._stribeck[:] = self.friction.breakaway * m.dof_frictionloss[self._dofs]     # views of the tick's
         self._stribeck_eps = self.friction.smoothing_velocity(self._stribeck, self._inertia_ref, self.physics_dt)
+        self._stribeck_inv_eps[:] = 1.0 / self._stribeck_eps                             # parameters: in place
         self._stribeck_on = bool(np.any(self._stribeck > 0))
-        self._stribeck_inv_v, self._stribeck_inv_eps = 1.0 / self.friction.velocity, 1.0 / self._stribeck_eps
-        self._stribeck_inv_eps = np.ascontiguousarray(self._stribeck_inv_eps, dtype=float)
+        self._stribeck_inv_v = 1.0 / self.friction.velocity
 
     # ----------------------------------------------------------------------------------------- protocol
     @property
@@ -518,7 +534,7 @@ class ArmSimulator:
         d.ctrl[self._act] = 0.0
         if self._home_key < 0:
             d.ctrl[self._other_act] = 0.0
-        self._other_ctrl = d.ctrl[self._other_act].copy()
+        self._other_ctrl[:] = d.ctrl[self._other_act]
         mujoco.mj_forward(m, d)
         self.u_applied = np.zeros(n)
         self._pos_draws = ChannelNoise(run, self.sensor_channels[:n]) if np.any(self._pos_noise) else None
@@ -544,12 +560,9 @@ class ArmSimulator:
         zv = self._vel_draws.draw() if self._vel_draws is not None else self._empty
         if self._mj_step:
             status = kernels.control_tick(
-                self._mj_step, self._model_at, self._data_at, self.substeps, u, self._torque_lo, self._torque_hi,
-                self._inv_gain_k, self._act, self._ctrl, self._other_act, self._other_ctrl, tau, self._qpos,
-                self._qvel, self._qadr, self._dofs, self._r_index, self._r_F, self._r_P, self._r_amp, self._r_load,
-                self._r_s, self._ripple_on, self._stribeck, self._stribeck_inv_v, self._stribeck_inv_eps,
-                self._stribeck_on, self._qfrc, self._resolution, self._inv_resolution, self._pos_noise, zq,
-                self._vel_noise, zv, y)
+                self._mj_step, self._model_at, self._data_at, self.substeps, self._ripple_on, self._stribeck_on, u,
+                self._tick_f, self._tick_fo, self._tick_i, self._tick_io, self._qpos, self._qvel, self._qfrc,
+                self._ctrl, tau, zq, zv, y)
         else:
             status = self._step_through_bindings(u, tau, zq, zv, y)
         if status == 0:                     # u not finite: the plant is untouched
@@ -574,8 +587,9 @@ class ArmSimulator:
         for _ in range(self.substeps):
             if self._ripple_on or self._stribeck_on:
                 kernels.physics_forces(self._qpos, self._qvel, self._qadr, self._dofs, tau, self._r_index, self._r_F,
-                                       self._r_P, self._r_amp, self._r_load, self._r_s, self._ripple_on, self._stribeck,
-                                       self._stribeck_inv_v, self._stribeck_inv_eps, self._stribeck_on, self._qfrc)
+                                       self._r_P, self._r_amp_k, self._r_load_k, self._r_s, self._ripple_on,
+                                       self._stribeck, self._stribeck_inv_v, self._stribeck_inv_eps, self._stribeck_on,
+                                       self._qfrc)
             mujoco.mj_step(m, d)
         if not (all_finite(self._qpos) and all_finite(self._qvel)):
             return 2
