@@ -375,6 +375,7 @@ class ArmSimulator:
         self._scratch = mujoco.MjData(m)
         # the C step the compiled control period calls (0: step through the bindings, the same C function)
         self._mj_step, self._model_at, self._data_at = capi.MJ_STEP, m._address, self.data._address
+        self._sensors_in_tick = type(self).measure is ArmSimulator.measure     # not overridden: read in the kernel
         # the hot path's views of the data (valid as long as self.data lives) and its preallocated buffers
         d = self.data
         self._qpos, self._qvel, self._qfrc, self._ctrl = d.qpos, d.qvel, d.qfrc_applied, d.ctrl
@@ -550,14 +551,16 @@ class ArmSimulator:
 
         One compiled kernel (:func:`robofdi.sims.kernels.control_tick`) does the period: the saturation, every
         physics sub-step's ripple and Stribeck torques (:meth:`disturbance`'s effects) and MuJoCo's ``mj_step``
-        through its C API; then the sensors (:meth:`measure`)."""
+        through its C API, then the sensors (:meth:`measure`'s reading; a subclass that overrides :meth:`measure`
+        gets its own reading)."""
         u = np.asarray(u, dtype=float)
         n = self.n
         if u.shape != (n,):
             self._refuse(u)
         tau, y = np.empty(n), np.empty(2 * n)
-        zq = self._pos_draws.draw() if self._pos_draws is not None else self._empty
-        zv = self._vel_draws.draw() if self._vel_draws is not None else self._empty
+        sensed = self._sensors_in_tick          # else a subclass's own measure() reads the sensors afterwards
+        zq = self._pos_draws.draw() if sensed and self._pos_draws is not None else self._empty
+        zv = self._vel_draws.draw() if sensed and self._vel_draws is not None else self._empty
         if self._mj_step:
             status = kernels.control_tick(
                 self._mj_step, self._model_at, self._data_at, self.substeps, self._ripple_on, self._stribeck_on, u,
@@ -570,7 +573,7 @@ class ArmSimulator:
         self.u_applied = tau
         if status == 2:
             raise RobofdiError(f"simulation diverged at t={self.data.time:.4f} s: non-finite joint state")
-        return y
+        return y if sensed else self.measure()
 
     def _refuse(self, u: np.ndarray):
         raise RobofdiError(f"step: u must be {self.n} finite joint torques for {self.joint_names}, got shape "
