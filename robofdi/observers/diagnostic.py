@@ -432,7 +432,7 @@ class DiagnosticObserver:
 
     def _output(self, x: np.ndarray, r: np.ndarray, f_hat: np.ndarray, r_model: np.ndarray) -> Residual:
         n, T = self.n, self.T
-        M = self._evaluations.mass_matrix(x[:n])
+        M = self._evaluations.mass_matrix_at(x)
         # δτ̂ = (M̂/T) f̂₂ (Sec. 6, with M̂ for the unknown M); "torque": r_τ = (M̂/T) r₂ (the products NumPy's)
         torque = self.residual_space == "torque"
         estimate = np.empty(2 * n)
