@@ -10,7 +10,11 @@ as before), ``tanh`` (NumPy's own SIMD implementation) and reductions whose summ
 (``einsum``, ``sum`` over more than a few entries). One exception, measured: the consistency scheme's sample
 (:mod:`robofdi.observers.consistency`, ``_operating_point`` and the payload evidence) sums its small products and
 takes ``math.exp`` in the kernel, so its residual differs from the NumPy form it replaced at rounding level
-(≤ 1e-15, docs/performance.md); the compiled kernel and its Python function still agree bit for bit.
+(≤ 1e-15, docs/performance.md); the compiled kernel and its Python function still agree bit for bit. A second
+one: the arm plant's control period (:mod:`robofdi.sims.kernels`, with ``mj_step`` called through MuJoCo's C API)
+sums its ripple terms in its own order and takes ``math.tanh``, so the arm's simulated state moved at rounding
+level from the NumPy/BLAS form it replaced (a state difference of ≈ 1e-13 after 3 000 ticks; docs/performance.md);
+the plant no longer depends on the BLAS build or on NumPy's SIMD ``tanh``.
 
 :func:`kernel` compiles with ``numba.njit(cache=True, nogil=True)``: the machine code is cached on disk next to
 the source (``__pycache__``; numba's ``NUMBA_CACHE_DIR`` moves it), so a process pays the compilation once per

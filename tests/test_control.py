@@ -102,6 +102,26 @@ def test_sequence_is_continuous_in_position_velocity_and_acceleration_at_the_joi
     np.testing.assert_allclose(seq(seq.end + 1.0)[0], Q0, atol=1e-12)
 
 
+def test_a_reference_read_ahead_equals_the_reference_called_at_each_time_bit_for_bit():
+    """Quintic.sample / Sequence.sample (the loop reads its reference ahead through a kernel) against __call__ at
+    every time: before the start, on a 1 ms grid through several segments, on the segment ends, after the end;
+    compiled and on the pure-Python path."""
+    from robofdi.jit import interpreted
+
+    rng = np.random.default_rng(11)
+    seq = Sequence.through(rng.uniform(-2, 2, (5, 6)), rng.uniform(0.3, 1.7, 4), start=0.25)
+    times = np.concatenate([[-0.1, 0.0, 0.25], np.arange(0.0, seq.end + 0.3, 1e-3), seq._ends, rng.uniform(0, 6, 500)])
+    for motion in (seq, seq.segments[1]):
+        expected = [np.array([motion(t)[i] for t in times]) for i in range(3)]
+        for ahead in (motion.sample(times), motion.sample(list(times))):
+            for got, want in zip(ahead, expected):
+                assert got.tobytes() == want.tobytes()
+        with interpreted():
+            for got, want in zip(motion.sample(times), expected):
+                assert got.tobytes() == want.tobytes()
+    assert np.ptp(expected[2]) > 1.0                      # the accelerations vary: the comparison is not vacuous
+
+
 def test_trajectory_validation():
     with pytest.raises(RobofdiError, match="duration"):
         Quintic((0.0,), (1.0,), 0.0)

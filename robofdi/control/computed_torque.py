@@ -18,22 +18,31 @@ class ComputedTorque:
             raise RobofdiError(f"ComputedTorque: fields 'kp' and 'kd' must be > 0, got {kp}, {kd}")
         self.model, self.kp, self.kd = model, float(kp), float(kd)
         self.torque_limit = None if torque_limit is None else np.asarray(torque_limit, dtype=float)
+        n = model.n
+        self._shape, self._y_shape = (n,), (2 * n,)
+        # ManipulatorModel.inverse_dynamics returns a fresh float array of n entries (Pinocchio's result plus the
+        # viscous term): clipped in place without checking it every tick
+        self._clip_in_place = (type(model) is ManipulatorModel and self.torque_limit is not None
+                               and self.torque_limit.shape == self._shape)
 
     def update(self, y: np.ndarray, reference) -> np.ndarray:
         """y = [q; q̇] measured, reference = (q_d, q̇_d, q̈_d); returns the commanded torque."""
         n = self.model.n
         q, v = y[:n], y[n:]
         qd, vd, ad = reference
-        if (type(qd) is np.ndarray and type(vd) is np.ndarray and type(ad) is np.ndarray and type(y) is np.ndarray
-                and qd.shape == vd.shape == ad.shape == (n,) and y.shape == (2 * n,)):
+        shape = self._shape
+        if (type(y) is np.ndarray and type(qd) is np.ndarray and type(vd) is np.ndarray and type(ad) is np.ndarray
+                and y.dtype is _FLOAT and qd.dtype is _FLOAT and vd.dtype is _FLOAT and ad.dtype is _FLOAT
+                and y.shape == self._y_shape and qd.shape == shape and vd.shape == shape and ad.shape == shape):
             a = np.empty(n)               # the same numbers as the array form below, entry by entry (a kernel)
-            _feedback(_float(ad), _float(vd), _float(qd), _float(y), self.kd, self.kp, a)
+            _feedback(ad, vd, qd, y, self.kd, self.kp, a)
         else:
             a = ad + self.kd * (vd - v) + self.kp * (qd - q)
         tau = self.model.inverse_dynamics(q, v, a)
         limit = self.torque_limit
         if limit is not None:             # np.clip(tau, -limit, limit) (the same numbers, a kernel)
-            if (type(tau) is np.ndarray and tau.shape == limit.shape and tau.dtype == np.float64
+            if self._clip_in_place or (
+                    type(tau) is np.ndarray and tau.shape == limit.shape and tau.dtype == np.float64
                     and tau.base is None and tau.flags.owndata and tau.flags.writeable):      # a fresh result
                 _clip(tau, limit)
             else:
@@ -41,8 +50,7 @@ class ComputedTorque:
         return tau
 
 
-def _float(a: np.ndarray) -> np.ndarray:
-    return a if a.dtype == np.float64 else a.astype(float)
+_FLOAT = np.dtype(float)
 
 
 @kernel

@@ -2,11 +2,13 @@
 from __future__ import annotations
 
 import bisect
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from robofdi import RobofdiError
+from robofdi.jit import kernel
 
 __all__ = ["Quintic", "Sequence"]
 
@@ -64,7 +66,8 @@ class Quintic:
     def sample(self, times) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(q_d, q̇_d, q̈_d) at every time of ``times``, each (len(times), n): row k equals ``self(times[k])`` bit
         for bit (the same scalar profile, the same elementwise products) — a loop reads its reference ahead."""
-        return _sample([self] * len(times), times)
+        return _sample(self._q0[None], self._dq[None], np.array([self.start]), np.array([self.duration]),
+                       np.zeros(len(times), dtype=np.int64), times)
 
 
 @dataclass(frozen=True)
@@ -77,6 +80,10 @@ class Sequence:
         if not self.segments:
             raise RobofdiError("Sequence: field 'segments' must not be empty")
         object.__setattr__(self, "_ends", [seg.end for seg in self.segments])   # not a field: repr and == unchanged
+        for name, values in (("_q0s", [seg._q0 for seg in self.segments]), ("_dqs", [seg._dq for seg in self.segments]),
+                             ("_starts", [seg.start for seg in self.segments]),
+                             ("_durations", [seg.duration for seg in self.segments])):
+            object.__setattr__(self, name, np.array(values, dtype=float))          # the segments stacked (sample)
 
     @classmethod
     def through(cls, waypoints, durations, start: float = 0.0) -> Sequence:
@@ -122,14 +129,40 @@ class Sequence:
 
     def sample(self, times) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(q_d, q̇_d, q̈_d) at every time of ``times`` (:meth:`Quintic.sample`; row k equals ``self(times[k])``)."""
-        return _sample([self._segment(t) for t in times], times)
+        times = np.asarray(times, dtype=float).reshape(-1)
+        # _segment's bisection for every time at once (searchsorted "right" is bisect_right)
+        index = np.minimum(np.searchsorted(self._ends, times, side="right"), len(self.segments) - 1)
+        return _sample(self._q0s, self._dqs, self._starts, self._durations, index.astype(np.int64), times)
 
 
-def _sample(segments, times) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Rows q0 + p Δq, ṗ Δq, p̈ Δq of each time's segment: the scalar profile per time, the products vectorised
-    (elementwise, so each row is what the segment's __call__ returns)."""
-    times = [float(t) for t in times]
-    profile = np.array([seg._profile(t) for seg, t in zip(segments, times)], dtype=float).reshape(len(times), 3)
-    q0 = np.array([seg._q0 for seg in segments], dtype=float).reshape(len(times), -1)
-    dq = np.array([seg._dq for seg in segments], dtype=float).reshape(len(times), -1)
+#: the exponents of the quintic profile, handed to the kernel as data: a literal 2.0 would be compiled into s·s,
+#: while Python's ``s**2`` calls the C library's pow (the last bit differs for some s)
+_POWERS = np.array([2.0, 3.0, 4.0, 5.0])
+
+
+@kernel
+def _profiles(times, index, starts, durations, powers, out):
+    """(p, ṗ, p̈) of :meth:`Quintic._profile` at every time (segment ``index[k]``) into ``out`` (len, 3): the same
+    operations in the same order, ``pow`` for ``**`` (bit for bit)."""
+    for k in range(times.shape[0]):
+        i = index[k]
+        d = durations[i]
+        x = (times[k] - starts[i]) / d
+        x = 0.0 if 0.0 > x else x              # max(x, 0.0)
+        s = 1.0 if 1.0 < x else x              # min(x, 1.0)
+        s2, s3 = math.pow(s, powers[0]), math.pow(s, powers[1])
+        s4, s5 = math.pow(s, powers[2]), math.pow(s, powers[3])
+        out[k, 0] = 10.0 * s3 - 15.0 * s4 + 6.0 * s5
+        out[k, 1] = (30.0 * s2 - 60.0 * s3 + 30.0 * s4) / d
+        out[k, 2] = (60.0 * s - 180.0 * s2 + 120.0 * s3) / math.pow(d, powers[0])
+
+
+def _sample(q0s, dqs, starts, durations, index, times) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rows q0 + p Δq, ṗ Δq, p̈ Δq of each time's segment (``index`` into the stacked segments): the scalar
+    profile per time (a kernel), the products vectorised (elementwise, so each row is what the segment's
+    __call__ returns)."""
+    times = np.asarray(times, dtype=float).reshape(-1)
+    profile = np.empty((times.size, 3))
+    _profiles(times, index, starts, durations, _POWERS, profile)
+    q0, dq = q0s[index], dqs[index]
     return q0 + profile[:, :1] * dq, profile[:, 1:2] * dq, profile[:, 2:] * dq

@@ -33,66 +33,98 @@ def _bytes(a) -> bytes:
     return a.tobytes() if type(a) is np.ndarray and a.dtype is _FLOAT else np.asarray(a, dtype=float).tobytes()
 
 
+def _immutable(a) -> bool:
+    """``a`` is a read-only array that owns its memory (:func:`~robofdi.observers.residual.shared_measurement`'s
+    copies, this memo's results): taken as unchanging, so the very same object again is the same arguments."""
+    return type(a) is np.ndarray and a.base is None and not a.flags.writeable
+
+
 class Evaluations:
     """Memo of the last call of each of :class:`~robofdi.models.ManipulatorModel`'s ``mass_matrix``,
-    ``gravity``, ``coriolis`` and ``acceleration``; results are read-only arrays (shared)."""
+    ``gravity``, ``coriolis`` and ``acceleration``; results are read-only arrays (shared).
+
+    Each memo is keyed by its arguments' bytes. The ``…_at(x)`` forms take the state x = [q; q̇] whole; when x
+    (and τ) is a read-only array that owns its memory — the measurement every diagnoser of a sample is handed —
+    the same object again is a hit without reading its bytes."""
 
     __slots__ = ("model", "_mass", "_gravity", "_coriolis", "_acceleration", "__weakref__")
 
     def __init__(self, model: ManipulatorModel):
         self.model = model
-        # (the arguments' bytes, the read-only result) of the last call of each
-        self._mass = self._gravity = self._coriolis = self._acceleration = (None, None)
+        # (the arguments' bytes, the read-only result, the argument objects when unchanging) of the last call of each
+        self._mass = self._gravity = self._coriolis = self._acceleration = (None, None, None)
 
     def mass_matrix(self, q: np.ndarray) -> np.ndarray:
         """M̂(q) [kg·m²]."""
+        return self._mass_matrix(q, None)
+
+    def mass_matrix_at(self, x: np.ndarray) -> np.ndarray:
+        """M̂ at the positions of the state x = [q; q̇]."""
+        last = self._mass
+        if last[2] is x:
+            return last[1]
+        return self._mass_matrix(x[:x.shape[0] // 2], x if _immutable(x) else None)
+
+    def _mass_matrix(self, q, same) -> np.ndarray:
         key = _bytes(q)
         last = self._mass
-        if last[0] == key:
-            return last[1]
-        value = _frozen(self.model.mass_matrix(q))
-        self._mass = (key, value)
+        value = last[1] if last[0] == key else _frozen(self.model.mass_matrix(q))
+        self._mass = (key, value, same)
         return value
 
     def gravity(self, q: np.ndarray) -> np.ndarray:
         """ĝ(q) [N·m]."""
+        return self._gravity_of(q, None)
+
+    def gravity_at(self, x: np.ndarray) -> np.ndarray:
+        """ĝ at the positions of the state x = [q; q̇]."""
+        last = self._gravity
+        if last[2] is x:
+            return last[1]
+        return self._gravity_of(x[:x.shape[0] // 2], x if _immutable(x) else None)
+
+    def _gravity_of(self, q, same) -> np.ndarray:
         key = _bytes(q)
         last = self._gravity
-        if last[0] == key:
-            return last[1]
-        value = _frozen(self.model.gravity(q))
-        self._gravity = (key, value)
+        value = last[1] if last[0] == key else _frozen(self.model.gravity(q))
+        self._gravity = (key, value, same)
         return value
 
     def coriolis(self, q: np.ndarray, v: np.ndarray) -> np.ndarray:
         """Ĉ(q, q̇) (Pinocchio's factorisation)."""
-        key = _bytes(q) + _bytes(v)
+        return self._coriolis_of(q, v, _bytes(q) + _bytes(v), None)
+
+    def coriolis_at(self, x: np.ndarray) -> np.ndarray:
+        """Ĉ at the state x = [q; q̇] (the same memo: q and q̇'s bytes are x's)."""
         last = self._coriolis
-        if last[0] == key:
+        if last[2] is x:
             return last[1]
-        value = _frozen(self.model.coriolis(q, v))
-        self._coriolis = (key, value)
+        n = x.shape[0] // 2
+        return self._coriolis_of(x[:n], x[n:], _bytes(x), x if _immutable(x) else None)
+
+    def _coriolis_of(self, q, v, key, same) -> np.ndarray:
+        last = self._coriolis
+        value = last[1] if last[0] == key else _frozen(self.model.coriolis(q, v))
+        self._coriolis = (key, value, same)
         return value
 
     def acceleration_at(self, x: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """:meth:`acceleration` at the state x = [q; q̇] (the same memo: q and q̇'s bytes are x's)."""
-        key = _bytes(x) + _bytes(tau)
         last = self._acceleration
-        if last[0] == key:
+        if last[2] is not None and last[2][0] is x and last[2][1] is tau:
             return last[1]
         n = x.shape[0] // 2
-        value = _frozen(self.model.acceleration(x[:n], x[n:], tau))
-        self._acceleration = (key, value)
-        return value
+        same = (x, tau) if _immutable(x) and _immutable(tau) else None
+        return self._acceleration_of(x[:n], x[n:], tau, _bytes(x) + _bytes(tau), same)
 
     def acceleration(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """q̈ = M̂⁻¹(τ − n̂) [rad/s²]."""
-        key = _bytes(q) + _bytes(v) + _bytes(tau)
+        return self._acceleration_of(q, v, tau, _bytes(q) + _bytes(v) + _bytes(tau), None)
+
+    def _acceleration_of(self, q, v, tau, key, same) -> np.ndarray:
         last = self._acceleration
-        if last[0] == key:
-            return last[1]
-        value = _frozen(self.model.acceleration(q, v, tau))
-        self._acceleration = (key, value)
+        value = last[1] if last[0] == key else _frozen(self.model.acceleration(q, v, tau))
+        self._acceleration = (key, value, same)
         return value
 
 

@@ -67,21 +67,22 @@ class MomentumObserver:
         n, m = self.n, self.model
         y = shared_measurement(y, 2 * n, "y")
         u = shared_measurement(u, n, "u")
-        q, v = y[:n], y[n:]
+        v = y[n:]
         ev = self._evaluations             # M̂, ĝ, Ĉ at this sample's arguments, shared with the other diagnosers
-        self.mass = ev.mass_matrix(q)       # M(q_k) of this sample (read-only), for users of the momentum (consistency's ν)
+        self.mass = ev.mass_matrix_at(y)    # M(q_k) of this sample (read-only), for users of the momentum (consistency's ν)
         p = self.mass.dot(v)
         if self._prev is None:
             self._p0, self._integral, self._r = p, np.zeros(n), np.zeros(n)
         else:
-            qp, vp = self._prev
-            coriolis = ev.coriolis(qp, vp).T.dot(vp)
+            yp = self._prev
+            vp = yp[n:]
+            coriolis = ev.coriolis_at(yp).T.dot(vp)
             friction = self.friction.torque(vp) if self.friction is not None else None
             integral, r = np.empty(n), np.empty(n)
-            _momentum_step(ev.gravity(qp), m.damping, vp, coriolis, friction, u, self._r, p, self._p0,
+            _momentum_step(ev.gravity_at(yp), m.damping, vp, coriolis, friction, u, self._r, p, self._p0,
                            self._integral, self.T, self.gain, integral, r)
             self._integral, self._r = integral, r
-        self._prev = (q, v)
+        self._prev = y                      # read-only (shared_measurement): kept without a copy
         return Residual(self._r.copy(), self._r.copy())
 
     def signatures(self):

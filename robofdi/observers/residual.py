@@ -1,11 +1,13 @@
 """What a diagnoser returns each sample, and the input check every diagnoser applies."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from robofdi.errors import RobofdiError, all_finite
+from robofdi.jit import kernel
 
 __all__ = ["Residual", "check_measurement", "shared_measurement"]
 
@@ -30,6 +32,16 @@ def check_measurement(v, size: int, field: str) -> np.ndarray:
     return a
 
 
+@kernel
+def _copy_finite(v, out):
+    """out = v, entry by entry; False when an entry is not finite."""
+    finite = True
+    for i in range(v.shape[0]):
+        out[i] = v[i]
+        finite = finite and math.isfinite(v[i])
+    return finite
+
+
 _FLOAT = np.dtype(float)
 _SHARED: dict[str, tuple[bytes, np.ndarray]] = {}     # field name → (the last checked values' bytes, their copy)
 
@@ -45,7 +57,9 @@ def shared_measurement(v, size: int, field: str) -> np.ndarray:
         hit = _SHARED.get(field)
         if hit is not None and hit[0] == key:
             return hit[1]
-        a = check_measurement(v, size, field)
+        a = np.empty(size)
+        if not _copy_finite(v, a):                # NaN/inf: check_measurement's error names the entries
+            a = check_measurement(v, size, field)
         a.flags.writeable = False
         _SHARED[field] = (key, a)
         return a

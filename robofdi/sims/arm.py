@@ -47,7 +47,7 @@ from robofdi.mjcf import CompiledArm, compile_arm, gear_ratio, payload_point
 from robofdi.models.manipulator import ManipulatorModel, ModelMismatch, sensor_channel_names
 from robofdi.protocols import returns_state
 from robofdi.seeding import stream
-from robofdi.sims import kernels
+from robofdi.sims import capi, kernels
 from robofdi.sims.noise import ChannelNoise
 
 __all__ = ["TorqueRipple", "StribeckFriction", "SensorModel", "ArmSettings", "ArmSimulator", "ArmPlant", "add_point_mass",
@@ -373,6 +373,9 @@ class ArmSimulator:
         self._other_act = np.array([a for a in range(m.nu) if a not in arm_acts], dtype=int)
         self.data = mujoco.MjData(m)
         self._scratch = mujoco.MjData(m)
+        # the C step the compiled control period calls (0: step through the bindings, the same C function)
+        self._mj_step, self._model_at, self._data_at = capi.MJ_STEP, m._address, self.data._address
+        self._sensors_in_tick = type(self).measure is ArmSimulator.measure     # not overridden: read in the kernel
         # the hot path's views of the data (valid as long as self.data lives) and its preallocated buffers
         d = self.data
         self._qpos, self._qvel, self._qfrc, self._ctrl = d.qpos, d.qvel, d.qfrc_applied, d.ctrl
@@ -412,13 +415,11 @@ class ArmSimulator:
         self._r_A = np.zeros((n, k * n))
         self._r_A[np.tile(np.arange(n), k), np.arange(k * n)] = amp.ravel()
         self._r_split = k * n
-        self._r_s, self._r_t, self._r_dot = np.empty(self._r_F.size), np.empty(n), np.zeros(n)
-        self._r_s_fixed = self._r_s[:k * n]               # the sines of the position-dependent terms (A's columns)
+        ripple = {"amp": amp.ravel(), "freq": self._r_F, "phase": self._r_P, "load": c_load, "sines": np.zeros(self._r_F.size)}
         d = self._scratch
         mujoco.mj_resetData(m, d)
         mujoco.mj_forward(m, d)
         self._inertia_ref = np.diag(full_mass_matrix(m, d))[self._dofs].copy()
-        self._set_friction(np.zeros(n))
 
         s = self.sensors
         self._resolution = np.where(slide, s.linear_resolution, s.position_resolution)
@@ -427,6 +428,24 @@ class ArmSimulator:
         self._inv_resolution = 1.0 / np.where(self._resolution > 0, self._resolution, 1.0)
         self._pos_noise = np.where(slide, s.linear_position_noise, s.position_noise)
         self._vel_noise = np.where(slide, s.linear_velocity_noise, s.velocity_noise)
+
+        # one control period's parameters packed for the compiled tick; the attributes below are views of them
+        self._tick_f, self._tick_fo, f = kernels.pack(kernels.TICK_FLOATS, {
+            "lo": self._torque_lo, "hi": self._torque_hi, "inv_gain": self._inv_gain_k, **ripple,
+            "excess": np.zeros(n), "inv_eps": np.zeros(n), "inv_v": 1.0 / self.friction.velocity,
+            "other_ctrl": np.zeros(self._other_act.size), "resolution": self._resolution,
+            "inv_resolution": self._inv_resolution, "pos_noise": self._pos_noise, "vel_noise": self._vel_noise}, float)
+        self._tick_i, self._tick_io, i = kernels.pack(kernels.TICK_INTS, {
+            "qadr": self._qadr, "dofs": self._dofs, "act": self._act, "index": self._r_index,
+            "other_act": self._other_act}, np.int64)
+        self._torque_lo, self._torque_hi, self._inv_gain_k = f["lo"], f["hi"], f["inv_gain"]
+        self._r_amp_k, self._r_F, self._r_P, self._r_load_k, self._r_s = (f[k] for k in ("amp", "freq", "phase", "load", "sines"))
+        self._stribeck, self._stribeck_inv_eps, self._other_ctrl = f["excess"], f["inv_eps"], f["other_ctrl"]
+        self._resolution, self._inv_resolution, self._pos_noise, self._vel_noise = (
+            f[k] for k in ("resolution", "inv_resolution", "pos_noise", "vel_noise"))
+        self._qadr, self._dofs, self._act, self._r_index, self._other_act = (
+            i[k] for k in ("qadr", "dofs", "act", "index", "other_act"))
+        self._set_friction(np.zeros(n))
         self.reset()
 
     # ----------------------------------------------------------------------------------------- configuration
@@ -457,11 +476,11 @@ class ArmSimulator:
         scale = 1.0 + rise
         m.dof_frictionloss[self._dofs] = np.where(rise == 0, self._frictionloss0, self._frictionloss0 * scale)
         m.dof_damping[self._dofs] = np.where(rise == 0, self._damping0, self._damping0 * scale)
-        self._stribeck = self.friction.breakaway * m.dof_frictionloss[self._dofs]
+        self._stribeck[:] = self.friction.breakaway * m.dof_frictionloss[self._dofs]     # views of the tick's
         self._stribeck_eps = self.friction.smoothing_velocity(self._stribeck, self._inertia_ref, self.physics_dt)
+        self._stribeck_inv_eps[:] = 1.0 / self._stribeck_eps                             # parameters: in place
         self._stribeck_on = bool(np.any(self._stribeck > 0))
-        self._stribeck_inv_v, self._stribeck_inv_eps = 1.0 / self.friction.velocity, 1.0 / self._stribeck_eps
-        self._stribeck_inv_eps = np.ascontiguousarray(self._stribeck_inv_eps, dtype=float)
+        self._stribeck_inv_v = 1.0 / self.friction.velocity
 
     # ----------------------------------------------------------------------------------------- protocol
     @property
@@ -516,7 +535,7 @@ class ArmSimulator:
         d.ctrl[self._act] = 0.0
         if self._home_key < 0:
             d.ctrl[self._other_act] = 0.0
-        self._other_ctrl = d.ctrl[self._other_act].copy()
+        self._other_ctrl[:] = d.ctrl[self._other_act]
         mujoco.mj_forward(m, d)
         self.u_applied = np.zeros(n)
         self._pos_draws = ChannelNoise(run, self.sensor_channels[:n]) if np.any(self._pos_noise) else None
@@ -530,37 +549,56 @@ class ArmSimulator:
     def step(self, u: np.ndarray) -> np.ndarray:
         """Apply torques u (n, [N·m or N], saturated) for one control period; return the measurement.
 
-        The hot path runs the compiled kernels of :mod:`robofdi.sims.kernels` on preallocated arrays (the same
-        numbers as :meth:`disturbance` and :meth:`measure`'s NumPy expressions: bit for bit where NumPy's float64
-        ``exp`` is the C library's, to rounding on AVX-512 CPUs, :mod:`robofdi.sims.kernels`)."""
+        One compiled kernel (:func:`robofdi.sims.kernels.control_tick`) does the period: the saturation, every
+        physics sub-step's ripple and Stribeck torques (:meth:`disturbance`'s effects) and MuJoCo's ``mj_step``
+        through its C API, then the sensors (:meth:`measure`'s reading; a subclass that overrides :meth:`measure`
+        gets its own reading)."""
         u = np.asarray(u, dtype=float)
-        tau = np.empty(self.n)
-        if u.shape != (self.n,) or not kernels.apply_torque(u, self._torque_lo, self._torque_hi, self._inv_gain_k,
-                                                            self._act, self._ctrl, tau):
-            raise RobofdiError(f"step: u must be {self.n} finite joint torques for {self.joint_names}, got shape "
-                               f"{u.shape}: {u.tolist()}")
-        m, d = self.model, self.data
+        n = self.n
+        if u.shape != (n,):
+            self._refuse(u)
+        tau, y = np.empty(n), np.empty(2 * n)
+        sensed = self._sensors_in_tick          # else a subclass's own measure() reads the sensors afterwards
+        zq = self._pos_draws.draw() if sensed and self._pos_draws is not None else self._empty
+        zv = self._vel_draws.draw() if sensed and self._vel_draws is not None else self._empty
+        if self._mj_step:
+            status = kernels.control_tick(
+                self._mj_step, self._model_at, self._data_at, self.substeps, self._ripple_on, self._stribeck_on, u,
+                self._tick_f, self._tick_fo, self._tick_i, self._tick_io, self._qpos, self._qvel, self._qfrc,
+                self._ctrl, tau, zq, zv, y)
+        else:
+            status = self._step_through_bindings(u, tau, zq, zv, y)
+        if status == 0:                     # u not finite: the plant is untouched
+            self._refuse(u)
         self.u_applied = tau
-        if self._other_act.size:
-            d.ctrl[self._other_act] = self._other_ctrl
-        ripple_on, stribeck_on = self._ripple_on, self._stribeck_on
-        qpos, qvel, qadr, dofs = self._qpos, self._qvel, self._qadr, self._dofs
-        s, t, dot, A, s_fixed = self._r_s, self._r_t, self._r_dot, self._r_A, self._r_s_fixed
-        step = mujoco.mj_step
+        if status == 2:
+            raise RobofdiError(f"simulation diverged at t={self.data.time:.4f} s: non-finite joint state")
+        return y if sensed else self.measure()
+
+    def _refuse(self, u: np.ndarray):
+        raise RobofdiError(f"step: u must be {self.n} finite joint torques for {self.joint_names}, got shape "
+                           f"{u.shape}: {u.tolist()}")
+
+    def _step_through_bindings(self, u: np.ndarray, tau: np.ndarray, zq: np.ndarray, zv: np.ndarray,
+                               y: np.ndarray) -> int:
+        """:func:`~robofdi.sims.kernels.control_tick` with ``mujoco.mj_step`` between the kernels, for a ``mujoco``
+        whose C library :mod:`robofdi.sims.capi` cannot find: the same C function, the same numbers."""
+        if not kernels.apply_torque(u, self._torque_lo, self._torque_hi, self._inv_gain_k, self._act, self._ctrl, tau):
+            return 0
+        self._ctrl[self._other_act] = self._other_ctrl
+        m, d = self.model, self.data
         for _ in range(self.substeps):
-            if ripple_on or stribeck_on:
-                kernels.ripple_arguments(qpos, qvel, qadr, dofs, self._r_index, self._r_F, self._r_P,
-                                         self._stribeck_inv_eps, s, t)
-                if ripple_on:
-                    np.matmul(A, s_fixed, out=dot)          # NumPy's product: the same sums as A @ s
-                if stribeck_on:
-                    np.tanh(t, out=t)                        # NumPy's tanh (not the C library's: last-bit equal)
-                kernels.disturbance(qvel, dofs, tau, s, self._r_split, self._r_load, dot, ripple_on, self._stribeck,
-                                    self._stribeck_inv_v, t, stribeck_on, self._qfrc)
-            step(m, d)
-        if not (all_finite(qpos) and all_finite(qvel)):
-            raise RobofdiError(f"simulation diverged at t={d.time:.4f} s: non-finite joint state")
-        return self.measure()
+            if self._ripple_on or self._stribeck_on:
+                kernels.physics_forces(self._qpos, self._qvel, self._qadr, self._dofs, tau, self._r_index, self._r_F,
+                                       self._r_P, self._r_amp_k, self._r_load_k, self._r_s, self._ripple_on,
+                                       self._stribeck, self._stribeck_inv_v, self._stribeck_inv_eps, self._stribeck_on,
+                                       self._qfrc)
+            mujoco.mj_step(m, d)
+        if not (all_finite(self._qpos) and all_finite(self._qvel)):
+            return 2
+        kernels.measure(self._qpos, self._qvel, self._qadr, self._dofs, self._resolution, self._inv_resolution,
+                        self._pos_noise, zq, self._vel_noise, zv, y)
+        return 1
 
     def disturbance(self, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
         """δ(q, q̇, τ) [N·m] of eq. (3): torque ripple plus the Stribeck term (the friction torque opposes motion,
