@@ -1,8 +1,9 @@
 """MuJoCo's C API for compiled kernels: ``mj_step`` called from inside a kernel, without a Python call.
 
 :data:`MJ_STEP` is the address of ``mj_step`` in the ``libmujoco`` shared library the ``mujoco`` package ships
-and its bindings load (found in the package's folder and checked against ``mujoco.mj_version()``), or 0 when it
-cannot be found (then the caller steps through the Python bindings: the same C function, the same bits).
+and its bindings have loaded (found in the package's folder, taken only if already loaded where the platform can
+tell, and checked against ``mujoco.mj_version()``), or 0 when it cannot be found (then the caller steps through
+the Python bindings: the same C function, the same bits).
 :func:`mj_step_at` ``(MJ_STEP, model._address, data._address)`` steps once: compiled, it is a direct call of
 the C function (an ``llvmlite`` intrinsic, so the kernel holding it stays cacheable on disk); in the pure-Python
 path (``NUMBA_DISABLE_JIT=1``, :func:`robofdi.jit.interpreted`) it goes through ``ctypes``. The model and data
@@ -15,6 +16,7 @@ which a valid model meets while stepping) cannot become a Python exception on th
 from __future__ import annotations
 
 import ctypes
+import os
 from functools import cache
 from pathlib import Path
 
@@ -28,12 +30,15 @@ _PATTERNS = ("libmujoco.so*", "libmujoco*.dylib", "mujoco*.dll")
 
 
 def _mj_step_address() -> int:
-    """The address of ``mj_step`` in the package's own ``libmujoco`` of the bindings' version, else 0."""
+    """The address of ``mj_step`` in the package's own ``libmujoco`` of the bindings' version, else 0. Where the
+    platform can say so (``RTLD_NOLOAD``), only a library the bindings have already loaded is taken: the very
+    instance whose data they allocate, never a second copy."""
     folder = Path(mujoco.__file__).parent
+    mode = getattr(os, "RTLD_NOLOAD", 0) | getattr(os, "RTLD_LAZY", 0) or ctypes.DEFAULT_MODE
     for pattern in _PATTERNS:
         for path in sorted(folder.glob(pattern)):
             try:
-                lib = ctypes.CDLL(str(path))
+                lib = ctypes.CDLL(str(path), mode=mode)
                 lib.mj_version.restype = ctypes.c_int
                 if lib.mj_version() != mujoco.mj_version():
                     continue
