@@ -83,3 +83,14 @@ def test_step_refuses_non_finite_torques_before_touching_the_plant():
     with pytest.raises(RobofdiError, match="got shape \\(5,\\)"):
         sim.step(np.zeros(5))
     assert np.array_equal(sim.state, x) and sim.time == 0.0
+
+
+def test_a_simulator_refuses_to_be_copied_or_pickled():
+    """Its compiled control period steps its own MjData by address: a copy would step the original's."""
+    import copy
+    import pickle
+
+    sim = ArmSimulator(ARM6)
+    for make in (copy.copy, copy.deepcopy, pickle.dumps):
+        with pytest.raises(RobofdiError, match="cannot be copied or pickled"):
+            make(sim)

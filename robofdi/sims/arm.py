@@ -448,6 +448,12 @@ class ArmSimulator:
         self._set_friction(np.zeros(n))
         self.reset()
 
+    def __reduce_ex__(self, protocol):
+        # the compiled control period steps this simulator's MjData through its address and its views: a copy or
+        # an unpickled simulator would step another process's (or a freed) model
+        raise RobofdiError("ArmSimulator: cannot be copied or pickled (it steps its own MuJoCo data through its "
+                           "address); build another one from the same fields, e.g. ArmPlant.simulator(seed)")
+
     # ----------------------------------------------------------------------------------------- configuration
     def _control_period(self, control_dt) -> tuple[float, int]:
         dt = self.physics_dt
