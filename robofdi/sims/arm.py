@@ -402,10 +402,8 @@ class ArmSimulator:
         amp, freq, phase, c_load, load_freq, load_phase = self.ripple.terms(
             self.torque_limit, self.settings.gear_ratio, self.seed)
         self._ripple_on = bool(np.any(amp) or np.any(c_load))
-        self._r_amp, self._r_freq, self._r_phase = amp, freq, phase
-        self._r_load, self._r_load_freq, self._r_load_phase = c_load, load_freq, load_phase
-        # the same terms fused for the hot path: one sine over every (harmonic, joint), one product with the
-        # amplitudes (A[i, k·n + i] = amp[k, i]), the load-dependent block last
+        # the terms fused: one sine over every (harmonic, joint), the load-dependent block last; the kernel sums
+        # amp[k, i] s[k·n + i] over k, the NumPy form (ripple_torque) takes A s with A[i, k·n + i] = amp[k, i]
         used = np.any(amp != 0.0, axis=1)                 # terms switched off cost nothing
         amp, freq, phase = amp[used], freq[used], phase[used]
         k = amp.shape[0]
@@ -439,7 +437,7 @@ class ArmSimulator:
             "qadr": self._qadr, "dofs": self._dofs, "act": self._act, "index": self._r_index,
             "other_act": self._other_act}, np.int64)
         self._torque_lo, self._torque_hi, self._inv_gain_k = f["lo"], f["hi"], f["inv_gain"]
-        self._r_amp_k, self._r_F, self._r_P, self._r_load_k, self._r_s = (f[k] for k in ("amp", "freq", "phase", "load", "sines"))
+        self._r_amp, self._r_F, self._r_P, self._r_load, self._r_s = (f[k] for k in ("amp", "freq", "phase", "load", "sines"))
         self._stribeck, self._stribeck_inv_eps, self._other_ctrl = f["excess"], f["inv_eps"], f["other_ctrl"]
         self._resolution, self._inv_resolution, self._pos_noise, self._vel_noise = (
             f[k] for k in ("resolution", "inv_resolution", "pos_noise", "vel_noise"))
@@ -596,7 +594,7 @@ class ArmSimulator:
         for _ in range(self.substeps):
             if self._ripple_on or self._stribeck_on:
                 kernels.physics_forces(self._qpos, self._qvel, self._qadr, self._dofs, tau, self._r_index, self._r_F,
-                                       self._r_P, self._r_amp_k, self._r_load_k, self._r_s, self._ripple_on,
+                                       self._r_P, self._r_amp, self._r_load, self._r_s, self._ripple_on,
                                        self._stribeck, self._stribeck_inv_v, self._stribeck_inv_eps, self._stribeck_on,
                                        self._qfrc)
             mujoco.mj_step(m, d)
