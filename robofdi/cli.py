@@ -190,7 +190,7 @@ def _cmd_campaign(args) -> int:
     out = Path(args.out) if args.out else Path("runs") / f"campaign-{Path(spec.source).stem or spec.system}"
     try:
         result = run_campaign(spec, out, workers=args.workers, scheduler=args.scheduler, resume=args.resume,
-                              runs=args.runs, progress=not args.quiet)
+                              runs=args.runs, progress=not args.quiet, batch=args.batch)
     except CampaignInterrupted as exc:
         print(f"robofdi: {exc}", file=sys.stderr)
         return exit_code(exc.signum)
@@ -347,6 +347,9 @@ def build_parser() -> argparse.ArgumentParser:
     camp.add_argument("--out", metavar="DIR", help="campaign folder (default: runs/campaign-<spec name>)")
     camp.add_argument("--resume", action="store_true", help="continue the campaign in DIR, skipping finished runs")
     camp.add_argument("--runs", type=int, metavar="N", help="only the first N runs by index (a prefix of the campaign)")
+    camp.add_argument("--batch", type=int, metavar="N",
+                      help="runs a worker diagnoses in lockstep (default: automatic, at most 32; 1: each run alone); the "
+                           "results are the same")
     camp.add_argument("--quiet", action="store_true", help=QUIET_HELP)
     camp.set_defaults(func=_cmd_campaign)
     return p

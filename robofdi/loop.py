@@ -214,18 +214,24 @@ class DiagnosisRunner:
     def sample(self, t: float, y: np.ndarray, u: np.ndarray) -> None:
         """One diagnosis sample at time t: y measured now, u the ū of the interval that just ended (the diagnoser
         is handed this very array) — what :meth:`push` does on a diagnosis tick, once ū is formed."""
-        diagnosis = self.diagnosis
-        res = diagnosis.diagnoser.update(y, u)
-        decision = diagnosis.decision
+        res = self.diagnosis.diagnoser.update(y, u)
+        self.decide(t, res.r, res.estimate)
+
+    def decide(self, t: float, r: np.ndarray, estimate: np.ndarray) -> None:
+        """The rest of a diagnosis sample at time t once the diagnoser gave its residual ``r`` and identification
+        candidates ``estimate``: the decision, the identification, the trace rows and the health — what
+        :meth:`sample` does after the diagnoser's update (the lockstep engine, :mod:`robofdi.lockstep`, hands
+        residuals it computed for many runs at once)."""
+        decision = self.diagnosis.decision
         if decision is not None:
-            alarms = decision.update(res.r)
+            alarms = decision.update(r)
             alarm, isolated = alarms.alarm, alarms.isolated
         else:
-            alarm, isolated = np.zeros(res.r.size, dtype=bool), ()
-        estimate = self.identification.update(res.estimate, isolated)
+            alarm, isolated = np.zeros(r.size, dtype=bool), ()
+        estimate = self.identification.update(estimate, isolated)
         add_time, add_residual, add_alarm, add_isolated, add_estimate = self._add
         add_time(t)
-        add_residual(res.r)
+        add_residual(r)
         add_alarm(alarm)
         if isolated != self._isolated:
             self._isolated, self._joined = isolated, "+".join(isolated)
@@ -615,6 +621,7 @@ class ClosedLoop:
         scenario: str = "",
         meta: dict | None = None,
         progress=None,
+        diagnose: bool = True,
     ) -> Record:
         """Simulate ``duration`` seconds from ``initial_state`` (None: the plant's default); return the record.
 
@@ -622,8 +629,16 @@ class ClosedLoop:
         the sensors' noise (``stream(seed, run_key, "sensors")``) and each fault (``stream(seed, run_key,
         "faults")``). Runs with different ``run_key`` (e.g. calibration runs and test runs) never share noise.
         If anything fails part-way, :class:`RunAborted` carries the record of what was done so far.
+
+        ``diagnose=False``: the diagnoses are not stepped (the record's ``diagnosers`` is empty), for diagnosing
+        the record afterwards (:func:`robofdi.lockstep.diagnose_lockstep`, many runs at once): the same series,
+        since nothing in the loop reads a diagnosis unless an accommodation follows one (refused here).
         """
-        return self._simulate(duration, initial_state, seed, run_key, scenario, meta, progress, None, CHUNK)
+        if not diagnose and self.accommodation is not None and self.health_source not in (None, ORACLE):
+            raise RobofdiError(f"run: field 'diagnose' must be True when the accommodation follows the diagnosis "
+                               f"{self.health_source!r} (its health feeds back into the loop)")
+        return self._simulate(duration, initial_state, seed, run_key, scenario, meta, progress, None, CHUNK,
+                              diagnose)
 
     def run_to_file(
         self,
@@ -650,7 +665,7 @@ class ClosedLoop:
             raise RobofdiError(f"run_to_file: field 'chunk' must be an integer >= 1 (control ticks), got {chunk!r}")
         return self._simulate(duration, initial_state, seed, run_key, scenario, meta, progress, Path(path), int(chunk))
 
-    def _simulate(self, duration, initial_state, seed, run_key, scenario, meta, progress, path, chunk):
+    def _simulate(self, duration, initial_state, seed, run_key, scenario, meta, progress, path, chunk, diagnose=True):
         if not (np.isfinite(duration) and duration > 0):
             raise RobofdiError(f"run: field 'duration' must be > 0 s, got {duration}")
         sim, rates = self.simulator, self.rates
@@ -658,7 +673,8 @@ class ClosedLoop:
         steps = int(round(duration / dt))
         inj = self._injector(stream(seed, run_key))
         oracle = self.health_source == ORACLE
-        bank = DiagnosisBank(self.diagnoses, rates, None if oracle else self.health_source, chunk)
+        bank = DiagnosisBank(self.diagnoses if diagnose else {}, rates, None if oracle or not diagnose else self.health_source,
+                             chunk)
         accommodation = self.accommodation
         if hasattr(self.controller, "reset"):     # stateful parts start every run afresh
             self.controller.reset()

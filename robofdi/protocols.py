@@ -213,10 +213,12 @@ class Parts:
     def accommodation(self) -> Any:
         return getattr(self.loop, "accommodation", None)
 
-    def run(self, progress=None) -> Any:
-        """Simulate the run → :class:`robofdi.record.Record` (``progress``: called with the ticks done)."""
+    def run(self, progress=None, diagnose: bool = True) -> Any:
+        """Simulate the run → :class:`robofdi.record.Record` (``progress``: called with the ticks done;
+        ``diagnose=False``: without stepping the diagnoses, :meth:`robofdi.loop.ClosedLoop.run`)."""
         return self.loop.run(self.duration, self.initial_state, seed=self.seed, run_key=self.run_key,
-                             scenario=self.scenario, meta=dict(self.meta or {}), progress=progress)
+                             scenario=self.scenario, meta=dict(self.meta or {}), progress=progress,
+                             **({} if diagnose else {"diagnose": False}))
 
 
 @runtime_checkable

@@ -17,7 +17,7 @@ from pathlib import Path
 import pandas as pd
 
 from robofdi.campaign.backends import backend
-from robofdi.campaign.runs import COLUMNS, execute_run
+from robofdi.campaign.runs import COLUMNS, execute_batch
 from robofdi.campaign.spec import CampaignSpec, load_spec
 from robofdi.errors import RobofdiError
 from robofdi.interrupts import signal_of, stop_on_signals
@@ -128,14 +128,34 @@ class _Session:
                 "units": {"run_phase_wall_time": "s", "runs_per_minute": "runs/min", "seconds": "s"}}
 
 
+#: Most runs a worker diagnoses in lockstep (:func:`batches`): beyond it the gain levels off and more is lost
+#: when a worker stops mid-batch.
+MAX_BATCH = 32
+
+
+def batches(todo: list[int], workers: int, batch: int | None = None) -> list[list[int]]:
+    """``todo`` cut into consecutive batches, each run by one worker in lockstep
+    (:func:`robofdi.campaign.runs.execute_batch`). ``batch``: runs per batch (1: every run alone); None: one batch per
+    worker when it alone runs them all, else about four per worker, so that the workers finish together — at most
+    :data:`MAX_BATCH` either way."""
+    if batch is None:
+        batch = min(MAX_BATCH, max(1, -(-len(todo) // (1 if workers == 1 else 4 * workers))))
+    elif isinstance(batch, bool) or not isinstance(batch, int) or batch < 1:
+        raise RobofdiError(f"--batch: expected an integer >= 1 (runs diagnosed in lockstep), got {batch!r}")
+    return [todo[i:i + batch] for i in range(0, len(todo), batch)]
+
+
 def run_campaign(spec, out: str | Path, *, workers: int | None = None, scheduler: str | None = None,
-                 resume: bool = False, runs: int | None = None, progress: bool = True, report: bool = True):
+                 resume: bool = False, runs: int | None = None, progress: bool = True, report: bool = True,
+                 batch: int | None = None):
     """Run (or resume) a campaign into folder ``out`` and analyse it; returns a
     :class:`robofdi.campaign.CampaignResult`.
 
     spec: a path, a shipped spec name, TOML text, a dict or a CampaignSpec. workers: local processes (default: the
     cores available; 1 = this process); scheduler: a Dask scheduler address instead. runs: only the first ``runs``
-    run indices (a prefix of the full campaign). Everything is checked (spec, scheduler, folder) before any run.
+    run indices (a prefix of the full campaign). batch: runs a worker diagnoses in lockstep (:func:`batches`; the
+    results are the same whatever it is; a run is journaled when its batch ends). Everything is checked (spec,
+    scheduler, folder, batch) before any run.
     """
     from robofdi.campaign.results import CampaignResult, write_outputs
     from robofdi.progress import Progress
@@ -155,6 +175,12 @@ def run_campaign(spec, out: str | Path, *, workers: int | None = None, scheduler
             pool.client.close()
         raise
     todo = [i for i in range(total) if i not in journal]
+    try:
+        tasks = batches(todo, pool.workers, batch)
+    except BaseException:
+        if hasattr(pool, "client"):
+            pool.client.close()
+        raise
     session = _Session(pool.description, pool.workers)
     try:
         with stop_on_signals(), pool:
@@ -176,14 +202,15 @@ def run_campaign(spec, out: str | Path, *, workers: int | None = None, scheduler
             errors = 0
             with (out / JOURNAL).open("a") as fh, bars.stage("runs", total, unit="run",
                                                              initial=total - len(todo)) as bar:
-                for entry in pool.map_unordered(execute_run, [(spec, i, calibrations, str(out)) for i in todo]):
-                    fh.write(json.dumps(entry, allow_nan=True) + "\n")
+                for entries in pool.map_unordered(execute_batch, [(spec, b, calibrations, str(out)) for b in tasks]):
+                    for entry in entries:
+                        fh.write(json.dumps(entry, allow_nan=True) + "\n")
+                        journal[entry["index"]] = entry
+                        session.runs += 1
+                        errors += entry["rows"][0].get("error") is not None if entry["rows"] else 0
                     fh.flush()
                     os.fsync(fh.fileno())
-                    journal[entry["index"]] = entry
-                    session.runs += 1
-                    errors += entry["rows"][0].get("error") is not None if entry["rows"] else 0
-                    bar(1)
+                    bar(len(entries))
                     if errors:
                         bar.set_postfix(errors=errors)
             session.seconds = time.perf_counter() - start

@@ -19,7 +19,7 @@ from robofdi.faults import Fault
 from robofdi.faults.profiles import profile_from_dict
 from robofdi.seeding import rng, stream
 
-__all__ = ["run_seed", "faulty_indices", "draw_fault", "execute_run", "COLUMNS", "UNITS"]
+__all__ = ["run_seed", "faulty_indices", "draw_fault", "execute_run", "execute_batch", "COLUMNS", "UNITS"]
 
 #: Columns of the results table (one row per run × diagnoser × fault; fault-free runs: one row per diagnoser).
 COLUMNS = ("index", "run_seed", "robot_seed", "faulty", "diagnoser", "fault", "kind", "target", "profile", "magnitude",
@@ -32,7 +32,8 @@ UNITS = {"magnitude": "column 'unit'", "limit": "column 'unit'", "size": "fracti
          "time_to_correct_isolation": "s (first time the true target is isolated, after detection)",
          "estimate_error": "column 'unit' (RMSE of the estimate after correct isolation)",
          "false_alarms": "alarm episodes starting while no fault is active", "first_false_alarm_time": "s",
-         "wall_time": "s (the run's wall-clock time on its worker)",
+         "wall_time": "s (the run's wall-clock time on its worker; in a lockstep batch, its simulation plus its share "
+                      "of the batch's diagnosis)",
          "isolable": "whether the diagnoser can name the fault's target at all (one of its residual components or "
                      "identified faults): a mass fault on a link no diagnoser names is not isolable"}
 
@@ -116,6 +117,39 @@ def _rows(spec, index, seed, key, fault, info, record, mission) -> list[dict]:
     return rows
 
 
+def _error(exc: BaseException) -> str:
+    """A failed run's ``error``: the exception's type and one-line message, and where it was raised."""
+    error = f"{type(exc).__name__}: {' '.join(str(exc).split())}"
+    frame = traceback.extract_tb(exc.__traceback__)[-1]
+    return error + f" ({Path(frame.filename).name}:{frame.lineno})"
+
+
+def _draw(spec: CampaignSpec, index: int) -> tuple:
+    """Run ``index``'s calibration key, seed, mission and fault (with its limit info; None, None fault-free)."""
+    system = spec.campaign_system
+    keys = system.calibration_keys(spec.options)
+    key = keys[index % len(keys)]
+    seed = run_seed(spec.seed, index)
+    mission = system.mission(spec.options, key, rng(seed, "mission"))
+    fault, info = draw_fault(spec, seed, mission.duration) if faulty_indices(spec)[index] else (None, None)
+    return key, seed, mission, fault, info
+
+
+def _save(spec: CampaignSpec, index: int, record, out: str | None) -> None:
+    if spec.records and out is not None:
+        folder = Path(out) / "records"
+        folder.mkdir(parents=True, exist_ok=True)
+        record.save(folder / f"run-{index:06d}.h5")
+
+
+def _entry(spec, index, seed, key, fault, info, record, mission, error) -> dict:
+    """The run's journal entry (its ``wall_time`` set by :func:`_timed`)."""
+    rows = _rows(spec, index, seed, key, fault, info, record, mission)
+    for r in rows:
+        r["wall_time"], r["error"] = None, error
+    return {"index": index, "rows": rows, "wall_time": None}
+
+
 def execute_run(spec: CampaignSpec, index: int, calibrations: dict, out: str | None = None) -> dict:
     """Run ``index`` of the campaign; never raises: a failure becomes rows with its ``error`` message.
     Returns {"index", "rows", "wall_time"}. ``out``: the campaign folder, where ``records/`` goes if asked."""
@@ -124,31 +158,83 @@ def execute_run(spec: CampaignSpec, index: int, calibrations: dict, out: str | N
     keys = system.calibration_keys(spec.options)
     key = keys[index % len(keys)]
     seed = run_seed(spec.seed, index)
-    faulty = bool(faulty_indices(spec)[index])
     fault = info = mission = record = None
     error = None
     try:
         mission = system.mission(spec.options, key, rng(seed, "mission"))
-        if faulty:
+        if faulty_indices(spec)[index]:
             fault, info = draw_fault(spec, seed, mission.duration)
         record = system.run(spec.options, calibrations[key], key, mission, [] if fault is None else [fault], seed,
                             spec.diagnosers)
-        if spec.records and out is not None:
-            folder = Path(out) / "records"
-            folder.mkdir(parents=True, exist_ok=True)
-            record.save(folder / f"run-{index:06d}.h5")
+        _save(spec, index, record, out)
     except Exception as exc:          # a failing run is an error row; the campaign goes on
-        error = f"{type(exc).__name__}: {' '.join(str(exc).split())}"
-        frame = traceback.extract_tb(exc.__traceback__)[-1]
-        error += f" ({Path(frame.filename).name}:{frame.lineno})"
-        record = None
+        error, record = _error(exc), None
     if mission is None:
         from robofdi.protocols import Mission
 
         mission = Mission(float("nan"), None)
-    rows = _rows(spec, index, seed, key, fault, info, record, mission)
-    wall = time.perf_counter() - start
-    for r in rows:
+    entry = _entry(spec, index, seed, key, fault, info, record, mission, error)
+    return _timed(entry, time.perf_counter() - start)
+
+
+def _timed(entry: dict, wall: float) -> dict:
+    """``entry`` with its run's wall-clock time [s] (in every row too)."""
+    entry["wall_time"] = wall
+    for r in entry["rows"]:
         r["wall_time"] = wall
-        r["error"] = error
-    return {"index": index, "rows": rows, "wall_time": wall}
+    return entry
+
+
+def execute_batch(spec: CampaignSpec, indices, calibrations: dict, out: str | None = None) -> list[dict]:
+    """Runs ``indices`` of the campaign in this worker, each entry the one :func:`execute_run` gives (its
+    ``wall_time`` aside): every run is simulated without stepping its diagnoses, then all are diagnosed in lockstep
+    (:func:`robofdi.lockstep.diagnose_lockstep`: each diagnoser once per sample for the whole batch). A run's
+    ``wall_time`` is then its simulation plus its share of the batch's diagnosis and rows. A run that cannot be
+    (its loop's accommodation follows a diagnosis, its diagnosis rates differ from the batch's) or whose simulation
+    fails is run alone (:func:`execute_run`), and so is the whole batch if its lockstep diagnosis fails: the same
+    rows, errors included."""
+    from robofdi.lockstep import diagnose_lockstep
+    from robofdi.loop import ORACLE, ClosedLoop
+
+    indices = list(indices)
+    system = spec.campaign_system
+    if len(indices) < 2:
+        return [execute_run(spec, i, calibrations, out) for i in indices]
+    entries, staged, rates = {}, [], None
+    for index in indices:
+        start = time.perf_counter()
+        try:
+            key, seed, mission, fault, info = _draw(spec, index)
+            parts = system.build(spec.options, calibrations[key], key, mission, [] if fault is None else [fault], seed,
+                                 spec.diagnosers)
+            loop = parts.loop
+            alone = (not isinstance(loop, ClosedLoop) or not loop.diagnoses
+                     or (loop.accommodation is not None and loop.health_source not in (None, ORACLE))
+                     or (rates is not None and loop.rates != rates))
+            if not alone:
+                rates = loop.rates
+                staged.append((index, key, seed, mission, fault, info, parts, parts.run(diagnose=False),
+                               time.perf_counter() - start))
+                continue
+        except Exception:              # alone, where its error row is made
+            pass
+        entries[index] = execute_run(spec, index, calibrations, out)
+    start = time.perf_counter()
+    try:
+        traces = diagnose_lockstep([s[7] for s in staged], [s[6].diagnoses for s in staged], rates)
+    except Exception:                  # e.g. a non-finite measurement: every run alone, each with its own outcome
+        for s in staged:
+            entries[s[0]] = execute_run(spec, s[0], calibrations, out)
+        traces, staged = [], []
+    for (index, key, seed, mission, fault, info, _, record, _), trace in zip(staged, traces):
+        record.diagnosers = trace
+        try:
+            _save(spec, index, record, out)
+        except Exception as exc:
+            entries[index] = _entry(spec, index, seed, key, fault, info, None, mission, _error(exc))
+            continue
+        entries[index] = _entry(spec, index, seed, key, fault, info, record, mission, None)
+    share = (time.perf_counter() - start) / max(len(staged), 1)
+    for s in staged:
+        _timed(entries[s[0]], s[8] + share)
+    return [entries[i] for i in indices]

@@ -308,6 +308,44 @@ def _output_rows(r_model, m_f, r, m_r, T, torque, estimate, out):
             out[n + i] = m_r[i] / T
 
 
+# Batch forms of the kernels above (robofdi.lockstep): each on every run's rows, one call a sample for all runs.
+@kernel
+def _backward_state_each(Y, Y_prev, T, Z):
+    """Eq. (43) per run: _backward_state."""
+    n = Y.shape[1] // 2
+    for i in range(Z.shape[0]):
+        _backward_state(Y[i, :n], Y_prev[i, :n], T, Z[i])
+
+
+@kernel
+def _ripple_terms_each(theta, X, U, inv_scale, G, eta):
+    """Eq. (50) per run: _ripple_terms."""
+    n = U.shape[1]
+    for i in range(G.shape[0]):
+        _ripple_terms(theta[i], X[i, :n], U[i], inv_scale[i], G[i], eta[i])
+
+
+@kernel
+def _observer_step_each(X, X_prev, X_hat, E_prev, acc, acc_hat, measured, eta, T, gains, rows):
+    """Eqs. (20), (23)–(26) per run: _observer_step."""
+    for i in range(rows.shape[0]):
+        _observer_step(X[i], X_prev[i], X_hat[i], E_prev[i], acc[i], acc_hat[i], measured, eta[i], T, gains, rows[i])
+
+
+@kernel
+def _adaptive_step_each(theta, G, gg, r, q, step, out):
+    """Eqs. (37)–(39) per run: _adaptive_step."""
+    for i in range(out.shape[0]):
+        _adaptive_step(theta[i], G[i], gg[i], r[i], q, step, out[i])
+
+
+@kernel
+def _output_rows_each(r_model, m_f, r, m_r, T, torque, estimate, out):
+    """The residual and estimate rows per run: _output_rows."""
+    for i in range(out.shape[0]):
+        _output_rows(r_model[i], m_f[i], r[i], m_r[i], T, torque, estimate[i], out[i])
+
+
 # ----------------------------------------------------------------------------------------------------------
 class DiagnosticObserver:
     """x̂(k+1) = A x̂ + h(x̄) + B(x̄) ū + K_o e + η̂ with K_o = [[K1, T I], [0, K2]] — eqs. (23)–(27).

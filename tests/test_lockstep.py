@@ -1,0 +1,159 @@
+"""Lockstep diagnosis (robofdi.lockstep): many runs' diagnoses stepped together give every run the traces and the
+campaign rows it gets alone, bit for bit. Real MuJoCo arm runs with the book schemes and the momentum observer,
+faults injected online, runs of different lengths."""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from robofdi import RobofdiError
+from robofdi.campaign import load_spec, run_campaign
+from robofdi.campaign.engine import MAX_BATCH, _calibrate, batches
+from robofdi.campaign.runs import _draw
+from robofdi.lockstep import diagnose_lockstep, diagnoser_view
+from robofdi.loop import InputHold, Rates, diagnose_record
+from robofdi.record import load
+
+SPEC = """
+seed = 11
+fault_free_runs = 2
+faulty_runs = 3
+diagnosers = ["simple", "time_delayed", "recursive", "adaptive", "position_only", "momentum"]
+records = true
+
+[system]
+name = "arm"
+speed = "fast"
+tail = 0.2
+
+[[faults]]
+kind = "actuator_additive"
+magnitude_fraction = [0.1, 0.3]
+onset_fraction = [0.2, 0.4]
+
+[[faults]]
+kind = "sensor_bias"
+targets = ["joint*_pos"]
+magnitude_fraction = [0.002, 0.01]
+onset_fraction = [0.2, 0.4]
+"""
+
+
+@pytest.fixture(scope="module")
+def built():
+    """Five campaign runs (two fault-free, three faulty; different random motions, so different lengths) built twice:
+    once run with their diagnoses online, once simulated without them (``diagnose=False``)."""
+    spec = load_spec(SPEC)
+    system = spec.campaign_system
+    _, cal, _, _ = _calibrate(spec, 0)
+    online, plants = [], []
+    for index in range(spec.runs):
+        key, seed, mission, fault, _ = _draw(spec, index)
+        faults = [] if fault is None else [fault]
+        online.append(system.build(spec.options, cal, key, mission, faults, seed, spec.diagnosers).run())
+        parts = system.build(spec.options, cal, key, mission, faults, seed, spec.diagnosers)
+        plants.append((parts, parts.run(diagnose=False)))
+    return spec, online, plants
+
+
+def _fresh(spec, index: int) -> dict:
+    """Fresh diagnoses of run ``index`` (its robot instance's nominal model and calibrated decisions)."""
+    key, seed, mission, fault, _ = _draw(spec, index)
+    cal = _calibrate(spec, key)[1]
+    return spec.campaign_system.build(spec.options, cal, key, mission, [] if fault is None else [fault], seed,
+                                      spec.diagnosers).diagnoses
+
+
+def _assert_same_traces(a: dict, b: dict) -> None:
+    assert list(a) == list(b)
+    for name in a:
+        for field in ("time", "residual", "threshold", "alarm", "estimate"):
+            assert np.array_equal(getattr(a[name], field), getattr(b[name], field)), (name, field)
+        assert list(a[name].isolated) == list(b[name].isolated), name
+
+
+@pytest.mark.parametrize("forms", ["batch forms", "run by run"])
+def test_lockstep_traces_are_each_runs_online_traces_bit_for_bit(built, forms, monkeypatch):
+    spec, online, plants = built
+    if forms == "run by run":           # the engine's other path: every diagnoser stepped run by run
+        monkeypatch.setattr("robofdi.lockstep.observers.batch_form", lambda diagnosers: None)
+    records = [record for _, record in plants]
+    assert len({len(r.time) for r in records}) > 1          # runs of different lengths: the batch shrinks
+    assert all(r.diagnosers == {} for r in records)
+    traces = diagnose_lockstep(records, [_fresh(spec, i) for i in range(len(records))], plants[0][0].loop.rates)
+    for alone, record, trace in zip(online, records, traces):
+        # the plant never saw the diagnoses: the same series with and without them in the loop
+        assert np.array_equal(alone.truth_state, record.truth_state)
+        assert np.array_equal(alone.signals["y_meas"], record.signals["y_meas"])
+        _assert_same_traces(alone.diagnosers, trace)
+    # the faulty runs are diagnosed: something alarms after the onset (not a trivially quiet comparison)
+    assert any(trace[name].alarm.any() for trace in traces for name in trace)
+
+
+def test_diagnoser_view_is_what_a_runner_is_handed(built):
+    """y at every ratio-th tick and ū as the loop's input hold forms it, tick by tick (mean and first)."""
+    _, _, plants = built
+    record = plants[2][1]
+    for hold in ("mean", "first"):
+        rates = Rates(1000.0, 250.0, hold)
+        times, y, u = diagnoser_view(record, rates)
+        held, k = InputHold(rates), 0
+        for j, t in enumerate(record.time):
+            u_bar = held.add(j, record.signals["u_diag"][j - 1] if j else np.zeros(u.shape[1]))
+            if u_bar is not None:
+                assert times[k] == t and np.array_equal(y[k], record.signals["y_meas"][j]) and np.array_equal(u[k], u_bar)
+                k += 1
+        assert k == len(times) == len(y) == len(u)
+
+
+def test_a_non_finite_measurement_raises(built):
+    _, _, plants = built
+    parts, record = plants[0]
+    record.signals["y_meas"] = record.signals["y_meas"].copy()
+    record.signals["y_meas"][40, 2] = np.nan
+    fresh = [_fresh(load_spec(SPEC), i) for i in range(2)]
+    with pytest.raises(RobofdiError, match="non-finite|finite"):
+        diagnose_lockstep([record, plants[1][1]], fresh, parts.loop.rates)
+
+
+def test_campaign_rows_and_records_are_the_same_in_lockstep_and_alone(tmp_path):
+    spec = load_spec(SPEC)
+    lock = run_campaign(spec, tmp_path / "lock", workers=1, progress=False, batch=5, report=False)
+    alone = run_campaign(spec, tmp_path / "alone", workers=1, progress=False, batch=1, report=False)
+    pd.testing.assert_frame_equal(lock.table.drop(columns="wall_time"), alone.table.drop(columns="wall_time"))
+    assert lock.table["error"].isna().all() and lock.table["detected"].fillna(False).any()
+    for index in range(spec.runs):
+        a, b = (load(tmp_path / k / "records" / f"run-{index:06d}.h5") for k in ("lock", "alone"))
+        _assert_same_traces(a.diagnosers, b.diagnosers)
+        assert np.array_equal(a.truth_state, b.truth_state)
+
+
+def test_batches_cut_the_runs_and_refuse_a_bad_size():
+    todo = list(range(100))
+    assert batches(todo, 1) == [todo[i:i + MAX_BATCH] for i in range(0, 100, MAX_BATCH)]
+    assert [len(b) for b in batches(todo, 2)] == [13] * 7 + [9]          # about four per worker
+    assert batches(todo[:5], 1) == [todo[:5]] and batches(todo, 1, 1) == [[i] for i in todo]
+    for bad in (0, -1, 2.5, True):
+        with pytest.raises(RobofdiError, match="--batch: expected an integer >= 1"):
+            batches(todo, 1, bad)
+
+
+def test_run_without_diagnoses_is_refused_when_the_accommodation_follows_one(ch3):
+    from dataclasses import replace
+
+    from robofdi.systems.arm import parts
+
+    sc, cal = ch3
+    loop = parts(replace(sc, accommodation="compensation", health_source="adaptive"), cal).loop
+    with pytest.raises(RobofdiError, match="field 'diagnose' must be True"):
+        loop.run(0.01, diagnose=False)
+
+
+def test_lockstep_of_one_run_is_diagnose_record(built):
+    """One run through the engine is :func:`robofdi.loop.diagnose_record`'s replay of it (the offline path)."""
+    spec, _, plants = built
+    parts, record = plants[1]
+    (trace,) = diagnose_lockstep([record], [_fresh(spec, 1)], parts.loop.rates)
+    for name, diagnosis in _fresh(spec, 1).items():
+        _assert_same_traces({name: diagnose_record(record, diagnosis, parts.loop.rates)}, {name: trace[name]})
