@@ -11,7 +11,9 @@ from robofdi import RobofdiError
 from robofdi.campaign import load_spec, run_campaign
 from robofdi.campaign.engine import MAX_BATCH, _calibrate, batches
 from robofdi.campaign.runs import _draw
+from robofdi.decision import Signature, ThresholdDecision
 from robofdi.lockstep import diagnose_lockstep, diagnoser_view
+from robofdi.lockstep.engine import _ArrayDiagnoses
 from robofdi.loop import InputHold, Rates, diagnose_record
 from robofdi.record import load
 
@@ -73,11 +75,13 @@ def _assert_same_traces(a: dict, b: dict) -> None:
         assert list(a[name].isolated) == list(b[name].isolated), name
 
 
-@pytest.mark.parametrize("forms", ["batch forms", "run by run"])
+@pytest.mark.parametrize("forms", ["batch forms", "run by run", "runners"])
 def test_lockstep_traces_are_each_runs_online_traces_bit_for_bit(built, forms, monkeypatch):
     spec, online, plants = built
-    if forms == "run by run":           # the engine's other path: every diagnoser stepped run by run
+    if forms != "batch forms":          # the engine's other paths: every diagnoser stepped run by run …
         monkeypatch.setattr("robofdi.lockstep.observers.batch_form", lambda diagnosers: None)
+    if forms == "runners":              # … and every decision by its run's runner, sample by sample
+        monkeypatch.setattr(_ArrayDiagnoses, "fits", staticmethod(lambda diagnoses: False))
     records = [record for _, record in plants]
     assert len({len(r.time) for r in records}) > 1          # runs of different lengths: the batch shrinks
     assert all(r.diagnosers == {} for r in records)
@@ -157,3 +161,39 @@ def test_lockstep_of_one_run_is_diagnose_record(built):
     (trace,) = diagnose_lockstep([record], [_fresh(spec, 1)], parts.loop.rates)
     for name, diagnosis in _fresh(spec, 1).items():
         _assert_same_traces({name: diagnose_record(record, diagnosis, parts.loop.rates)}, {name: trace[name]})
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_skipping_quiet_samples_is_updating_on_them(seed):
+    """A decision told its quiet samples in bulk (:meth:`ThresholdDecision.skip`) and updated only where a residual
+    crosses its threshold or a confirmation window is open answers and ends as one updated every sample: bursts of
+    alarms with confirmation, revision (release) and overturn, through the start-up blanking."""
+    rng = np.random.default_rng(seed)
+    components = ["j1", "j2", "j1_kin", "j2_kin", "j1_step"]
+    signatures = [Signature("j1", frozenset({"j1"})), Signature("j2", frozenset({"j2"})),
+                  Signature("j1_pos", frozenset({"j1_kin"}), frozenset({"j1", "j2"})),
+                  Signature("j1_vel", frozenset({"j1_kin", "j1_step"}), frozenset({"j1", "j2"})),
+                  Signature("j2_pos", frozenset({"j2_kin"}), frozenset({"j1", "j2"}))]
+    settings = dict(blanking=int(rng.integers(0, 6)), confirm=int(rng.integers(0, 4)), release=int(rng.integers(0, 30)),
+                    overturn=int(rng.integers(0, 4)))
+    every, lazily = (ThresholdDecision(components, np.ones(5), signatures, **settings) for _ in range(2))
+    residuals = rng.normal(0, 0.3, (600, 5))
+    for start in rng.integers(0, 580, 8):                     # alarm bursts on random components
+        residuals[start:start + rng.integers(1, 20), rng.integers(0, 5, rng.integers(1, 3))] += rng.uniform(1, 3)
+    skipped, isolated = 0, []
+    for r in residuals:
+        counts = (every._samples, every._since_alarm)
+        alarms = every.update(r)
+        if np.max(np.abs(r)) <= 1.0 and lazily.settled:
+            skipped += 1
+            assert not alarms.alarm.any() and alarms.isolated == tuple(lazily._isolated)
+            continue
+        lazily.skip(skipped)
+        skipped = 0
+        assert (lazily._samples, lazily._since_alarm) == counts
+        other = lazily.update(r)
+        assert np.array_equal(alarms.alarm, other.alarm) and alarms.isolated == other.isolated and alarms.new == other.new
+        isolated.append(other.isolated)
+    lazily.skip(skipped)
+    assert (lazily._samples, lazily._since_alarm, lazily._isolated) == (every._samples, every._since_alarm, every._isolated)
+    assert any(isolated)                                     # the bursts did alarm and isolate

@@ -53,6 +53,11 @@ class Identification:
         self._on = np.zeros(len(self.components), dtype=bool)
         self._any = False           # some entry is on (a Python flag: no array reduction per sample)
 
+    @property
+    def active(self) -> bool:
+        """Some entry is on (an isolated fault named one): before that, :meth:`update` gives zeros."""
+        return self._any
+
     def update(self, candidates: np.ndarray, isolated: Sequence[str]) -> np.ndarray:
         for name in isolated:
             i = self._index.get(name)

@@ -36,6 +36,13 @@ def _peak_ratio(r, threshold):
     return peak
 
 
+@kernel
+def _peak_ratio_each(R, thresholds, peaks):
+    """:func:`_peak_ratio` of every run's row (R and thresholds (a, m)) into ``peaks`` (a,) (robofdi.lockstep)."""
+    for i in range(peaks.shape[0]):
+        peaks[i] = _peak_ratio(R[i], thresholds[i])
+
+
 def _component_set(value: Iterable[str], name: str) -> frozenset[str]:
     if isinstance(value, str):
         raise RobofdiError(f"{name}: expected a set of component names, got the single string {value!r}")
@@ -200,6 +207,21 @@ class ThresholdDecision:
         self._refining = {}         # samples in a row each refining hypothesis's rows all alarmed (overturn)
         self._refined_at = -1       # the sample those counts were last made at
         self._shape = (len(self.components),)
+
+    @property
+    def settled(self) -> bool:
+        """No confirmation window is open: a sample without alarm is then quiet (:meth:`skip`)."""
+        return self._window is None
+
+    def skip(self, samples: int) -> None:
+        """Account for ``samples`` quiet samples at once — samples that raised no alarm (or fell in the start-up
+        blanking) while :attr:`settled`, with ``latch``: the counts :meth:`update` keeps for them, which is all
+        it changes there (its answer is :meth:`_quiet`'s, the isolation unchanged). The lockstep engine
+        (:mod:`robofdi.lockstep`) tests many runs' samples at once and updates a run only when it alarms."""
+        if samples:
+            start = self._samples
+            self._samples += samples
+            self._since_alarm += self._samples - max(start, min(self._samples, self.blanking))
 
     def _quiet(self) -> Alarms:
         """The decision at a sample without alarm and without an open confirmation window: nothing new, the
