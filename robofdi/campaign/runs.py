@@ -192,13 +192,17 @@ def execute_batch(spec: CampaignSpec, indices, calibrations: dict, out: str | No
     ``wall_time`` is then its simulation plus its share of the batch's diagnosis and rows. A run that cannot be
     (its loop's accommodation follows a diagnosis, its diagnosis rates differ from the batch's) or whose simulation
     fails is run alone (:func:`execute_run`), and so is the whole batch if its lockstep diagnosis fails: the same
-    rows, errors included."""
+    rows, errors included. A system whose ``run`` is its own (not ``build(...).run()``, as
+    :class:`robofdi.systems.RobotInstances` runs) runs every run alone."""
     from robofdi.lockstep import diagnose_lockstep
     from robofdi.loop import ORACLE, ClosedLoop
 
+    from robofdi.systems import RobotInstances
+
     indices = list(indices)
     system = spec.campaign_system
-    if len(indices) < 2:
+    if len(indices) < 2 or getattr(type(system), "run", None) is not RobotInstances.run:
+        # lockstep needs a run that is its built parts' run (RobotInstances.run); a system's own run may do more
         return [execute_run(spec, i, calibrations, out) for i in indices]
     entries, staged, rates = {}, [], None
     for index in indices:
