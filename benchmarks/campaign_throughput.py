@@ -10,7 +10,8 @@ depend on the machine and on what else runs on it: on shared cores the scaling r
 
 The last line, ``campaign/floor ratio: R``, is the CPU time (this process's, ``time.process_time``) per run·tick of a
 one-worker campaign of ``--ratio-runs`` runs (the whole ``run_campaign``: the calibration read from the cache, filled
-first, the runs, then the analysis, figures and report; ticks = each run's duration × the robot's control rate) over
+first, the runs — in lockstep batches as ``robofdi campaign`` runs them, or ``--batch N`` runs per batch, 1 = each
+alone — then the analysis, figures and report; ticks = each run's duration × the robot's control rate) over
 the raw floor of one control tick measured in the same process: 2 × mujoco.mj_step + Pinocchio rnea + aba on the
 robot (as benchmarks/arm_loop.py). The line before it splits that CPU into the outputs (written again on the
 finished folder and timed: a cost per campaign, not per run) and the rest. ``--ratio-only`` measures only that (the
@@ -93,7 +94,7 @@ def outputs_us(out: Path, ticks: float) -> float:
     return (time.process_time() - start) / ticks * 1e6
 
 
-def campaign_floor_ratio(spec, root: Path, runs: int) -> tuple[float, float, float]:
+def campaign_floor_ratio(spec, root: Path, runs: int, batch: int | None = None) -> tuple[float, float, float]:
     """(CPU µs per run·tick of a one-worker campaign of ``runs`` runs, the floor [µs], their ratio); the
     calibration must be cached already (ROBOFDI_CACHE). Also prints the outputs' part (:func:`outputs_us`)."""
     from robofdi.sims import ArmSimulator
@@ -106,7 +107,7 @@ def campaign_floor_ratio(spec, root: Path, runs: int) -> tuple[float, float, flo
     from robofdi.campaign import run_campaign
 
     start = time.process_time()
-    result = run_campaign(spec, out, runs=runs, workers=1, progress=False)
+    result = run_campaign(spec, out, runs=runs, workers=1, progress=False, batch=batch)
     cpu = time.process_time() - start
     ticks = float((result.table.groupby("index")["duration"].first() * control_hz).round().sum())
     per_tick = cpu / ticks * 1e6
@@ -125,6 +126,8 @@ def main(argv=None) -> int:
     p.add_argument("--out", default=None, help="folder for the campaign folders (default: a temporary one)")
     p.add_argument("--ratio-runs", type=int, default=20, help="runs of the campaign/floor measurement (default 20)")
     p.add_argument("--ratio-only", action="store_true", help="measure only the campaign/floor ratio")
+    p.add_argument("--batch", type=int, default=None,
+                   help="runs per lockstep batch of the campaign/floor measurement (default: robofdi's; 1: each alone)")
     args = p.parse_args(argv)
 
     from dask.distributed import LocalCluster
@@ -142,8 +145,9 @@ def main(argv=None) -> int:
 
         shutil.rmtree(root / "fill-cache", ignore_errors=True)
         run_campaign(spec, root / "fill-cache", runs=1, workers=1, progress=False)     # calibrates into the cache
-        per_tick, floor, ratio = campaign_floor_ratio(spec, root, args.ratio_runs)
-        print(f"campaign {spec.source or spec.system}: {args.ratio_runs} runs, one worker: {per_tick:.1f} µs CPU per "
+        per_tick, floor, ratio = campaign_floor_ratio(spec, root, args.ratio_runs, args.batch)
+        print(f"campaign {spec.source or spec.system}: {args.ratio_runs} runs, one worker, batch "
+              f"{args.batch or 'automatic'}: {per_tick:.1f} µs CPU per "
               f"run·tick, floor {floor:.2f} µs; load average {' '.join(f'{v:.2f}' for v in os.getloadavg())}")
         print(f"campaign/floor ratio: {ratio:.2f}")
         return 0
@@ -172,8 +176,9 @@ def main(argv=None) -> int:
     same = {k: ref.equals(v.table.drop(columns="wall_time")) for k, v in tables.items()}
     print(f"identical result tables (wall time aside): {same}")
     print(f"campaign folders: {root}")
-    per_tick, floor, ratio = campaign_floor_ratio(spec, root, args.ratio_runs)
-    print(f"one worker, {args.ratio_runs} runs: {per_tick:.1f} µs CPU per run·tick, floor {floor:.2f} µs; load average "
+    per_tick, floor, ratio = campaign_floor_ratio(spec, root, args.ratio_runs, args.batch)
+    print(f"one worker, {args.ratio_runs} runs, batch {args.batch or 'automatic'}: {per_tick:.1f} µs CPU per run·tick, "
+          f"floor {floor:.2f} µs; load average "
           f"{' '.join(f'{v:.2f}' for v in os.getloadavg())}")
     print(f"campaign/floor ratio: {ratio:.2f}")
     return 0 if all(same.values()) else 1
