@@ -1,18 +1,25 @@
 """Batch forms of the arm diagnosers (robofdi.lockstep.observers) and of the nominal-model memo
 (robofdi.lockstep.evaluations): on real closed-loop runs of different robot instances and lengths, row i of every
 batch output equals run i's own diagnoser stepped alone, bit for bit, compiled and on the pure-Python path."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from robofdi import RobofdiError, jit
+from robofdi.campaign import load_spec
+from robofdi.campaign.engine import _calibrate
+from robofdi.campaign.runs import _draw
 from robofdi.control import ComputedTorque, Quintic
 from robofdi.faults import parse_fault_spec
+from robofdi.lockstep import diagnose_lockstep, diagnoser_view
 from robofdi.lockstep.evaluations import BatchEvaluations, batch_evaluations
-from robofdi.observers import diagnostic
-from robofdi.lockstep.observers import batch_form
+from robofdi.observers import consistency, diagnostic
+from robofdi.lockstep.observers import BatchConsistencyResidual, BatchMomentumObserver, batch_form
 from robofdi.loop import ClosedLoop, Rates, diagnoser_inputs
 from robofdi.models.friction import JointFriction
 from robofdi.observers.arm_schemes import BOOK_SCHEMES, arm_schemes
+from robofdi.observers.consistency import ConsistencyResidual
 from robofdi.observers.diagnostic import Adaptive, DiagnosticObserver, RippleModel
 from robofdi.observers.momentum import MomentumObserver
 from robofdi.systems.arm import ArmScenario
@@ -205,3 +212,161 @@ def test_bad_inputs_raise(runs):
         batch.update(Y[:2], U[:2])
         with pytest.raises(RobofdiError):
             batch.update(Y, U)                                       # more runs than at the last sample
+
+
+# ----------------------------------------------------------------------------------------------------------
+# The consistency scheme, with the designs the arm calibration gives two robot instances (one calibration each)
+CONSISTENCY_SPEC = """
+seed = 11
+fault_free_runs = 4
+faulty_runs = 0
+diagnosers = ["consistency"]
+
+[system]
+name = "arm"
+speed = "fast"
+tail = 0.2
+robot_seeds = [0, 1]
+"""
+# one per run (drawn motions of different lengths): fault-free, an actuator step, an encoder bias and a velocity
+# bias, so that the dynamic, kinematic, step and payload rows all move
+CONSISTENCY_FAULTS = (None, "actuator_additive:joint2:40@0.3", "sensor_bias:joint3_pos:0.01@0.25",
+                      "sensor_bias:joint4_vel:0.05@0.2")
+
+
+@pytest.fixture(scope="module")
+def consistency_runs():
+    """Per run, longest first: its built parts (a fresh build each call: nominal model, calibrated design and
+    decision), and the (y, ū) its diagnosers receive, simulated without them."""
+    spec = load_spec(CONSISTENCY_SPEC)
+    system = spec.campaign_system
+    calibrations = {key: _calibrate(spec, key)[1] for key in system.calibration_keys(spec.options)}
+    out = []
+    for index, fault in enumerate(CONSISTENCY_FAULTS):
+        key, seed, mission, _, _ = _draw(spec, index)
+
+        def build(key=key, seed=seed, mission=mission, fault=fault):
+            return system.build(spec.options, calibrations[key], key, mission, [parse_fault_spec(fault)] if fault else [],
+                                seed, spec.diagnosers)
+
+        parts = build()
+        record = parts.run(diagnose=False)
+        _, y, u = diagnoser_view(record, parts.loop.rates)
+        out.append((build, parts.diagnoses["consistency"].diagnoser, record, y, u))
+    out.sort(key=lambda run: -len(run[3]))
+    assert len({len(run[3]) for run in out}) == len(out)        # the batch shrinks at every run's end
+    return out
+
+
+def _varied(design, i):
+    """Run i's design with what other calibrations give: a carried payload (or none), no reach, a ripple that grows
+    with the torque, a drive whose velocity reading never repeats, unset optional scales."""
+    n = design.skew.shape[0]
+    return (design, replace(design, payload=0.4, gain_scale=None),
+            replace(design, reach=None, repeat_scale=np.zeros(n), move_scale=None),
+            replace(design, payload=-0.2, ripple_load=np.full(design.ripple_amplitude.shape, 2e-8), impulse_scale=None,
+                    trend_scale=None))[i % 4]
+
+
+def _consistency_lockstep(runs, designs, batch=None):
+    """Each run's consistency residual alone and the batch form over all, asserting row i = run i at every sample.
+    Returns the batch form (reset again by a second call) and the largest |z| per row."""
+    models = [run[1].model for run in runs]
+    singles = [ConsistencyResidual(m, d) for m, d in zip(models, designs)]
+    if batch is None:
+        batch = batch_form([ConsistencyResidual(m, d) for m, d in zip(models, designs)])
+    else:
+        batch.reset()
+    assert type(batch) is BatchConsistencyResidual
+    largest = 0.0
+    for k in range(len(runs[0][3])):
+        active = [(y[k], u[k]) for *_, y, u in runs if k < len(y)]
+        Y, U = np.array([y for y, _ in active]), np.array([u for _, u in active])
+        Y.flags.writeable = U.flags.writeable = False
+        R, E = batch.update(Y, U)
+        assert R.shape[0] == E.shape[0] == len(active), k
+        for i, (y, u) in enumerate(active):
+            res = singles[i].update(y, u)
+            assert np.array_equal(R[i], res.r), (k, i, np.flatnonzero(R[i] != res.r))
+            assert np.array_equal(E[i], res.estimate), (k, i, np.flatnonzero(E[i] != res.estimate))
+        largest = np.maximum(largest, np.abs(R).max(axis=0))
+    return batch, largest
+
+
+@pytest.mark.parametrize("designs", ["calibrated", "varied"])
+def test_consistency_batch_form_equals_each_run_alone_compiled_and_interpreted(consistency_runs, designs):
+    runs = consistency_runs
+    chosen = [run[1].design if designs == "calibrated" else _varied(run[1].design, i) for i, run in enumerate(runs)]
+    assert len({id(d.friction) for d in chosen}) == 2                   # two robot instances
+    batch, largest = _consistency_lockstep(runs, chosen)
+    n = runs[0][1].n
+    # the faults moved every row set: dynamic (actuator), kinematic (encoder and velocity), step (velocity), payload
+    assert largest[:n].max() > 1 and largest[n:2 * n].max() > 1 and largest[2 * n:3 * n].max() > 1 and largest[3 * n] > 0
+    with jit.interpreted():
+        assert not hasattr(consistency._step_rows_each, "py_func")          # the batch kernels are swapped too
+        _consistency_lockstep(runs, chosen, batch)
+
+
+def test_consistency_scheme_in_lockstep_gives_each_runs_online_trace(consistency_runs):
+    """The engine with the consistency batch form: each run's trace (residual, decision, isolation) is the one its
+    own loop records."""
+    runs = consistency_runs
+    traces = diagnose_lockstep([run[2] for run in runs], [run[0]().diagnoses for run in runs],
+                               runs[0][0]().loop.rates)
+    for run, trace in zip(runs, traces):
+        alone = run[0]().run().diagnosers["consistency"]
+        for field in ("time", "residual", "threshold", "alarm", "estimate"):
+            assert np.array_equal(getattr(alone, field), getattr(trace["consistency"], field)), field
+        assert list(alone.isolated) == list(trace["consistency"].isolated)
+    assert any(trace["consistency"].alarm.any() for trace in traces)
+
+
+def test_the_friction_of_a_block_of_runs_is_each_runs_torque(runs):
+    """NumPy's SIMD tanh and exp on one (a, n) block give each row's bits (thousands of random rows of the shapes the
+    batch forms use), so the batch friction τ̂_f is each run's JointFriction.torque."""
+    model = runs[0][0][0]
+    n, rng = model.n, np.random.default_rng(5)
+    frictions = [JointFriction(*rng.uniform(-5, 5, (4, n)), rng.uniform(0.01, 0.2), rng.uniform(0.001, 0.05))
+                 for _ in range(16)]
+    batch = BatchMomentumObserver([MomentumObserver(model, 0.002, 100.0, f) for f in frictions])
+    for trial in range(300):
+        a = int(rng.integers(1, 17))
+        V = rng.standard_normal((a, 2 * n)) * 10.0 ** rng.uniform(-6, 1, (a, 2 * n))
+        V[rng.random((a, 2 * n)) < 0.1] = 0.0
+        V = V[:, n:]                                          # rows of the previous Y, as the batch forms take them
+        tau = batch._friction(V)
+        for i in range(a):
+            assert tau[i].tobytes() == frictions[i].torque(V[i].copy()).tobytes(), (trial, i)
+        for width in (6, 7):             # the raw functions on other arms' joint counts, at τ̂_f's arguments
+            x = rng.standard_normal((a, width)) * 10.0 ** rng.uniform(-3, 3, (a, width))
+            for f, block in ((np.tanh, x), (np.exp, -(x * x))):
+                assert all(f(block)[i].tobytes() == f(block[i].copy()).tobytes() for i in range(a)), (trial, f)
+
+
+def test_consistency_batch_form_is_none_unless_the_runs_share_its_settings(consistency_runs):
+    (_, d0, *_), (_, d1, *_) = consistency_runs[:2]
+    m0, m1, e0, e1 = d0.model, d1.model, d0.design, d1.design
+
+    class Tuned(ConsistencyResidual):
+        pass
+
+    assert type(batch_form([ConsistencyResidual(m0, e0), ConsistencyResidual(m1, e1)])) is BatchConsistencyResidual
+    no_ripple = dict(ripple_orders=None, ripple_amplitude=None, ripple_load=None)
+    shorter = dict(windows=e1.windows[:-1], window_scales=e1.window_scales[:, :-1], reach=e1.reach[:, :-1])
+    for i, other in enumerate([replace(e1, gain=e1.gain / 2), replace(e1, T=2 * e1.T), replace(e1, **shorter),
+                               replace(e1, **no_ripple)]):
+        assert batch_form([ConsistencyResidual(m0, e0), ConsistencyResidual(m1, other)]) is None, i
+    assert batch_form([ConsistencyResidual(m, replace(e, friction=None)) for m, e in ((m0, e0), (m1, e1))]) is None
+    assert batch_form([ConsistencyResidual(m0, e0), Tuned(m1, e1)]) is None
+    assert batch_form([ConsistencyResidual(m0, e0), MomentumObserver(m1, e1.T)]) is None
+
+
+def test_consistency_batch_form_raises_on_non_finite_inputs(consistency_runs):
+    batch = batch_form([ConsistencyResidual(run[1].model, run[1].design) for run in consistency_runs])
+    Y = np.array([run[3][0] for run in consistency_runs])
+    U = np.zeros((len(consistency_runs), Y.shape[1] // 2))
+    batch.update(Y, U)
+    Y[2, 1] = np.inf
+    with pytest.raises(RobofdiError, match="non-finite"):
+        batch.update(Y, U)
+

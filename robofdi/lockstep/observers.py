@@ -5,16 +5,19 @@ work of a sample (input checks, estimator bookkeeping, kernel dispatch, the BLAS
 and not once per run. Row i of everything it returns equals, bit for bit, what run i's own diagnoser returns when
 stepped alone: the per-run arithmetic is the single form's own kernels, which a batch kernel calls on each run's
 rows (through their module, so that :func:`robofdi.jit.interpreted` reaches them); the nominal-model evaluations
-are run i's Pinocchio calls (:mod:`robofdi.lockstep.evaluations`); NumPy's elementwise operations on (a, …) arrays
-give each row's bits, and so do its stacked products where they are used (see :func:`_stacked`).
+are run i's Pinocchio calls (:mod:`robofdi.lockstep.evaluations`; the payload regressor's on its own unit model,
+in the single form's order); NumPy's elementwise operations on (a, …) arrays give each row's bits (its SIMD tanh and exp too,
+checked in the tests), and so do its stacked products where they are used (see :func:`_stacked`).
 
 The batch kernels (``…_each``) live beside the single kernels they loop over, in those modules: numba's disk cache
 checks a compiled kernel against its own file only, so a batch kernel elsewhere would keep a changed single
 kernel's old code.
 
 Batch forms exist for :class:`~robofdi.observers.diagnostic.DiagnosticObserver` (Caccavale & Villani eqs.
-(20)–(39), (43)) with each of its estimators and both velocity sources, and for
-:class:`~robofdi.observers.momentum.MomentumObserver` (De Luca & Mattone eq. (10)) without friction;
+(20)–(39), (43)) with each of its estimators and both velocity sources, for
+:class:`~robofdi.observers.momentum.MomentumObserver` (De Luca & Mattone eq. (10)) without friction, and for the
+consistency scheme :class:`~robofdi.observers.consistency.ConsistencyResidual` (its friction-compensated momentum
+residual, payload regressor, kinematic consistency and step rows) with each run's own calibrated design;
 :func:`batch_form` says which.
 """
 from __future__ import annotations
@@ -22,15 +25,21 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
+import pinocchio as pin
 
 from robofdi import RobofdiError
+from robofdi.decision.envelope import LOW_SPEED_VELOCITY, REST_VELOCITY
 from robofdi.jit import einsum as _einsum
 from robofdi.lockstep.evaluations import batch_evaluations
-from robofdi.observers import diagnostic, momentum
+from robofdi.models import friction as friction_model
+from robofdi.observers import consistency, diagnostic, kinematic, momentum
+from robofdi.observers.consistency import ConsistencyResidual
 from robofdi.observers.diagnostic import Adaptive, DiagnosticObserver, NoEstimate, Recursive, TimeDelayed
 from robofdi.observers.momentum import MomentumObserver
+from robofdi.observers.payload import PayloadRegressor
 
-__all__ = ["BatchDiagnoser", "BatchDiagnosticObserver", "BatchMomentumObserver", "batch_form"]
+__all__ = ["BatchConsistencyResidual", "BatchDiagnoser", "BatchDiagnosticObserver", "BatchMomentumObserver",
+           "batch_form"]
 
 
 class BatchDiagnoser:
@@ -206,20 +215,25 @@ class BatchDiagnosticObserver(BatchDiagnoser):
 
 # ----------------------------------------------------------------------------------------------------------
 class BatchMomentumObserver(BatchDiagnoser):
-    """:class:`~robofdi.observers.momentum.MomentumObserver` (no friction) over N runs: r(k) = K_O (M̂(q_k) q̇_k − p₀
-    − Σ_{j<k} T (ū_j + Ĉᵀq̇_j − ĝ − D̂ q̇_j + r_j)), De Luca & Mattone eq. (10). Shared: T and K_O; per run: the
-    nominal model (its M̂, Ĉ, ĝ and D̂)."""
+    """:class:`~robofdi.observers.momentum.MomentumObserver` over N runs: r(k) = K_O (M̂(q_k) q̇_k − p₀
+    − Σ_{j<k} T (ū_j + Ĉᵀq̇_j − ĝ − D̂ q̇_j − τ̂_f(q̇_j) + r_j)), De Luca & Mattone eq. (10). Shared: T, K_O and whether
+    friction is compensated; per run: the nominal model (its M̂, Ĉ, ĝ and D̂) and the friction τ̂_f's coefficients
+    (:class:`~robofdi.models.friction.JointFriction`)."""
 
     def __init__(self, observers: Sequence[MomentumObserver]):
         first = observers[0]
         self.n, self.T, self.gain, self.N = first.n, first.T, first.gain, len(observers)
         self.damping = np.array([d.model.damping for d in observers])
         self.evaluations = batch_evaluations([d.model for d in observers])
+        self.friction = None if first.friction is None else [
+            np.array([getattr(d.friction, name) for d in observers], dtype=float)
+            for name in ("coulomb", "stribeck", "viscous", "offset", "smoothing", "stribeck_velocity")]
         self.reset()
 
     @classmethod
     def of(cls, observers: Sequence[MomentumObserver]) -> BatchMomentumObserver | None:
-        """The batch form, or None when the settings differ or an observer compensates friction."""
+        """The batch form, or None when the settings differ or an observer compensates friction (no scheme steps
+        one alone: the consistency scheme's batch form steps its own, :class:`BatchConsistencyResidual`)."""
         if any(d.friction is not None for d in observers):
             return None
         if not all(_same([getattr(d, name) for d in observers]) for name in ("n", "T", "gain")):
@@ -232,8 +246,13 @@ class BatchMomentumObserver(BatchDiagnoser):
         self._p0 = self._integral = self._r = None
 
     def update(self, Y: np.ndarray, U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        n = self.n
-        a = self._active = _checked(Y, U, self._active, n)
+        self._active = _checked(Y, U, self._active, self.n)
+        r = self.step(Y, U)
+        return r.copy(), r.copy()
+
+    def step(self, Y: np.ndarray, U: np.ndarray) -> np.ndarray:
+        """r (a, n) of checked Y and U (read-only: kept until the next sample)."""
+        n, a = self.n, Y.shape[0]
         ev = self.evaluations
         p = _stacked(ev.mass_matrix_at(Y), Y[:, n:])        # M̂(q_k) q̇_k
         if self._prev is None:
@@ -242,18 +261,177 @@ class BatchMomentumObserver(BatchDiagnoser):
             yp = _first(self._prev, a)
             coriolis = _stacked(ev.coriolis_at(yp).transpose(0, 2, 1), yp[:, n:])    # Ĉᵀ(q_{k−1}, q̇_{k−1}) q̇_{k−1}
             gravity, r_prev, p0, integral_prev = ev.gravity_at(yp), self._r[:a], self._p0[:a], self._integral[:a]
+            tau_f = None if self.friction is None else self._friction(yp[:, n:])
             integral, r = np.empty((a, n)), np.empty((a, n))
-            momentum._momentum_step_each(gravity, self.damping, yp, coriolis, U, r_prev, p, p0, integral_prev, self.T, self.gain,
-                                integral, r)
+            momentum._momentum_step_each(gravity, self.damping, yp, coriolis, tau_f, U, r_prev, p, p0, integral_prev,
+                                         self.T, self.gain, integral, r)
             self._integral, self._r = integral, r
         self._prev = Y           # read-only: kept without a copy
-        return self._r.copy(), self._r.copy()
+        return self._r
+
+    def _friction(self, V: np.ndarray) -> np.ndarray:
+        """τ̂_f(q̇) of each run (a, n) as :meth:`~robofdi.models.friction.JointFriction.torque` takes it: its kernels
+        around NumPy's tanh and exp, here on one contiguous (a, n) block each — elementwise, each row's bits
+        (checked in the tests, thousands of random rows)."""
+        a, n = V.shape[0], self.n
+        coulomb, stribeck, viscous, offset, smoothing, stribeck_velocity = self.friction
+        arguments, out = np.empty((2, a, n)), np.empty((a, n))
+        friction_model._friction_arguments_each(V, smoothing, stribeck_velocity, arguments)
+        friction_model._friction_sum_each(np.tanh(arguments[0]), np.exp(arguments[1]), V, coulomb, stribeck, viscous,
+                                          offset, out)
+        return out
+
+
+# ----------------------------------------------------------------------------------------------------------
+class _BatchPayloadRegressor:
+    """:class:`~robofdi.observers.payload.PayloadRegressor` over N runs: LP(Y) (a, n) [N·m/kg], the momentum
+    residual (eq. (10)) of each run's unit point mass at its payload point with no applied torque. The Pinocchio
+    calls are each run's own, on its regressor's model and data, in the single form's order; the rest one call for
+    all runs."""
+
+    def __init__(self, regressors: Sequence[PayloadRegressor]):
+        first = regressors[0]
+        self.n, self.T, self.gain = first.n, first.T, first.gain
+        self.units = [(p.model, p.data) for p in regressors]
+        self.nominals = [p._nominal for p in regressors]
+        self.plain = not any(p._nominal._has_ref for p in regressors)     # Pinocchio's configurations are the q rows
+        self.zeros = np.zeros((len(regressors), self.n))       # no applied torque, no damping
+        self.lower = np.tril_indices(self.n, -1)
+        self.reset()
+
+    def reset(self) -> None:
+        self._prev = None        # (Y, each run's Pinocchio configuration) of the last sample
+        self._p0 = self._integral = self._r = None
+
+    def step(self, Y: np.ndarray) -> np.ndarray:
+        n, a, prev = self.n, Y.shape[0], self._prev
+        Q = Y[:, :n] if self.plain else [nominal._q(q) for nominal, q in zip(self.nominals, Y[:, :n])]
+        M = np.empty((a, n, n))
+        if prev is None:
+            for (model, data), q, m in zip(self.units, Q, M):
+                m[:] = pin.crba(model, data, q)
+        else:                    # each run's calls in the single form's order: crba(q_k), then at q_{k−1}, q̇_{k−1}
+            Y_prev, gravity, C = _first(prev[0], a), np.empty((a, n)), np.empty((a, n, n))
+            for (model, data), q, q1, v1, m, g, c in zip(self.units, Q, prev[1], Y_prev[:, n:], M, gravity, C):
+                m[:] = pin.crba(model, data, q)
+                g[:] = pin.computeGeneralizedGravity(model, data, q1)
+                c[:] = pin.computeCoriolisMatrix(model, data, q1, v1)
+        M[:, self.lower[0], self.lower[1]] = M[:, self.lower[1], self.lower[0]]      # mirror_upper: copies, the same bits
+        p = _stacked(M, Y[:, n:])
+        if prev is None:
+            self._p0, self._integral, self._r = p, np.zeros((a, n)), np.zeros((a, n))
+        else:
+            coriolis = _stacked(C.transpose(0, 2, 1), Y_prev[:, n:])
+            integral, r = np.empty((a, n)), np.empty((a, n))
+            momentum._momentum_step_each(gravity, self.zeros, Y_prev, coriolis, None, self.zeros, self._r[:a], p,
+                                         self._p0[:a], self._integral[:a], self.T, self.gain, integral, r)
+            self._integral, self._r = integral, r
+        self._prev = (Y, Q)
+        return self._r
+
+
+class BatchConsistencyResidual(BatchDiagnoser):
+    """:class:`~robofdi.observers.consistency.ConsistencyResidual` over N runs: the friction-compensated momentum
+    residual (De Luca & Mattone eq. (10)) with the carried payload, the operating point (ν, the features' low pass,
+    the dynamic and step bounds), the kinematic consistency (:mod:`robofdi.observers.kinematic`), then the dynamic,
+    kinematic, step and payload rows — each run's by the single form's kernels.
+
+    Shared by the runs: T, K_O, the kinematic windows and the number of ripple orders; per run: the nominal model
+    (and its payload point's unit model) and the design calibrated for its robot instance — friction, envelope,
+    skew, window scales and reach, ripple, impulse weight, step, gain, trend, move and repeat scales, the carried
+    payload."""
+
+    def __init__(self, residuals: Sequence[ConsistencyResidual]):
+        first = residuals[0]
+        self.n, self.T, self.N, self.gain = first.n, first.T, len(residuals), first.design.gain
+        self.hold, self.single, self.alpha, self.lam = first._hold, first._single, first._a, first._gain_lambda
+        self.trend_samples = first._trend_samples
+        self.sizes = first._kinematic._sizes
+        self.evaluations = batch_evaluations([d.model for d in residuals])
+        self._momentum = BatchMomentumObserver([d._momentum for d in residuals])
+        self._payload = _BatchPayloadRegressor([d._payload for d in residuals])
+        kinematics = [d._kinematic for d in residuals]
+
+        def stacked(values):
+            return np.ascontiguousarray(np.array(values, dtype=float))
+
+        self.envelope, self.step_scale = (stacked([d.design.envelope for d in residuals]),
+                                          stacked([d.design.step_scale for d in residuals]))
+        self.skew, self.scales, self.reach = (stacked([k.skew for k in kinematics]), stacked([k.scales for k in kinematics]),
+                                              stacked([k._reach for k in kinematics]))
+        self.bounded = np.array([k.reach is not None for k in kinematics])
+        self.orders, self.ripple, self.ripple_load = (stacked([k.orders for k in kinematics]),
+                                                      stacked([k.ripple for k in kinematics]),
+                                                      stacked([k.ripple_load for k in kinematics]))
+        self.weight, self.move = stacked([d._impulse_weight for d in residuals]), stacked([d._move for d in residuals])
+        self.gain_scale, self.trend_scale = (stacked([d._gain_scale for d in residuals]),
+                                             stacked([d._trend_scale for d in residuals]))
+        self.held_kinematic = stacked([d._held_kinematic for d in residuals])
+        self.carried = np.array([d._carried for d in residuals])[:, None]
+        self.reset()
+
+    @classmethod
+    def of(cls, residuals: Sequence[ConsistencyResidual]) -> BatchConsistencyResidual | None:
+        """The batch form, or None when the shared settings differ (or a momentum observer without friction)."""
+        if any(d._momentum.friction is None for d in residuals):
+            return None
+        shared = [[d.n for d in residuals], [d.T for d in residuals], [d.design.gain for d in residuals],
+                  [tuple(d.design.windows) for d in residuals], [d._kinematic.orders.shape[1] for d in residuals]]
+        return cls(residuals) if all(_same(values) for values in shared) else None
+
+    def reset(self) -> None:
+        N, n = self.N, self.n
+        self._active, self._k, self._prev = N, 0, None
+        self._momentum.reset()
+        self._payload.reset()
+        # the single form's state of every run, as its reset() leaves it (ConsistencyResidual.reset)
+        self._features = np.zeros((N, n, 4))
+        self._state = np.zeros((N, 4, n))
+        self._state[:, 3] = -1e9
+        self._previous = np.zeros((N, 3, n))
+        self._steps, self._jumps = np.zeros((N, self.hold, n)), np.zeros((N, self.hold, n))
+        self._gain_sums = np.zeros((N, 15, n))
+        self._gain_sums[:, 10] = self._gain_sums[:, 14] = np.nan
+        self._gain, self._trend = np.zeros((N, n)), np.zeros((N, n))
+        self._trend_ring, self._trend_sums = np.zeros((N, 4 * self.trend_samples, n)), np.zeros((N, 4, n))
+        self._history = np.zeros((N, int(self.sizes.max()) + 1, 3 + 4 * self.orders.shape[2], n))
+        self._outside, self._outside_samples = np.zeros((N, n), dtype=bool), np.zeros((N, n), dtype=int)
+
+    def update(self, Y: np.ndarray, U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        n, k, T = self.n, self._k, self.T
+        a = self._active = _checked(Y, U, self._active, n)
+        first = k == 0
+        r = self._momentum.step(Y, U)
+        load = self._payload.step(Y)                # LP(Y) [N·m/kg]
+        carried = self.carried[:a]
+        if carried.any():       # r + m LP(Y) where the run carries a payload: elementwise, each row's bits; r elsewhere
+            r = np.where(carried != 0, r + carried * load, r)
+        point = np.empty((a, 5, n))
+        consistency._operating_point_each(Y, U, r, self.evaluations.mass_matrix_at(Y), self.weight, self._state,
+                                          self._features, self.envelope, self.step_scale, self.skew, first, k, self.hold,
+                                          self.alpha, self.gain, T, REST_VELOCITY, LOW_SPEED_VELOCITY, point)
+        # the onset's share point[:, 3] is 0 on every joint of a run with no |ν| beyond its bound: what the single
+        # form's None (no share) sums
+        kin, e, scale = np.empty((a, n)), np.empty((a, n)), np.empty((a, n, self.sizes.shape[0]))
+        kinematic._kinematic_step_each(Y, Y if first else _first(self._prev, a), first, T, self.skew, point[:, 3],
+                                       self._history, k, self.sizes, self.scales, self.orders, self.ripple, self.reach,
+                                       self.bounded, kin, e, self._outside, scale, self._outside_samples, U,
+                                       self.ripple_load)
+        z, estimate = np.empty((a, 3 * n + 1)), np.empty((a, 3 * n + 1))
+        consistency._step_rows_each(r, point, kin, e, scale, self.single, self.skew, self.move, self._state, self._steps,
+                                    self._jumps, self._previous, k % self.hold, (k - 1) % self.hold, T, z, estimate, Y,
+                                    self._gain_sums, self.lam, self.gain_scale, self._gain, self._trend_ring,
+                                    self._trend_sums, k, self.trend_scale, self._trend, load, self.held_kinematic)
+        self._prev = Y          # read-only: kept without a copy
+        self._k += 1
+        return z, estimate
 
 
 def batch_form(diagnosers: Sequence) -> BatchDiagnoser | None:
     """The batch form of ``diagnosers`` (one per run, freshly reset, not yet stepped), or None when they are not
-    all of one supported type (exactly: a subclass may step differently) with the same settings — then each run
-    is diagnosed alone."""
+    all of one supported type (exactly: a subclass may step differently) — :class:`DiagnosticObserver`,
+    :class:`MomentumObserver` or :class:`ConsistencyResidual` — with the settings the batch shares (the classes'
+    ``of``) — then each run is diagnosed alone."""
     kinds = {type(d) for d in diagnosers}
     if len(kinds) != 1:
         return None
@@ -262,4 +440,6 @@ def batch_form(diagnosers: Sequence) -> BatchDiagnoser | None:
         return BatchDiagnosticObserver.of(diagnosers)
     if kind is MomentumObserver:
         return BatchMomentumObserver.of(diagnosers)
+    if kind is ConsistencyResidual:
+        return BatchConsistencyResidual.of(diagnosers)
     return None

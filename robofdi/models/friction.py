@@ -102,3 +102,19 @@ def _friction_sum(sign, bump, v, coulomb, stribeck, viscous, offset, out):
     """(F_c + F_s exp(…)) tanh(…) + F_v q̇ + τ_0 entry by entry, in the order of operations of the array form."""
     for i in range(v.shape[0]):
         out[i] = (coulomb[i] + stribeck[i] * bump[i]) * sign[i] + viscous[i] * v[i] + offset[i]
+
+
+# The batch forms of the kernels above (robofdi.lockstep): on every run's rows, one call a sample for all runs.
+@kernel
+def _friction_arguments_each(V, smoothing, stribeck_velocity, arguments):
+    """The arguments per run (velocities V (a, n), ``smoothing`` and ``stribeck_velocity`` (≥ a,), ``arguments``
+    (2, a, n)): _friction_arguments."""
+    for i in range(V.shape[0]):
+        _friction_arguments(V[i], smoothing[i], stribeck_velocity[i], arguments[:, i])
+
+
+@kernel
+def _friction_sum_each(sign, bump, V, coulomb, stribeck, viscous, offset, out):
+    """τ̂_f per run (``out`` (a, n); the coefficients (≥ a, n)): _friction_sum."""
+    for i in range(out.shape[0]):
+        _friction_sum(sign[i], bump[i], V[i], coulomb[i], stribeck[i], viscous[i], offset[i], out[i])

@@ -732,6 +732,32 @@ def _trend_evidence(ring, sums, k, i, e, floor):
     return smallest / (floor / math.sqrt(m))
 
 
+# The batch forms of the kernels above (robofdi.lockstep): on every run's rows, one call a sample for all runs.
+@kernel
+def _operating_point_each(Y, U, R, mass, weight, state, features, envelope, step_scale, skew, first, k, hold, a, gain, T,
+                          rest, low_speed, point):
+    """The operating point per run (``point`` (runs, 5, n); Y (runs, 2n) the states [q; q̇]; the per-run arrays
+    (≥ runs, …)): _operating_point."""
+    n = R.shape[1]
+    for i in range(point.shape[0]):
+        _operating_point(U[i], Y[i, n:], R[i], mass[i], weight[i], state[i], features[i], envelope[i], step_scale[i],
+                         skew[i], first, k, hold, a, gain, T, rest, low_speed, FROZEN_CHANGE, point[i])
+
+
+@kernel
+def _step_rows_each(R, point, kin, e, scale, single, skew, move, state, steps, jumps, previous, row, previous_row, T, z,
+                    estimate, Y, gain_sums, lam, gain_scale, gain, trend_ring, trend_sums, k, trend_scale, trend, load,
+                    held_kinematic):
+    """The rows per run (``z`` (a, 3n + 1); ``point`` and ``state`` as :func:`_operating_point_each`'s; Y (a, 2n);
+    the per-run arrays (≥ a, …)): _step_rows."""
+    n = R.shape[1]
+    for i in range(z.shape[0]):
+        _step_rows(R[i], point[i, 0], kin[i], e[i], point[i, 4], scale[i], single, skew[i], move[i], point[i, 2],
+                   state[i, 2], FROZEN_SAMPLES, steps[i], jumps[i], previous[i], row, previous_row, T, z[i], estimate[i],
+                   Y[i, :n], Y[i, n:], gain_sums[i], lam, gain_scale[i], gain[i], trend_ring[i], trend_sums[i], k,
+                   trend_scale[i], trend[i], load[i], held_kinematic[i])
+
+
 def design_consistency(model: ManipulatorModel, runs: Sequence[tuple[np.ndarray, np.ndarray]], T: float,
                        gain: float = DEFAULT_GAIN, skip: int = 0, windows: Sequence[float] = WINDOWS,
                        ripple_orders: np.ndarray | None = None) -> ConsistencyDesign:

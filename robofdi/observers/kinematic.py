@@ -465,3 +465,16 @@ def _kinematic_step(q, v, qp, vp, first, T, skew, explained, history, k, sizes, 
         ratio[i], outside[i] = peak, out
         if out:
             outside_samples[i] += 1
+
+
+# The batch form of the kernel above (robofdi.lockstep): on every run's rows, one call a sample for all runs.
+@kernel
+def _kinematic_step_each(Y, Y_prev, first, T, skew, explained, history, k, sizes, scales, orders, ripple, reach, bounded,
+                         ratio, e, outside, scale, outside_samples, U, ripple_load):
+    """One sample per run (``ratio`` (a, n); Y, Y_prev (a, 2n) the states [q; q̇]; the per-run arrays (≥ a, …)):
+    _kinematic_step."""
+    n = ratio.shape[1]
+    for i in range(ratio.shape[0]):
+        _kinematic_step(Y[i, :n], Y[i, n:], Y_prev[i, :n], Y_prev[i, n:], first, T, skew[i], explained[i], history[i], k,
+                        sizes, scales[i], orders[i], ripple[i], reach[i], bounded[i], ratio[i], e[i], outside[i],
+                        scale[i], outside_samples[i], U[i], ripple_load[i])

@@ -40,12 +40,18 @@ def _momentum_step(gravity, damping, v, coriolis, friction, u, r_prev, p, p0, in
 
 # The batch form of the kernel above (robofdi.lockstep): on every run's rows, one call a sample for all runs.
 @kernel
-def _momentum_step_each(gravity, damping, Y_prev, coriolis, U, r_prev, p, p0, integral_prev, T, gain, integral, r):
-    """Eq. (10) per run, without friction: _momentum_step."""
+def _momentum_step_each(gravity, damping, Y_prev, coriolis, friction, U, r_prev, p, p0, integral_prev, T, gain, integral,
+                        r):
+    """Eq. (10) per run, with the friction τ̂_f (a, n) or without (None): _momentum_step."""
     n = U.shape[1]
-    for i in range(r.shape[0]):
-        _momentum_step(gravity[i], damping[i], Y_prev[i, n:], coriolis[i], None, U[i], r_prev[i], p[i], p0[i],
-                       integral_prev[i], T, gain, integral[i], r[i])
+    if friction is None:        # (numba prunes the branch its argument's type rules out)
+        for i in range(r.shape[0]):
+            _momentum_step(gravity[i], damping[i], Y_prev[i, n:], coriolis[i], None, U[i], r_prev[i], p[i], p0[i],
+                           integral_prev[i], T, gain, integral[i], r[i])
+    else:
+        for i in range(r.shape[0]):
+            _momentum_step(gravity[i], damping[i], Y_prev[i, n:], coriolis[i], friction[i], U[i], r_prev[i], p[i], p0[i],
+                           integral_prev[i], T, gain, integral[i], r[i])
 
 
 class MomentumObserver:
