@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 
 from robofdi import RobofdiError
-from robofdi.campaign import load_spec, run_campaign
+from robofdi.campaign import load_spec, register_system, run_campaign
 from robofdi.campaign.engine import MAX_BATCH, _calibrate, batches
 from robofdi.campaign.runs import _draw
 from robofdi.decision import Signature, ThresholdDecision
@@ -16,6 +16,7 @@ from robofdi.lockstep import diagnose_lockstep, diagnoser_view
 from robofdi.lockstep.engine import _ArrayDiagnoses
 from robofdi.loop import InputHold, Rates, diagnose_record
 from robofdi.record import load
+from robofdi.systems.linear import LinearSystem
 
 SPEC = """
 seed = 11
@@ -197,3 +198,58 @@ def test_skipping_quiet_samples_is_updating_on_them(seed):
     lazily.skip(skipped)
     assert (lazily._samples, lazily._since_alarm, lazily._isolated) == (every._samples, every._since_alarm, every._isolated)
     assert any(isolated)                                     # the bursts did alarm and isolate
+
+
+LINEAR = """
+seed = 5
+fault_free_runs = 4
+faulty_runs = 4
+
+[system]
+name = "{name}"
+duration = 3.0
+calibration_runs = 2
+
+[[faults]]
+kind = "actuator_additive"
+magnitude_fraction = [0.05, 0.4]
+onset_fraction = [0.4, 0.8]
+"""
+
+
+class BrittleLinear(LinearSystem):
+    """The linear plant, but building a run raises when its mission asks for a left-wheel mean above 7.5 rad/s."""
+
+    name = "brittle-linear"
+
+    def build(self, options, calibration, key, mission, faults, seed, diagnosers):
+        if mission.plan.mean[0] > 7.5:
+            raise RuntimeError(f"left wheel mean {mission.plan.mean[0]:.2f} rad/s refused")
+        return super().build(options, calibration, key, mission, faults, seed, diagnosers)
+
+
+def test_a_failing_run_or_diagnosis_in_a_batch_gives_the_rows_it_gives_alone(tmp_path, monkeypatch):
+    """A run whose build raises is run alone (its error row); a batch whose lockstep diagnosis raises is diagnosed run
+    by run: the tables of both equal those of every run alone."""
+    register_system(BrittleLinear())
+    spec = load_spec(LINEAR.format(name="brittle-linear"))
+    alone = run_campaign(spec, tmp_path / "alone", workers=1, progress=False, batch=1, report=False).table
+    seen = []
+
+    def spy(records, diagnoses, rates):
+        seen.append(len(records))
+        return diagnose_lockstep(records, diagnoses, rates)
+
+    monkeypatch.setattr("robofdi.lockstep.diagnose_lockstep", spy)
+    lock = run_campaign(spec, tmp_path / "lock", workers=1, progress=False, batch=8, report=False).table
+    pd.testing.assert_frame_equal(lock.drop(columns="wall_time"), alone.drop(columns="wall_time"))
+    assert 2 <= seen[0] < 8                # the runs that built were diagnosed in lockstep, the others alone
+    assert 0 < alone["error"].notna().sum() < len(alone)
+    assert alone["error"].dropna().str.contains("RuntimeError: left wheel mean").all()
+
+    def broken(*args):
+        raise RobofdiError("lockstep: a residual has non-finite values")
+
+    monkeypatch.setattr("robofdi.lockstep.diagnose_lockstep", broken)
+    again = run_campaign(spec, tmp_path / "again", workers=1, progress=False, batch=8, report=False).table
+    pd.testing.assert_frame_equal(again.drop(columns="wall_time"), alone.drop(columns="wall_time"))

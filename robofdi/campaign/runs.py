@@ -10,6 +10,7 @@ import json
 import time
 import traceback
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
@@ -125,7 +126,8 @@ def _error(exc: BaseException) -> str:
 
 
 def _draw(spec: CampaignSpec, index: int) -> tuple:
-    """Run ``index``'s calibration key, seed, mission and fault (with its limit info; None, None fault-free)."""
+    """Run ``index``'s calibration key, seed, mission and fault (with its limit info; None, None fault-free) — what
+    :func:`execute_run` draws step by step (there, a draw that fails keeps what it drew in the error row)."""
     system = spec.campaign_system
     keys = system.calibration_keys(spec.options)
     key = keys[index % len(keys)]
@@ -185,6 +187,20 @@ def _timed(entry: dict, wall: float) -> dict:
     return entry
 
 
+class _Simulated(NamedTuple):
+    """A run of a batch, simulated and waiting for its lockstep diagnosis."""
+
+    index: int
+    key: object
+    seed: int
+    mission: object
+    fault: Fault | None
+    info: dict | None
+    diagnoses: dict
+    record: object
+    seconds: float          # wall-clock time of its draw, build and simulation [s]
+
+
 def execute_batch(spec: CampaignSpec, indices, calibrations: dict, out: str | None = None) -> list[dict]:
     """Runs ``indices`` of the campaign in this worker, each entry the one :func:`execute_run` gives (its
     ``wall_time`` aside): every run is simulated without stepping its diagnoses, then all are diagnosed in lockstep
@@ -196,15 +212,13 @@ def execute_batch(spec: CampaignSpec, indices, calibrations: dict, out: str | No
     :class:`robofdi.systems.RobotInstances` runs) runs every run alone."""
     from robofdi.lockstep import diagnose_lockstep
     from robofdi.loop import ORACLE, ClosedLoop
-
     from robofdi.systems import RobotInstances
 
     indices = list(indices)
     system = spec.campaign_system
     if len(indices) < 2 or getattr(type(system), "run", None) is not RobotInstances.run:
-        # lockstep needs a run that is its built parts' run (RobotInstances.run); a system's own run may do more
         return [execute_run(spec, i, calibrations, out) for i in indices]
-    entries, staged, rates = {}, [], None
+    entries, simulated, rates = {}, [], None
     for index in indices:
         start = time.perf_counter()
         try:
@@ -212,33 +226,32 @@ def execute_batch(spec: CampaignSpec, indices, calibrations: dict, out: str | No
             parts = system.build(spec.options, calibrations[key], key, mission, [] if fault is None else [fault], seed,
                                  spec.diagnosers)
             loop = parts.loop
-            alone = (not isinstance(loop, ClosedLoop) or not loop.diagnoses
-                     or (loop.accommodation is not None and loop.health_source not in (None, ORACLE))
-                     or (rates is not None and loop.rates != rates))
-            if not alone:
+            if (isinstance(loop, ClosedLoop) and loop.diagnoses and (rates is None or loop.rates == rates)
+                    and (loop.accommodation is None or loop.health_source in (None, ORACLE))):
                 rates = loop.rates
-                staged.append((index, key, seed, mission, fault, info, parts, parts.run(diagnose=False),
-                               time.perf_counter() - start))
+                record = parts.run(diagnose=False)
+                simulated.append(_Simulated(index, key, seed, mission, fault, info, parts.diagnoses, record,
+                                            time.perf_counter() - start))
                 continue
         except Exception:              # alone, where its error row is made
             pass
         entries[index] = execute_run(spec, index, calibrations, out)
     start = time.perf_counter()
     try:
-        traces = diagnose_lockstep([s[7] for s in staged], [s[6].diagnoses for s in staged], rates)
+        traces = diagnose_lockstep([s.record for s in simulated], [s.diagnoses for s in simulated], rates)
     except Exception:                  # e.g. a non-finite measurement: every run alone, each with its own outcome
-        for s in staged:
-            entries[s[0]] = execute_run(spec, s[0], calibrations, out)
-        traces, staged = [], []
-    for (index, key, seed, mission, fault, info, _, record, _), trace in zip(staged, traces):
-        record.diagnosers = trace
+        for s in simulated:
+            entries[s.index] = execute_run(spec, s.index, calibrations, out)
+        traces, simulated = [], []
+    for s, trace in zip(simulated, traces):
+        s.record.diagnosers = trace
         try:
-            _save(spec, index, record, out)
-        except Exception as exc:
-            entries[index] = _entry(spec, index, seed, key, fault, info, None, mission, _error(exc))
+            _save(spec, s.index, s.record, out)
+        except Exception as exc:       # as execute_run: an error row
+            entries[s.index] = _entry(spec, s.index, s.seed, s.key, s.fault, s.info, None, s.mission, _error(exc))
             continue
-        entries[index] = _entry(spec, index, seed, key, fault, info, record, mission, None)
-    share = (time.perf_counter() - start) / max(len(staged), 1)
-    for s in staged:
-        _timed(entries[s[0]], s[8] + share)
+        entries[s.index] = _entry(spec, s.index, s.seed, s.key, s.fault, s.info, s.record, s.mission, None)
+    share = (time.perf_counter() - start) / max(len(simulated), 1)
+    for s in simulated:
+        _timed(entries[s.index], s.seconds + share)
     return [entries[i] for i in indices]
