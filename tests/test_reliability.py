@@ -158,7 +158,8 @@ def test_ctrl_c_inside_a_run_of_a_one_worker_campaign_stops_it_and_resume_gives_
     spec_path.write_text(LINEAR.format(ff=3, faulty=3))
     whole = run_campaign(load_spec(spec_path), tmp_path / "whole", workers=1, progress=False)
     out = tmp_path / "stopped"
-    args = ["campaign", str(spec_path), "--out", str(out), "--workers", "1", "--quiet"]
+    # batches of two runs: the batch of runs 0 and 1 is journaled whole, the one in flight (runs 2 and 3) is lost
+    args = ["campaign", str(spec_path), "--out", str(out), "--workers", "1", "--quiet", "--batch", "2"]
     driver = tmp_path / "driver.py"
     driver.write_text(DRIVER)
     proc = subprocess.run([sys.executable, str(driver), "simulation", "SIGINT", *args], capture_output=True, text=True,
@@ -167,7 +168,7 @@ def test_ctrl_c_inside_a_run_of_a_one_worker_campaign_stops_it_and_resume_gives_
     assert "interrupted by SIGINT" in proc.stderr and "--resume" in proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1, proc.stderr
     entries = [json.loads(line) for line in (out / "runs.jsonl").read_text().splitlines()]
-    assert [e["index"] for e in entries] == [0, 1], "the interrupted run must not be journaled (nor any later one)"
+    assert [e["index"] for e in entries] == [0, 1], "the interrupted batch must not be journaled (nor any later one)"
     assert all(r["error"] is None for e in entries for r in e["rows"])
     resumed = subprocess.run([sys.executable, "-m", "robofdi.cli", *args, "--resume"], capture_output=True, text=True,
                              timeout=180, env=_env(tmp_path))
