@@ -4,6 +4,7 @@ raises is an error row, and the campaign statistics against closed forms. Real M
 from __future__ import annotations
 
 import json
+import os
 import signal
 import subprocess
 import sys
@@ -18,7 +19,7 @@ from robofdi import RobofdiError
 from robofdi.campaign import (
     clopper_pearson, detection_curve, load, load_spec, register_system, run_campaign, run_seed, shipped_specs,
 )
-from robofdi.campaign.backends import DaskCluster
+from robofdi.campaign.backends import DaskCluster, LocalPool
 from robofdi.systems.linear import LinearSystem
 
 ARM = """
@@ -369,3 +370,12 @@ def test_helicopter_campaign_detects_loss_of_effectiveness_with_two_beliefs(tmp_
     assert (faulty["target"] == "collective").all() and faulty["size"].between(0.5, 0.6).all()
     assert faulty["detected"].all() and faulty["correct"].all()
     assert (t[~t["faulty"]]["false_alarms"] == 0).all()
+
+
+def test_a_local_pool_has_started_every_worker_when_it_opens():
+    """The executor would start workers one by one as tasks come; the pool starts them all at once (their interpreter
+    and robofdi's campaign engine imported), so that a campaign's runs do not wait for one."""
+    with LocalPool(2) as pool:
+        processes = list(pool._pool._processes.values())
+        assert len(processes) == 2 and all(p.is_alive() for p in processes)
+        assert set(pool.map_unordered(os.getpid, [()] * 4)) <= {p.pid for p in processes}     # the tasks run there

@@ -9,7 +9,7 @@ import pytest
 
 from robofdi import RobofdiError
 from robofdi.campaign import load_spec, register_system, run_campaign
-from robofdi.campaign.engine import MAX_BATCH, _calibrate, batches
+from robofdi.campaign.engine import MAX_BATCH, MIN_BATCH, _calibrate, batches
 from robofdi.campaign.runs import _draw
 from robofdi.decision import Signature, ThresholdDecision
 from robofdi.lockstep import diagnose_lockstep, diagnoser_view
@@ -134,11 +134,24 @@ def test_campaign_rows_and_records_are_the_same_in_lockstep_and_alone(tmp_path):
         assert np.array_equal(a.truth_state, b.truth_state)
 
 
-def test_batches_cut_the_runs_and_refuse_a_bad_size():
-    todo = list(range(100))
-    assert batches(todo, 1) == [todo[i:i + MAX_BATCH] for i in range(0, 100, MAX_BATCH)]
-    assert [len(b) for b in batches(todo, 2)] == [13] * 7 + [9]          # about four per worker
-    assert batches(todo[:5], 1) == [todo[:5]] and batches(todo, 1, 1) == [[i] for i in todo]
+@pytest.mark.parametrize("runs", [1, 5, 31, 33, 100, 200, 1000])
+@pytest.mark.parametrize("workers", [1, 2, 8])
+def test_automatic_batches_cover_the_runs_in_order_and_shrink_for_several_workers(runs, workers):
+    todo = list(range(7, 7 + runs))
+    cut = batches(todo, workers)
+    sizes = [len(b) for b in cut]
+    assert [i for b in cut for i in b] == todo and max(sizes) <= MAX_BATCH
+    if workers == 1:                        # even batches, as few as MAX_BATCH allows
+        assert len(cut) == -(-runs // MAX_BATCH) and max(sizes) - min(sizes) <= 1
+    else:                                   # shrinking, so that the workers finish together
+        assert sizes == sorted(sizes, reverse=True)
+        assert runs < 2 * workers * MIN_BATCH or len(cut) >= 2 * workers
+        assert sizes[-1] <= MIN_BATCH
+
+
+def test_a_batch_size_is_taken_as_given_and_a_bad_one_refused():
+    todo = list(range(10))
+    assert batches(todo, 2, 4) == [todo[:4], todo[4:8], todo[8:]] and batches(todo, 1, 1) == [[i] for i in todo]
     for bad in (0, -1, 2.5, True):
         with pytest.raises(RobofdiError, match="--batch: expected an integer >= 1"):
             batches(todo, 1, bad)

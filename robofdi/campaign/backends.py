@@ -28,9 +28,28 @@ def default_workers() -> int:
         return os.cpu_count() or 1
 
 
-def _worker_init() -> None:
+_STARTED = None       # in a worker: the barrier every worker of the pool meets once, when the pool starts
+
+
+def _import_engine() -> None:
+    """Import what every task runs (the campaign engine, lockstep diagnosis), once as a worker starts, so that a
+    campaign's runs do not wait for it."""
+    import robofdi.campaign.runs  # noqa: F401
+    import robofdi.lockstep  # noqa: F401
+
+
+def _worker_init(started) -> None:
+    global _STARTED
     # Ctrl-C and SIGTERM are the driver's to handle: it terminates the pool; workers must not print tracebacks.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _import_engine()
+    _STARTED = started
+
+
+def _started() -> int:
+    """A pool's first task, one per worker: each waits until every worker has started (so no worker takes two)."""
+    _STARTED.wait(timeout=300)
+    return os.getpid()
 
 
 class LocalPool:
@@ -49,8 +68,17 @@ class LocalPool:
 
     def __enter__(self):
         if self.workers > 1:
-            self._pool = ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"),
-                                             initializer=_worker_init)
+            context = multiprocessing.get_context("spawn")
+            self._pool = ProcessPoolExecutor(self.workers, mp_context=context, initializer=_worker_init,
+                                             initargs=(context.Barrier(self.workers),))
+            # every worker started now (the executor would start them one by one as tasks come), so that a campaign's
+            # runs do not wait for a worker's interpreter and imports
+            try:
+                for future in [self._pool.submit(_started) for _ in range(self.workers)]:
+                    future.result()
+            except BaseException:
+                self.__exit__(RobofdiError, None, None)
+                raise
         return self
 
     def __exit__(self, exc_type, exc, tb):
@@ -99,6 +127,7 @@ class DaskCluster:
             raise RobofdiError(f"--scheduler: the Dask scheduler at {address!r} has no workers; start some with "
                                f"`dask worker {address}`")
         self.description = f"Dask cluster at {address}, {self.workers} workers"
+        self.client.run(_import_engine)
         self._futures = []
 
     def __enter__(self):
