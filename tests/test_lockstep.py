@@ -9,7 +9,7 @@ import pytest
 
 from robofdi import RobofdiError
 from robofdi.campaign import load_spec, register_system, run_campaign
-from robofdi.campaign.engine import MAX_BATCH, MIN_BATCH, _calibrate, batches
+from robofdi.campaign.engine import MAX_BATCH, _calibrate, batches
 from robofdi.campaign.runs import _draw
 from robofdi.decision import Signature, ThresholdDecision
 from robofdi.lockstep import diagnose_lockstep, diagnoser_view
@@ -136,17 +136,13 @@ def test_campaign_rows_and_records_are_the_same_in_lockstep_and_alone(tmp_path):
 
 @pytest.mark.parametrize("runs", [1, 5, 31, 33, 100, 200, 1000])
 @pytest.mark.parametrize("workers", [1, 2, 8])
-def test_automatic_batches_cover_the_runs_in_order_and_shrink_for_several_workers(runs, workers):
+def test_automatic_batches_cover_the_runs_in_order_evenly_as_many_for_every_worker(runs, workers):
     todo = list(range(7, 7 + runs))
     cut = batches(todo, workers)
     sizes = [len(b) for b in cut]
-    assert [i for b in cut for i in b] == todo and max(sizes) <= MAX_BATCH
-    if workers == 1:                        # even batches, as few as MAX_BATCH allows
-        assert len(cut) == -(-runs // MAX_BATCH) and max(sizes) - min(sizes) <= 1
-    else:                                   # shrinking, so that the workers finish together
-        assert sizes == sorted(sizes, reverse=True)
-        assert runs < 2 * workers * MIN_BATCH or len(cut) >= 2 * workers
-        assert sizes[-1] <= MIN_BATCH
+    assert [i for b in cut for i in b] == todo and max(sizes) <= MAX_BATCH and max(sizes) - min(sizes) <= 1
+    assert len(cut) % workers == 0 or len(cut) == runs < workers        # as many batches for every worker
+    assert len(cut) < workers * (runs / (workers * MAX_BATCH) + 1) or len(cut) == runs   # as few as that allows
 
 
 def test_a_batch_size_is_taken_as_given_and_a_bad_one_refused():

@@ -132,29 +132,21 @@ class _Session:
 #: Most runs a worker diagnoses in lockstep (:func:`batches`): beyond it the gain levels off and more is lost
 #: when a worker stops mid-batch.
 MAX_BATCH = 32
-#: Fewest runs of an automatic batch while several workers share a campaign (:func:`batches`).
-MIN_BATCH = 4
 
 
 def batches(todo: list[int], workers: int, batch: int | None = None) -> list[list[int]]:
     """``todo`` cut into consecutive batches, each run by one worker in lockstep
-    (:func:`robofdi.campaign.runs.execute_batch`). ``batch``: runs per batch (1: every run alone). None: a lone
-    worker takes even batches of at most :data:`MAX_BATCH`; several take batches that shrink as the campaign goes
-    on — half of what remains shared over the workers, from :data:`MAX_BATCH` down to :data:`MIN_BATCH` — so that
-    the last batches are short and the workers finish together (guided self-scheduling)."""
+    (:func:`robofdi.campaign.runs.execute_batch`). ``batch``: runs per batch (1: every run alone). None: even
+    batches (their sizes differ by one at most) of at most :data:`MAX_BATCH` runs, as many as a multiple of
+    ``workers``, so that every worker gets as many."""
     if batch is not None:
         if isinstance(batch, bool) or not isinstance(batch, int) or batch < 1:
             raise RobofdiError(f"--batch: expected an integer >= 1 (runs diagnosed in lockstep), got {batch!r}")
         return [todo[i:i + batch] for i in range(0, len(todo), batch)]
-    if workers == 1:                # even batches (sizes differ by one at most), as few as MAX_BATCH allows
-        count = -(-len(todo) // MAX_BATCH)
-        return [part.tolist() for part in np.array_split(np.asarray(todo, dtype=int), count)] if todo else []
-    out, start = [], 0
-    while start < len(todo):
-        size = min(MAX_BATCH, max(MIN_BATCH, -(-(len(todo) - start) // (2 * workers))))
-        out.append(todo[start:start + size])
-        start += size
-    return out
+    if not todo:
+        return []
+    count = min(len(todo), -(-len(todo) // (MAX_BATCH * workers)) * workers)
+    return [part.tolist() for part in np.array_split(np.asarray(todo, dtype=int), count)]
 
 
 def run_campaign(spec, out: str | Path, *, workers: int | None = None, scheduler: str | None = None,
