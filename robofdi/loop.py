@@ -673,8 +673,8 @@ class ClosedLoop:
         steps = int(round(duration / dt))
         inj = self._injector(stream(seed, run_key))
         oracle = self.health_source == ORACLE
-        bank = DiagnosisBank(self.diagnoses if diagnose else {}, rates, None if oracle or not diagnose else self.health_source,
-                             chunk)
+        diagnoses = self.diagnoses if diagnose else {}
+        bank = DiagnosisBank(diagnoses, rates, None if oracle or not diagnoses else self.health_source, chunk)
         accommodation = self.accommodation
         if hasattr(self.controller, "reset"):     # stateful parts start every run afresh
             self.controller.reset()

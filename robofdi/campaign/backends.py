@@ -76,8 +76,11 @@ class LocalPool:
             try:
                 for future in [self._pool.submit(_started) for _ in range(self.workers)]:
                     future.result()
-            except BaseException:
+            except BaseException as exc:
                 self.__exit__(RobofdiError, None, None)
+                if isinstance(exc, Exception):
+                    raise RobofdiError(f"--workers: the local pool's {self.workers} workers did not all start "
+                                       f"({type(exc).__name__}: {exc})") from exc
                 raise
         return self
 
