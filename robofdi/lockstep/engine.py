@@ -102,6 +102,7 @@ class _ArrayDiagnoses(_Diagnoses):
         self.current: list[tuple] = [()] * n                # … and as the tuple its decision answers while quiet
         self.skipped = np.zeros(n, dtype=np.int64)          # quiet samples not yet told to each decision
         self.open = np.zeros(n, dtype=bool)                 # a confirmation window is open (not settled)
+        self.identifying = np.zeros(n, dtype=bool)          # the identification is active
 
     def decide(self, k: int, times: list, r: np.ndarray, estimate: np.ndarray) -> None:
         a = len(r)
@@ -121,12 +122,14 @@ class _ArrayDiagnoses(_Diagnoses):
             self.alarm[k, slot] = alarms.alarm
             if alarms.isolated != self.current[slot]:
                 self.current[slot], self.joined[slot] = alarms.isolated, "+".join(alarms.isolated)
-            self.estimate[k, slot] = self.identifications[slot].update(estimate[slot], alarms.isolated)
-        self.isolated[k, :a] = self.joined[:a]
-        for slot in np.flatnonzero(quiet).tolist():
             identification = self.identifications[slot]
-            if identification.active:       # else its answer is zeros, as the row already is
-                self.estimate[k, slot] = identification.update(estimate[slot], self.current[slot])
+            self.estimate[k, slot] = identification.update(estimate[slot], alarms.isolated)
+            self.identifying[slot] = identification.active
+        self.isolated[k, :a] = self.joined[:a]
+        # a quiet run's identification answers zeros until it is active (as the row already is); it becomes active
+        # only on a sample its decision stepped (a new isolation)
+        for slot in np.flatnonzero(quiet & self.identifying[:a]).tolist():
+            self.estimate[k, slot] = self.identifications[slot].update(estimate[slot], self.current[slot])
 
     def trace(self, slot: int, samples: int, times: np.ndarray) -> DiagnoserTrace:
         self.decisions[slot].skip(int(self.skipped[slot]))
