@@ -264,3 +264,19 @@ def test_a_failing_run_or_diagnosis_in_a_batch_gives_the_rows_it_gives_alone(tmp
     monkeypatch.setattr("robofdi.lockstep.diagnose_lockstep", broken)
     again = run_campaign(spec, tmp_path / "again", workers=1, progress=False, batch=8, report=False).table
     pd.testing.assert_frame_equal(again.drop(columns="wall_time"), alone.drop(columns="wall_time"))
+
+
+def test_a_batch_past_its_memory_budget_is_diagnosed_in_parts_with_the_same_rows(tmp_path, monkeypatch):
+    spec = load_spec(LINEAR.format(name="linear"))
+    alone = run_campaign(spec, tmp_path / "alone", workers=1, progress=False, batch=1, report=False).table
+    seen = []
+
+    def spy(records, diagnoses, rates):
+        seen.append(len(records))
+        return diagnose_lockstep(records, diagnoses, rates)
+
+    monkeypatch.setattr("robofdi.lockstep.diagnose_lockstep", spy)
+    monkeypatch.setattr("robofdi.campaign.runs.BATCH_MEMORY", 1)          # every record is past it: parts of one
+    parts = run_campaign(spec, tmp_path / "parts", workers=1, progress=False, batch=8, report=False).table
+    pd.testing.assert_frame_equal(parts.drop(columns="wall_time"), alone.drop(columns="wall_time"))
+    assert seen == [1] * 8

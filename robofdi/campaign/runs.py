@@ -201,16 +201,27 @@ class _Simulated(NamedTuple):
     seconds: float          # wall-clock time of its draw, build and simulation [s]
 
 
+#: Most bytes of simulated records a worker holds before it diagnoses them (:func:`execute_batch`): a batch of long
+#: runs is diagnosed in parts, so memory stays bounded whatever the runs' duration (a 2.7 s arm run: 1.7 MB).
+BATCH_MEMORY = 256 * 2**20
+
+
+def _nbytes(record) -> int:
+    """Bytes of a record's series."""
+    arrays = [record.time, record.truth_state, record.u_applied, *record.signals.values()]
+    arrays += [a for labels in record.faults.values() for a in (labels.active, labels.value)]
+    return sum(a.nbytes for a in arrays if a is not None)
+
+
 def execute_batch(spec: CampaignSpec, indices, calibrations: dict, out: str | None = None) -> list[dict]:
     """Runs ``indices`` of the campaign in this worker, each entry the one :func:`execute_run` gives (its
     ``wall_time`` aside): every run is simulated without stepping its diagnoses, then all are diagnosed in lockstep
-    (:func:`robofdi.lockstep.diagnose_lockstep`: each diagnoser once per sample for the whole batch). A run's
-    ``wall_time`` is then its simulation plus its share of the batch's diagnosis and rows. A run that cannot be
-    (its loop's accommodation follows a diagnosis, its diagnosis rates differ from the batch's) or whose simulation
-    fails is run alone (:func:`execute_run`), and so is the whole batch if its lockstep diagnosis fails: the same
-    rows, errors included. A system whose ``run`` is its own (not ``build(...).run()``, as
-    :class:`robofdi.systems.RobotInstances` runs) runs every run alone."""
-    from robofdi.lockstep import diagnose_lockstep
+    (:func:`robofdi.lockstep.diagnose_lockstep`: each diagnoser once per sample for the whole batch; in parts when
+    the records would hold more than :data:`BATCH_MEMORY`). A run's ``wall_time`` is then its simulation plus its
+    share of the diagnosis and rows. A run that cannot be (its loop's accommodation follows a diagnosis, its
+    diagnosis rates differ from the batch's) or whose simulation fails is run alone (:func:`execute_run`), and so is
+    every run of a lockstep diagnosis that fails: the same rows, errors included. A system whose ``run`` is its own
+    (not ``build(...).run()``, as :class:`robofdi.systems.RobotInstances` runs) runs every run alone."""
     from robofdi.loop import ORACLE, ClosedLoop
     from robofdi.systems import RobotInstances
 
@@ -218,7 +229,7 @@ def execute_batch(spec: CampaignSpec, indices, calibrations: dict, out: str | No
     system = spec.campaign_system
     if len(indices) < 2 or getattr(type(system), "run", None) is not RobotInstances.run:
         return [execute_run(spec, i, calibrations, out) for i in indices]
-    entries, simulated, rates = {}, [], None
+    entries, simulated, rates, held = {}, [], None, 0
     for index in indices:
         start = time.perf_counter()
         try:
@@ -232,17 +243,32 @@ def execute_batch(spec: CampaignSpec, indices, calibrations: dict, out: str | No
                 record = parts.run(diagnose=False)
                 simulated.append(_Simulated(index, key, seed, mission, fault, info, parts.diagnoses, record,
                                             time.perf_counter() - start))
+                held += _nbytes(record)
+                if held >= BATCH_MEMORY:
+                    _diagnose(spec, simulated, rates, calibrations, out, entries)
+                    simulated, held = [], 0
                 continue
         except Exception:              # alone, where its error row is made
             pass
         entries[index] = execute_run(spec, index, calibrations, out)
+    _diagnose(spec, simulated, rates, calibrations, out, entries)
+    return [entries[i] for i in indices]
+
+
+def _diagnose(spec, simulated: list[_Simulated], rates, calibrations: dict, out, entries: dict) -> None:
+    """Diagnose the ``simulated`` runs in lockstep and put their entries into ``entries`` (by index); if that
+    fails, every one of them is run alone."""
+    from robofdi.lockstep import diagnose_lockstep
+
+    if not simulated:
+        return
     start = time.perf_counter()
     try:
         traces = diagnose_lockstep([s.record for s in simulated], [s.diagnoses for s in simulated], rates)
     except Exception:                  # e.g. a non-finite measurement: every run alone, each with its own outcome
         for s in simulated:
             entries[s.index] = execute_run(spec, s.index, calibrations, out)
-        traces, simulated = [], []
+        return
     for s, trace in zip(simulated, traces):
         s.record.diagnosers = trace
         try:
@@ -251,7 +277,6 @@ def execute_batch(spec: CampaignSpec, indices, calibrations: dict, out: str | No
             entries[s.index] = _entry(spec, s.index, s.seed, s.key, s.fault, s.info, None, s.mission, _error(exc))
             continue
         entries[s.index] = _entry(spec, s.index, s.seed, s.key, s.fault, s.info, s.record, s.mission, None)
-    share = (time.perf_counter() - start) / max(len(simulated), 1)
+    share = (time.perf_counter() - start) / len(simulated)
     for s in simulated:
         _timed(entries[s.index], s.seconds + share)
-    return [entries[i] for i in indices]
