@@ -239,12 +239,8 @@ class BrittleLinear(LinearSystem):
         return super().build(options, calibration, key, mission, faults, seed, diagnosers)
 
 
-def test_a_failing_run_or_diagnosis_in_a_batch_gives_the_rows_it_gives_alone(tmp_path, monkeypatch):
-    """A run whose build raises is run alone (its error row); a batch whose lockstep diagnosis raises is diagnosed run
-    by run: the tables of both equal those of every run alone."""
-    register_system(BrittleLinear())
-    spec = load_spec(LINEAR.format(name="brittle-linear"))
-    alone = run_campaign(spec, tmp_path / "alone", workers=1, progress=False, batch=1, report=False).table
+def _count_lockstep(monkeypatch) -> list[int]:
+    """The batch sizes of every lockstep diagnosis from now on (the engine's own, counted)."""
     seen = []
 
     def spy(records, diagnoses, rates):
@@ -252,7 +248,22 @@ def test_a_failing_run_or_diagnosis_in_a_batch_gives_the_rows_it_gives_alone(tmp
         return diagnose_lockstep(records, diagnoses, rates)
 
     monkeypatch.setattr("robofdi.lockstep.diagnose_lockstep", spy)
-    lock = run_campaign(spec, tmp_path / "lock", workers=1, progress=False, batch=8, report=False).table
+    return seen
+
+
+def _table(spec, folder, batch: int):
+    """The results table of a one-worker campaign with ``batch`` runs per batch (no report)."""
+    return run_campaign(spec, folder, workers=1, progress=False, batch=batch, report=False).table
+
+
+def test_a_failing_run_or_diagnosis_in_a_batch_gives_the_rows_it_gives_alone(tmp_path, monkeypatch):
+    """A run whose build raises is run alone (its error row); a batch whose lockstep diagnosis raises is diagnosed run
+    by run: the tables of both equal those of every run alone."""
+    register_system(BrittleLinear())
+    spec = load_spec(LINEAR.format(name="brittle-linear"))
+    alone = _table(spec, tmp_path / "alone", 1)
+    seen = _count_lockstep(monkeypatch)
+    lock = _table(spec, tmp_path / "lock", 8)
     pd.testing.assert_frame_equal(lock.drop(columns="wall_time"), alone.drop(columns="wall_time"))
     assert 2 <= seen[0] < 8                # the runs that built were diagnosed in lockstep, the others alone
     assert 0 < alone["error"].notna().sum() < len(alone)
@@ -262,21 +273,15 @@ def test_a_failing_run_or_diagnosis_in_a_batch_gives_the_rows_it_gives_alone(tmp
         raise RobofdiError("lockstep: a residual has non-finite values")
 
     monkeypatch.setattr("robofdi.lockstep.diagnose_lockstep", broken)
-    again = run_campaign(spec, tmp_path / "again", workers=1, progress=False, batch=8, report=False).table
+    again = _table(spec, tmp_path / "again", 8)
     pd.testing.assert_frame_equal(again.drop(columns="wall_time"), alone.drop(columns="wall_time"))
 
 
 def test_a_batch_past_its_memory_budget_is_diagnosed_in_parts_with_the_same_rows(tmp_path, monkeypatch):
     spec = load_spec(LINEAR.format(name="linear"))
-    alone = run_campaign(spec, tmp_path / "alone", workers=1, progress=False, batch=1, report=False).table
-    seen = []
-
-    def spy(records, diagnoses, rates):
-        seen.append(len(records))
-        return diagnose_lockstep(records, diagnoses, rates)
-
-    monkeypatch.setattr("robofdi.lockstep.diagnose_lockstep", spy)
+    alone = _table(spec, tmp_path / "alone", 1)
+    seen = _count_lockstep(monkeypatch)
     monkeypatch.setattr("robofdi.campaign.runs.BATCH_MEMORY", 1)          # every record is past it: parts of one
-    parts = run_campaign(spec, tmp_path / "parts", workers=1, progress=False, batch=8, report=False).table
+    parts = _table(spec, tmp_path / "parts", 8)
     pd.testing.assert_frame_equal(parts.drop(columns="wall_time"), alone.drop(columns="wall_time"))
     assert seen == [1] * 8
