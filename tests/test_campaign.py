@@ -379,3 +379,19 @@ def test_a_local_pool_has_started_every_worker_when_it_opens():
         processes = list(pool._pool._processes.values())
         assert len(processes) == 2 and all(p.is_alive() for p in processes)
         assert set(pool.map_unordered(os.getpid, [()] * 4)) <= {p.pid for p in processes}     # the tasks run there
+
+
+def _profiling(dask_worker=None) -> bool:
+    return dask_worker.periodic_callbacks["profile"].is_running()
+
+
+def test_a_dask_cluster_pauses_its_workers_profiler_while_a_campaign_runs_and_starts_it_again():
+    distributed = pytest.importorskip("dask.distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None) as cluster:
+        with distributed.Client(cluster.scheduler_address) as client:
+            assert set(client.run(_profiling).values()) == {True}
+            with DaskCluster(cluster.scheduler_address) as pool:
+                assert set(pool.client.run(_profiling).values()) == {False}
+            assert set(client.run(_profiling).values()) == {True}
+            with DaskCluster(cluster.scheduler_address, pause_profiler=False) as pool:
+                assert set(pool.client.run(_profiling).values()) == {True}
