@@ -41,7 +41,7 @@ except ModuleNotFoundError:        # Python 3.10
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from arm_quality import SAMPLE, per_class, quality, settings_option  # noqa: E402
+from arm_quality import SAMPLE, per_class, per_class_at_equal_false_alarms, quality, settings_option  # noqa: E402
 
 from robofdi.campaign import run_campaign  # noqa: E402
 from robofdi.campaign.results import load  # noqa: E402
@@ -165,6 +165,10 @@ def main() -> None:
         if "consistency" in spec["diagnosers"]:
             print("\nconsistency by fault class:")
             print(per_class(table, "consistency").to_string())
+        equal = per_class_at_equal_false_alarms(table)
+        if equal is not None:
+            print("\nby fault class at equal false alarms (detected/faults; ×: the thresholds' scale):")
+            print(equal.to_string())
 
 
 if __name__ == "__main__":

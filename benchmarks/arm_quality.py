@@ -12,11 +12,13 @@ Each robot's campaign is resumable (re-running the command continues it). Per di
 - detection and correct isolation of the faults at or above twice the minimum detectable size of their
   (kind, target) — the size at which that diagnoser's isotonic detection curve reaches 90 %;
 - the median detection delay of abrupt actuator faults, in diagnosis samples (2 ms, or the campaign's
-  ``diagnosis_hz``): every additive fault that is
-  not an exponential rise (steps, 2 s ramps, intermittent ones; the column kept as the campaigns before reported
-  it), and of the steps alone ("step delay", the issue's "abrupt actuator steps"), all detected and those at
-  ≥ 2× their minimum detectable size;
-- the detection rate of incipient actuator faults (against the momentum baseline's);
+  ``diagnosis_hz``): additive steps and intermittent faults (their onset is a jump; until 2026-12-07 the column
+  also held the 2 s ramps, which are detected as they grow: class ``actuator_slow`` now, with its own delay), and
+  of the steps alone ("step delay", the issue's "abrupt actuator steps"), all detected and those at ≥ 2× their
+  minimum detectable size;
+- the detection rate of incipient actuator faults (exponential rises; against the momentum baseline's), also at
+  equal false alarms: every diagnoser's thresholds scaled up until only as many of its fault-free runs alarm as the
+  best one's (:func:`robofdi.campaign.metrics.at_equal_false_alarms`; "×s" is the scale);
 - for encoder drifts: the accumulated offset at detection and the smallest detectable encoder bias of the same
   joint (medians over the drifts; the bias MDF is an upper bound when the smallest bias drawn was detected), and
   how many of the drifts whose offset reached DRIFT_FACTOR × that bias by the end of the run were detected; and
@@ -43,6 +45,7 @@ except ModuleNotFoundError:        # Python 3.10
     import tomli as tomllib
 
 from robofdi.campaign import clopper_pearson, detection_curve, run_campaign
+from robofdi.campaign.metrics import at_equal_false_alarms
 from robofdi.campaign.results import load
 from robofdi.sims.arm import SensorModel
 
@@ -63,7 +66,7 @@ def drift_oracle_z(rate: float, seconds: float, sample: float = SAMPLE) -> float
 def _class(row) -> str:
     kind, target, profile = row["kind"], str(row["target"]), str(row["profile"])
     if kind == "actuator_additive":
-        return "actuator_incipient" if "exponential" in profile else "actuator_abrupt"
+        return {"exponential_rise": "actuator_incipient", "ramp": "actuator_slow"}.get(profile, "actuator_abrupt")
     if kind.startswith("sensor"):
         return f"{kind}_{'vel' if target.endswith('_vel') else 'pos'}"
     return kind
@@ -84,6 +87,7 @@ def quality(table: pd.DataFrame, sample: float = SAMPLE) -> pd.DataFrame:
     table = table[table["error"].isna()] if "error" in table else table
     faulty = table[table["faulty"]].copy()
     faulty["class"] = faulty.apply(_class, axis=1)
+    equal = at_equal_false_alarms(table) or {"diagnosers": {}}
     rows = []
     for name, d in table.groupby("diagnoser", sort=False):
         free = d[~d["faulty"]]
@@ -100,6 +104,8 @@ def quality(table: pd.DataFrame, sample: float = SAMPLE) -> pd.DataFrame:
         steps = abrupt[abrupt["profile"].astype(str) == "step"]
         big_steps = steps[steps.index.isin(big.index)]
         incipient = f[f["class"] == "actuator_incipient"]
+        slow = f[(f["class"] == "actuator_slow") & f["detected"].fillna(False).astype(bool)]
+        scale = equal["diagnosers"].get(name, {}).get("threshold_scale")
         drift = f[f["class"] == "sensor_drift_pos"]
         offsets, biases = [], []      # [rad]: a drift's accumulated offset at detection; the joint's MDF bias
         reached = caught = 0          # drifts whose final offset reached DRIFT_FACTOR × the MDF bias; detected
@@ -126,13 +132,33 @@ def quality(table: pd.DataFrame, sample: float = SAMPLE) -> pd.DataFrame:
             "abrupt delay [samples]": f"{np.median(abrupt['delay']) / sample:.1f}" if len(abrupt) else "-",
             "step delay, all / ≥2×MDF [samples]": " / ".join(f"{np.median(g['delay']) / sample:.1f}" if len(g) else "-"
                                                               for g in (steps, big_steps)),
+            "ramp delay [samples]": f"{np.median(slow['delay']) / sample:.1f}" if len(slow) else "-",
             "incipient detected": f"{int(incipient['detected'].fillna(False).sum())}/{len(incipient)}",
+            "incipient at equal FA": "-" if scale is None else
+                f"{int((incipient['peak_ratio_fault'] > scale).sum())}/{len(incipient)} (×{scale:.3g})",
             "drift offset at detection / MDF bias [mrad]":
                 f"{1e3 * np.median(offsets):.3f} / {1e3 * np.median(biases):.3f}" if offsets else "-",
             f"drifts reaching {DRIFT_FACTOR:g}×MDF bias detected": f"{caught}/{reached}",
             f"oracle-detectable drifts (z≥{DRIFT_ORACLE_Z:g}) detected": f"{sum(detectable)}/{len(detectable)}",
         })
     return pd.DataFrame(rows).set_index("diagnoser")
+
+
+def per_class_at_equal_false_alarms(table: pd.DataFrame) -> pd.DataFrame | None:
+    """Faults detected per class (detected/faults) by every diagnoser at equal false alarms (the quality table's
+    "×s"); None when the table has no peak ratios (campaigns before 2026-12-07) or one diagnoser."""
+    table = table[table["error"].isna()] if "error" in table else table
+    equal = at_equal_false_alarms(table)
+    if equal is None:
+        return None
+    f = table[table["faulty"]].copy()
+    f["class"] = f.apply(_class, axis=1)
+    out = {}
+    for name, e in equal["diagnosers"].items():
+        g = f[f["diagnoser"] == name].assign(hit=lambda x, s=e["threshold_scale"]: x["peak_ratio_fault"] > s)
+        count = g.groupby("class")["hit"].agg(["sum", "size"])
+        out[f"{name} (×{e['threshold_scale']:.3g})"] = [f"{int(a)}/{int(b)}" for a, b in count.to_numpy()]
+    return pd.DataFrame(out, index=count.index)
 
 
 def per_class(table: pd.DataFrame, diagnoser: str) -> pd.DataFrame:

@@ -82,7 +82,8 @@ def results_table(entries, diagnosers=None) -> pd.DataFrame:
         table[col] = table[col].astype("boolean")
     table["false_alarms"] = table["false_alarms"].astype("Int64")
     for col in ("magnitude", "limit", "size", "onset", "end", "duration", "detection_time", "delay", "time_to_isolation",
-                "time_to_correct_isolation", "estimate_error", "first_false_alarm_time", "wall_time"):
+                "time_to_correct_isolation", "estimate_error", "first_false_alarm_time", "wall_time", "peak_ratio_free",
+                "peak_ratio_fault"):
         table[col] = table[col].astype("float64")
     for col in ("diagnoser", "fault", "kind", "target", "profile", "unit", "isolated", "error", "mission"):
         table[col] = table[col].astype("string")

@@ -11,6 +11,9 @@ hard-over or freeze has none). Faults whose target a diagnoser cannot name (colu
 link) count as not correctly isolated in ``correctly_isolated`` and ``isolation_accuracy`` as before, and are
 counted apart: ``not_isolable`` and ``isolation_accuracy_isolable`` (correct among the detected isolable ones).
 Error rows (runs that raised) are counted and left out of every rate.
+
+:func:`at_equal_false_alarms` compares the diagnosers at one false-alarm count (thresholds scaled up from the
+columns ``peak_ratio_free`` / ``peak_ratio_fault``), not each at its own.
 """
 from __future__ import annotations
 
@@ -24,7 +27,7 @@ from scipy.stats import binomtest
 
 from robofdi.faults import MAGNITUDE_FREE
 
-__all__ = ["clopper_pearson", "detection_curve", "analyse", "MISSED", "UNISOLATED"]
+__all__ = ["clopper_pearson", "detection_curve", "analyse", "at_equal_false_alarms", "MISSED", "UNISOLATED"]
 
 #: Confusion-matrix columns of a missed fault and of a detection with nothing isolated.
 MISSED, UNISOLATED = "missed", "unknown"
@@ -142,3 +145,47 @@ def analyse(table: pd.DataFrame, detection_level: float = 0.9, diagnosers=None) 
             }
         out[name] = entry
     return out
+
+
+def _scale_for(peaks: np.ndarray, allowed: int) -> float:
+    """The smallest threshold scale s >= 1 at which at most ``allowed`` of ``peaks`` exceed s (alarms: ratio > s)."""
+    ranked = np.sort(peaks)[::-1]
+    return max(1.0, float(ranked[allowed])) if allowed < ranked.size else 1.0
+
+
+def at_equal_false_alarms(table: pd.DataFrame, diagnosers=None) -> dict | None:
+    """Every diagnoser at the false-alarm count of the best one: k = the fewest fault-free runs with an alarm that
+    any diagnoser has at its own thresholds. A diagnoser with more gets its thresholds scaled up by the smallest
+    s at which only k of its fault-free runs alarm (the (k+1)-th largest ``peak_ratio_free``), and detects the faults
+    whose ``peak_ratio_fault`` exceeds s; the others keep s = 1. Exact for fixed-threshold alarms (an alarm is
+    |r_j| > s·threshold_j; the delays are not recomputed), and chosen on the same fault-free runs it is then tested
+    on, so it favours the diagnosers whose thresholds are raised. Only diagnosers whose every error-free row has
+    the peak columns take part; None when fewer than two do.
+
+    Returns {"false_alarm_runs": k, "fault_free_runs": n, "diagnosers": {name: {"threshold_scale", "false_alarm_runs",
+    "detection" (a rate), "by_kind_profile": {"kind~profile": {"detected", "faults"}}}}}."""
+    if "peak_ratio_free" not in table or "peak_ratio_fault" not in table:
+        return None
+    ok = table[table["error"].isna()]
+    names = list(diagnosers) if diagnosers is not None else list(dict.fromkeys(ok["diagnoser"]))
+    usable = {}
+    for name in names:
+        mine = ok[ok["diagnoser"] == name]
+        free = mine.loc[~mine["faulty"], "peak_ratio_free"].to_numpy(float)
+        faulty = mine[mine["faulty"]]
+        if free.size and np.isfinite(free).all() and np.isfinite(faulty["peak_ratio_fault"].to_numpy(float)).all():
+            usable[name] = (free, faulty)
+    if len(usable) < 2:
+        return None
+    k = min(int((free > 1.0).sum()) for free, _ in usable.values())
+    out = {}
+    for name, (free, faulty) in usable.items():
+        scale = _scale_for(free, k)
+        hit = faulty["peak_ratio_fault"].to_numpy(float) > scale
+        groups = faulty.assign(_hit=hit).groupby(["kind", "profile"], sort=True)["_hit"]
+        out[name] = {"threshold_scale": scale, "false_alarm_runs": int((free > scale).sum()),
+                     "detection": _rate(int(hit.sum()), len(hit)),
+                     "by_kind_profile": {f"{kind}~{profile}": {"detected": int(g.sum()), "faults": int(g.size)}
+                                         for (kind, profile), g in groups}}
+    return {"false_alarm_runs": k, "fault_free_runs": int(min(free.size for free, _ in usable.values())),
+            "diagnosers": out}

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from robofdi.campaign.metrics import analyse, clopper_pearson, detection_curve
+from robofdi.campaign.metrics import analyse, at_equal_false_alarms, clopper_pearson, detection_curve
 from robofdi.campaign.runs import UNITS
 from robofdi.errors import RobofdiError
 from robofdi.evaluate.figures import fixed_grid, save_figure
@@ -35,6 +35,10 @@ class CampaignResult:
         """Per-diagnoser campaign metrics (:func:`robofdi.campaign.metrics.analyse`)."""
         spec = self.spec_dict
         return analyse(self.table, detection_level or spec["detection_level"], spec["diagnosers"])
+
+    def at_equal_false_alarms(self) -> dict | None:
+        """The diagnosers at one false-alarm count (:func:`robofdi.campaign.metrics.at_equal_false_alarms`)."""
+        return at_equal_false_alarms(self.table, self.spec_dict["diagnosers"])
 
     @property
     def summary(self) -> dict:
@@ -278,6 +282,7 @@ def report_markdown(summary: dict) -> str:
                     at_most = "≤ " if d.get("min_detectable_at_most") else ""
                     cells.append(f"{at_most}{d['min_detectable_magnitude']:.3g}{unit} (n={d['faults']}){warn}")
             lines.append(f"| {k} | {t} | " + " | ".join(cells) + " |")
+    lines += _equal_false_alarms_markdown(summary.get("equal_false_alarms"))
     ex = summary.get("execution", {})
     cal = ex.get("calibration") or {}
     lines += ["", "## Execution", "", f"Backend: {ex.get('backend')}; runs this session: {ex.get('runs_this_session')}; "
@@ -295,6 +300,26 @@ def report_markdown(summary: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _equal_false_alarms_markdown(equal: dict | None) -> list[str]:
+    if not equal or all(d["threshold_scale"] == 1.0 for d in equal["diagnosers"].values()):
+        return []                   # every diagnoser is at that count already: the tables above say it all
+    names = list(equal["diagnosers"])
+    lines = ["", f"## At equal false alarms: {equal['false_alarm_runs']} of {equal['fault_free_runs']} fault-free runs", "",
+             "Each diagnoser's thresholds scaled up (× the factor) until no more of its fault-free runs alarm than the "
+             "best one's, on the same runs (which favours the scaled ones); detected / faults.", "",
+             "| kind~profile | " + " | ".join(names) + " |", "|---|" + "---|" * len(names),
+             "| threshold factor | " + " | ".join(f"{equal['diagnosers'][n]['threshold_scale']:.3g}" for n in names) + " |",
+             "| all faults | " + " | ".join(_pct(equal["diagnosers"][n]["detection"]) for n in names) + " |"]
+    kinds = sorted({k for n in names for k in equal["diagnosers"][n]["by_kind_profile"]})
+    for k in kinds:
+        cells = []
+        for n in names:
+            b = equal["diagnosers"][n]["by_kind_profile"].get(k)
+            cells.append("–" if b is None else f"{b['detected']}/{b['faults']}")
+        lines.append(f"| {k} | " + " | ".join(cells) + " |")
+    return lines
+
+
 def write_outputs(result: CampaignResult, execution: dict | None = None) -> dict:
     """results.parquet, campaign.json, figures/ and report.md in the campaign folder; returns campaign.json's dict."""
     out = Path(result.out)
@@ -308,11 +333,13 @@ def write_outputs(result: CampaignResult, execution: dict | None = None) -> dict
         "runs": {"finished": int(len(firsts)), "fault_free": int((~firsts["faulty"]).sum()),
                  "faulty": int(firsts["faulty"].sum()), "errors": int(len(errors))},
         "diagnosers": metrics,
+        "equal_false_alarms": result.at_equal_false_alarms(),
         "errors": [{"index": int(r["index"]), "error": str(r["error"])} for _, r in errors.iterrows()],
         "execution": execution or {},
         "units": {**UNITS, "rate": "fraction of runs", "ci95": "Clopper–Pearson exact 95 % interval of the rate",
                   "delay_median": "s", "delay_p90": "s", "min_detectable_size": "fraction of the target's limit",
-                  "min_detectable_magnitude": "'unit' of the entry"},
+                  "min_detectable_magnitude": "'unit' of the entry",
+                  "threshold_scale": "1 (the factor on the diagnoser's thresholds at the equal false-alarm count)"},
     }
     summary["figures"] = _figures(result, metrics)
     (out / "campaign.json").write_text(json.dumps(_jsonable(summary), indent=2, allow_nan=False) + "\n")

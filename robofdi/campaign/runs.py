@@ -26,7 +26,8 @@ __all__ = ["run_seed", "faulty_indices", "draw_fault", "execute_run", "execute_b
 COLUMNS = ("index", "run_seed", "robot_seed", "faulty", "diagnoser", "fault", "kind", "target", "profile", "magnitude",
            "unit", "limit", "size", "onset", "end", "duration", "detected", "detection_time", "delay", "isolated",
            "correct", "time_to_isolation", "estimate_error", "false_alarms", "first_false_alarm_time", "wall_time",
-           "error", "mission", "time_to_correct_isolation", "final_correct", "isolable")
+           "error", "mission", "time_to_correct_isolation", "final_correct", "isolable", "peak_ratio_free",
+           "peak_ratio_fault")
 #: Unit of each numeric column (``unit`` names the unit of magnitude, limit and estimate_error per row).
 UNITS = {"magnitude": "column 'unit'", "limit": "column 'unit'", "size": "fraction of the target's limit (|magnitude|/limit)",
          "onset": "s", "end": "s", "duration": "s", "detection_time": "s", "delay": "s", "time_to_isolation": "s",
@@ -36,7 +37,10 @@ UNITS = {"magnitude": "column 'unit'", "limit": "column 'unit'", "size": "fracti
          "wall_time": "s (the run's wall-clock time on its worker; in a lockstep batch, its simulation plus its share "
                       "of the batch's diagnosis)",
          "isolable": "whether the diagnoser can name the fault's target at all (one of its residual components or "
-                     "identified faults): a mass fault on a link no diagnoser names is not isolable"}
+                     "identified faults): a mass fault on a link no diagnoser names is not isolable",
+         "peak_ratio_free": "1 (the largest max_j |r_j|/threshold_j at the run's fault-free samples: the diagnoser "
+                            "alarms there at thresholds scaled by less than it; empty unless its alarms are that test)",
+         "peak_ratio_fault": "1 (the same inside the fault's window: detected at thresholds scaled by less than it)"}
 
 
 def run_seed(campaign_seed: int, index: int) -> int:
@@ -105,7 +109,8 @@ def _rows(spec, index, seed, key, fault, info, record, mission) -> list[dict]:
     rows = []
     for d in spec.diagnosers:
         m = evaluate_diagnoser(record, d, faults)
-        row = {**base, "diagnoser": d, "false_alarms": m["false_alarms"], "first_false_alarm_time": m["first_false_alarm_time"]}
+        row = {**base, "diagnoser": d, "false_alarms": m["false_alarms"], "first_false_alarm_time": m["first_false_alarm_time"],
+               "peak_ratio_free": m["peak_ratio_free"]}
         if fault is not None:
             det = m["detections"][0]
             row.update(detected=det["time"] is not None, detection_time=det["time"], delay=det["delay"],
@@ -113,7 +118,7 @@ def _rows(spec, index, seed, key, fault, info, record, mission) -> list[dict]:
                        time_to_isolation=m["time_to_isolation"][fault.name], estimate_error=m["estimate_rmse"][fault.name],
                        time_to_correct_isolation=m["time_to_correct_isolation"][fault.name],
                        final_correct=bool(m["final_isolation_correct"][fault.name]),
-                       isolable=isolable(record.diagnosers[d], fault.target))
+                       isolable=isolable(record.diagnosers[d], fault.target), peak_ratio_fault=m["peak_ratio"][fault.name])
         rows.append(row)
     return rows
 

@@ -9,7 +9,7 @@ import numpy as np
 from robofdi import RobofdiError
 from robofdi.record import DiagnoserTrace, Record
 
-__all__ = ["FaultWindow", "fault_windows", "evaluate_diagnoser", "TIME_TOLERANCE"]
+__all__ = ["FaultWindow", "fault_windows", "evaluate_diagnoser", "threshold_ratio", "TIME_TOLERANCE"]
 
 #: Absolute slack [s] when comparing time stamps produced by different rates (float round-off).
 TIME_TOLERANCE = 1e-9
@@ -135,6 +135,11 @@ def evaluate_diagnoser(record: Record, name: str, faults: Sequence[Mapping]) -> 
       RMSE between that estimate column and the true value label over the samples t in [isolation time, end_F);
       None otherwise.
     * ``missed_detections``: number of faults without a detection.
+    * ``peak_ratio_free`` and ``peak_ratio[F]``: the largest max_j |r_j| / threshold_j at the fault-free samples and
+      at the samples inside F's window — the threshold scale below which the diagnoser alarms there. Defined
+      (else None) when every alarm of the trace is exactly that test, |r_j| > threshold_j (a fixed-threshold
+      decision: then thresholds scaled by s alarm where the ratio exceeds s, which is how
+      :func:`robofdi.campaign.metrics.at_equal_false_alarms` compares diagnosers at one false-alarm rate).
     """
     if name not in record.diagnosers:
         raise RobofdiError(f"diagnoser: {name!r} is not in the record; expected one of {sorted(record.diagnosers)}")
@@ -161,11 +166,13 @@ def evaluate_diagnoser(record: Record, name: str, faults: Sequence[Mapping]) -> 
     any_rise = any_alarm & ~np.concatenate([[False], any_alarm[:-1]])
     false_rises = np.flatnonzero(any_rise & ~any_active)
 
+    ratio = threshold_ratio(trace)
     isolated_sets = _isolated_sets(trace)
     detections, isolation_correct, time_to_isolation, estimate_rmse = [], {}, {}, {}
-    time_to_correct, final_correct = {}, {}
+    time_to_correct, final_correct, peak_ratio = {}, {}, {}
     for w in windows:
         inside = w.contains(t)
+        peak_ratio[w.name] = _peak(ratio, inside)
         hits = np.flatnonzero(inside & rises.any(axis=1))
         if hits.size == 0:
             detections.append({"fault": w.name, "time": None, "delay": None, "isolated": None})
@@ -199,7 +206,28 @@ def evaluate_diagnoser(record: Record, name: str, faults: Sequence[Mapping]) -> 
         "time_to_isolation": time_to_isolation,
         "time_to_correct_isolation": time_to_correct,
         "final_isolation_correct": final_correct,
+        "peak_ratio_free": _peak(ratio, ~any_active),
+        "peak_ratio": peak_ratio,
     }
+
+
+def threshold_ratio(trace: DiagnoserTrace) -> np.ndarray | None:
+    """max_j |r_j| / threshold_j per sample (M,), or None unless every alarm of ``trace`` is |r_j| > threshold_j."""
+    residual = np.abs(np.asarray(trace.residual, dtype=float))
+    threshold = np.asarray(trace.threshold, dtype=float)
+    alarm = np.asarray(trace.alarm, dtype=bool)
+    if residual.shape != alarm.shape or threshold.shape != alarm.shape[1:] or not np.all(threshold > 0):
+        return None
+    each = residual / threshold
+    if not np.array_equal(each > 1.0, alarm):
+        return None
+    return each.max(axis=1, initial=0.0)
+
+
+def _peak(ratio: np.ndarray | None, where: np.ndarray) -> float | None:
+    if ratio is None or not where.any():
+        return None
+    return float(np.max(ratio[where]))
 
 
 def _first_new_isolation(isolated_sets: list[list[str]], t: np.ndarray, w: FaultWindow, inside: np.ndarray):
