@@ -44,8 +44,7 @@ try:
 except ModuleNotFoundError:        # Python 3.10
     import tomli as tomllib
 
-from robofdi.campaign import clopper_pearson, detection_curve, run_campaign
-from robofdi.campaign.metrics import at_equal_false_alarms
+from robofdi.campaign import at_equal_false_alarms, clopper_pearson, detection_curve, run_campaign
 from robofdi.campaign.results import load
 from robofdi.sims.arm import SensorModel
 

@@ -87,6 +87,12 @@ def test_arm_table_is_identical_in_process_on_two_workers_and_on_a_dask_cluster(
     faulty = t[t["faulty"]]
     assert set(faulty["kind"]) == {"actuator_additive"} and faulty["size"].between(0.1, 0.3).all()
     assert (faulty["onset"] < faulty["duration"]).all()
+    # the peak threshold ratios say what the alarms did: detected where the fault's peak passes 1, false alarms
+    # where the fault-free samples' peak does (both fixed-threshold decisions: every row has them)
+    assert t[["peak_ratio_free"]].notna().all().all() and faulty["peak_ratio_fault"].notna().all()
+    assert ((faulty["peak_ratio_fault"] > 1) == faulty["detected"].astype(bool)).all()
+    assert ((t["peak_ratio_free"] > 1) == (t["false_alarms"] > 0)).all()
+    assert t.loc[~t["faulty"], "peak_ratio_fault"].isna().all()
     # what the files say is what the API returned
     back = load(tmp_path / "dask")
     _same(back.table, one.table)

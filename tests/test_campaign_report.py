@@ -67,3 +67,51 @@ def test_what_the_calibrations_identified_is_reported_where_it_is_not_zero():
     assert "Identified at calibration: 20: consistency_payload_kg 0.912." in report_markdown(summary)
     per_key["20"]["identified"]["consistency_payload_kg"] = 0.0
     assert "Identified at calibration" not in report_markdown(summary)
+
+
+def _peaks_table(free: dict, faulty: dict):
+    """A results table of fault-free and faulty rows per diagnoser with the given peak ratios."""
+    import pandas as pd
+
+    rows = []
+    for name, peaks in free.items():
+        rows += [{"diagnoser": name, "faulty": False, "kind": "none", "profile": None, "peak_ratio_free": p,
+                  "peak_ratio_fault": None, "error": None} for p in peaks]
+    for name, peaks in faulty.items():
+        rows += [{"diagnoser": name, "faulty": True, "kind": "actuator_additive", "profile": profile,
+                  "peak_ratio_free": 0.1, "peak_ratio_fault": p, "error": None} for profile, p in peaks]
+    return pd.DataFrame(rows)
+
+
+def test_at_equal_false_alarms_raises_the_thresholds_of_the_diagnosers_with_more():
+    from robofdi.campaign.metrics import at_equal_false_alarms
+
+    faults = [("step", 1.4), ("step", 1.6), ("exponential_rise", 3.0), ("exponential_rise", 0.9)]
+    table = _peaks_table({"a": [0.5, 1.5, 0.7, 1.2], "b": [0.3, 0.4, 0.6, 0.9], "c": [2.0, 0.2, 0.3, 0.1]},
+                         {"a": faults, "b": faults, "c": faults})
+    eq = at_equal_false_alarms(table)
+    assert eq["false_alarm_runs"] == 0 and eq["fault_free_runs"] == 4          # b has none at its own thresholds
+    a, b, c = (eq["diagnosers"][n] for n in "abc")
+    assert a["threshold_scale"] == 1.5 and a["false_alarm_runs"] == 0      # its largest fault-free peak
+    assert a["detection"]["count"] == 2                                      # 1.6 and 3.0 pass 1.5; 1.4 does not
+    assert a["by_kind_profile"] == {"actuator_additive~exponential_rise": {"detected": 1, "faults": 2},
+                                    "actuator_additive~step": {"detected": 1, "faults": 2}}
+    assert b["threshold_scale"] == 1.0 and b["detection"]["count"] == 3      # its own thresholds
+    assert c["threshold_scale"] == 2.0 and c["detection"]["count"] == 1
+    # without b: a's two false-alarm runs are the count; c (three) keeps two, its third largest peak the scale
+    eq2 = at_equal_false_alarms(_peaks_table({"a": [0.5, 1.5, 0.7, 1.2], "c": [2.0, 1.3, 0.3, 1.1]},
+                                             {"a": faults, "c": faults}))
+    assert eq2["false_alarm_runs"] == 2 and eq2["diagnosers"]["a"]["threshold_scale"] == 1.0
+    c2 = eq2["diagnosers"]["c"]
+    assert c2["threshold_scale"] == 1.1 and c2["false_alarm_runs"] == 2 and c2["detection"]["count"] == 3
+
+
+def test_at_equal_false_alarms_needs_two_diagnosers_with_peak_ratios():
+    import numpy as np
+
+    from robofdi.campaign.metrics import at_equal_false_alarms
+
+    faults = [("step", 1.4)]
+    table = _peaks_table({"a": [0.5, 1.5], "b": [np.nan, 0.4]}, {"a": faults, "b": faults})
+    assert at_equal_false_alarms(table) is None        # b's alarms are not a threshold test on every run
+    assert at_equal_false_alarms(table.drop(columns="peak_ratio_fault")) is None     # a table from before the columns

@@ -7,6 +7,7 @@ import pytest
 
 from robofdi import RobofdiError
 from robofdi.evaluate import evaluate_diagnoser, results_table, summarize, write_summary
+from robofdi.evaluate.metrics import peak_ratios
 from robofdi.record import DiagnoserTrace, FaultLabels, Record
 
 DT_RECORD, DT_DIAG, DURATION = 0.001, 0.002, 4.0
@@ -212,3 +213,33 @@ def test_results_table_leads_with_the_named_or_health_source_diagnoser():
     assert lines[3].split()[:2] == ["adaptive", "*"] and lines[-1] == "* lead: adaptive (its health drives the accommodation)"
     s["lead"] = {"diagnoser": "consistency", "reason": "the recommended scheme"}
     assert results_table(s).splitlines()[-1] == "* lead: consistency (the recommended scheme)"
+
+
+def test_peak_ratios_are_the_threshold_scale_below_which_the_diagnoser_alarms():
+    """peak_ratios: the largest |r_j|/threshold_j at fault-free samples and inside F's window;
+    thresholds scaled by s alarm exactly where the ratio passes s."""
+    threshold = np.array([2.0, 0.5])
+    residual = np.zeros((T_DIAG.size, 2))
+    residual[(T_DIAG >= 0.3) & (T_DIAG < 0.31), 1] = -0.4        # 0.8 of the threshold: no alarm
+    residual[(T_DIAG >= 0.5) & (T_DIAG < 0.504), 0] = 3.0        # a false-alarm episode at 1.5
+    residual[T_DIAG >= 1.0, 1] = np.where(T_DIAG[T_DIAG >= 1.0] < 2.0, 0.6, 1.6)   # the fault: up to 3.2
+    tr = DiagnoserTrace(time=T_DIAG, residual=residual, threshold=threshold, alarm=np.abs(residual) > threshold,
+                        isolated=np.array([""] * T_DIAG.size, dtype=object), estimate=np.zeros((T_DIAG.size, 0)),
+                        components=list(COMPONENTS))
+    rec, faults = record({"tau3": labels(1.0)}, {"momentum": tr}), [spec("tau3", "joint3", 1.0)]
+    assert peak_ratios(rec, "momentum", faults) == (pytest.approx(1.5), {"tau3": pytest.approx(3.2)})
+    m = evaluate_diagnoser(rec, "momentum", faults)
+    assert m["false_alarms"] == 1 and m["detections"][0]["delay"] == pytest.approx(0.0)
+    # at twice the thresholds: no false alarm (1.5 < 2), the fault detected once it grows past 2 (1.2 → 3.2 at 2 s)
+    scaled = DiagnoserTrace(**{**tr.__dict__, "threshold": 2 * threshold, "alarm": np.abs(residual) > 2 * threshold})
+    rec2 = record({"tau3": labels(1.0)}, {"momentum": scaled})
+    m2 = evaluate_diagnoser(rec2, "momentum", faults)
+    assert m2["false_alarms"] == 0 and m2["detections"][0]["delay"] == pytest.approx(1.0)
+    assert peak_ratios(rec2, "momentum", faults) == (pytest.approx(0.75), {"tau3": pytest.approx(1.6)})
+
+
+def test_peak_ratios_are_none_where_the_alarms_are_not_the_threshold_test():
+    rec, faults = single_fault_record()
+    tr = rec.diagnosers["recursive"]
+    tr.alarm[:5] = True          # alarms with no residual above the threshold (e.g. a windowed or sequential test)
+    assert peak_ratios(rec, "recursive", faults) == (None, {"tau3": None})

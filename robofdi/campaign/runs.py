@@ -15,7 +15,7 @@ from typing import NamedTuple
 import numpy as np
 
 from robofdi.campaign.spec import CampaignSpec
-from robofdi.evaluate.metrics import evaluate_diagnoser
+from robofdi.evaluate.metrics import evaluate_diagnoser, peak_ratios
 from robofdi.faults import Fault
 from robofdi.faults.profiles import profile_from_dict
 from robofdi.seeding import rng, stream
@@ -109,8 +109,9 @@ def _rows(spec, index, seed, key, fault, info, record, mission) -> list[dict]:
     rows = []
     for d in spec.diagnosers:
         m = evaluate_diagnoser(record, d, faults)
+        free_peak, fault_peak = peak_ratios(record, d, faults)
         row = {**base, "diagnoser": d, "false_alarms": m["false_alarms"], "first_false_alarm_time": m["first_false_alarm_time"],
-               "peak_ratio_free": m["peak_ratio_free"]}
+               "peak_ratio_free": free_peak}
         if fault is not None:
             det = m["detections"][0]
             row.update(detected=det["time"] is not None, detection_time=det["time"], delay=det["delay"],
@@ -118,7 +119,7 @@ def _rows(spec, index, seed, key, fault, info, record, mission) -> list[dict]:
                        time_to_isolation=m["time_to_isolation"][fault.name], estimate_error=m["estimate_rmse"][fault.name],
                        time_to_correct_isolation=m["time_to_correct_isolation"][fault.name],
                        final_correct=bool(m["final_isolation_correct"][fault.name]),
-                       isolable=isolable(record.diagnosers[d], fault.target), peak_ratio_fault=m["peak_ratio"][fault.name])
+                       isolable=isolable(record.diagnosers[d], fault.target), peak_ratio_fault=fault_peak[fault.name])
         rows.append(row)
     return rows
 

@@ -9,7 +9,7 @@ import numpy as np
 from robofdi import RobofdiError
 from robofdi.record import DiagnoserTrace, Record
 
-__all__ = ["FaultWindow", "fault_windows", "evaluate_diagnoser", "threshold_ratio", "TIME_TOLERANCE"]
+__all__ = ["FaultWindow", "fault_windows", "evaluate_diagnoser", "peak_ratios", "threshold_ratio", "TIME_TOLERANCE"]
 
 #: Absolute slack [s] when comparing time stamps produced by different rates (float round-off).
 TIME_TOLERANCE = 1e-9
@@ -135,11 +135,6 @@ def evaluate_diagnoser(record: Record, name: str, faults: Sequence[Mapping]) -> 
       RMSE between that estimate column and the true value label over the samples t in [isolation time, end_F);
       None otherwise.
     * ``missed_detections``: number of faults without a detection.
-    * ``peak_ratio_free`` and ``peak_ratio[F]``: the largest max_j |r_j| / threshold_j at the fault-free samples and
-      at the samples inside F's window — the threshold scale below which the diagnoser alarms there. Defined
-      (else None) when every alarm of the trace is exactly that test, |r_j| > threshold_j (a fixed-threshold
-      decision: then thresholds scaled by s alarm where the ratio exceeds s, which is how
-      :func:`robofdi.campaign.metrics.at_equal_false_alarms` compares diagnosers at one false-alarm rate).
     """
     if name not in record.diagnosers:
         raise RobofdiError(f"diagnoser: {name!r} is not in the record; expected one of {sorted(record.diagnosers)}")
@@ -150,15 +145,10 @@ def evaluate_diagnoser(record: Record, name: str, faults: Sequence[Mapping]) -> 
         if w.name not in record.faults:
             raise RobofdiError(f"fault {w.name!r}: no ground-truth label in the record; labelled: {sorted(record.faults)}")
 
-    rtime = np.asarray(record.time, dtype=float)
     t = np.asarray(trace.time, dtype=float)
     alarm = np.asarray(trace.alarm, dtype=bool)
     M = t.size
-
-    # fault activity at the diagnoser's samples, from every label in the record
-    any_active = np.zeros(M, dtype=bool)
-    for lab in record.faults.values():
-        any_active |= _sample_label(rtime, np.asarray(lab.active, dtype=bool), t, False).astype(bool)
+    any_active = _any_fault_active(record, t)      # fault activity at the diagnoser's samples, from every label
 
     previous = np.vstack([np.zeros((1, alarm.shape[1]), dtype=bool), alarm[:-1]]) if M else alarm
     rises = alarm & ~previous                                # per-component rising edges
@@ -166,13 +156,11 @@ def evaluate_diagnoser(record: Record, name: str, faults: Sequence[Mapping]) -> 
     any_rise = any_alarm & ~np.concatenate([[False], any_alarm[:-1]])
     false_rises = np.flatnonzero(any_rise & ~any_active)
 
-    ratio = threshold_ratio(trace)
     isolated_sets = _isolated_sets(trace)
     detections, isolation_correct, time_to_isolation, estimate_rmse = [], {}, {}, {}
-    time_to_correct, final_correct, peak_ratio = {}, {}, {}
+    time_to_correct, final_correct = {}, {}
     for w in windows:
         inside = w.contains(t)
-        peak_ratio[w.name] = _peak(ratio, inside)
         hits = np.flatnonzero(inside & rises.any(axis=1))
         if hits.size == 0:
             detections.append({"fault": w.name, "time": None, "delay": None, "isolated": None})
@@ -206,9 +194,28 @@ def evaluate_diagnoser(record: Record, name: str, faults: Sequence[Mapping]) -> 
         "time_to_isolation": time_to_isolation,
         "time_to_correct_isolation": time_to_correct,
         "final_isolation_correct": final_correct,
-        "peak_ratio_free": _peak(ratio, ~any_active),
-        "peak_ratio": peak_ratio,
     }
+
+
+def _any_fault_active(record: Record, t: np.ndarray) -> np.ndarray:
+    """Whether some labelled fault of the record is active at each of the diagnoser's sample times ``t``."""
+    rtime = np.asarray(record.time, dtype=float)
+    active = np.zeros(t.size, dtype=bool)
+    for lab in record.faults.values():
+        active |= _sample_label(rtime, np.asarray(lab.active, dtype=bool), t, False).astype(bool)
+    return active
+
+
+def peak_ratios(record: Record, name: str, faults: Sequence[Mapping]) -> tuple[float | None, dict]:
+    """(peak at the fault-free samples, {fault name: peak inside its window}) of max_j |r_j| / threshold_j of
+    diagnoser ``name`` — the threshold scale below which it alarms there. Defined (else None) when every alarm of
+    the trace is exactly that test, |r_j| > threshold_j (a fixed-threshold decision: thresholds scaled by s then
+    alarm where the ratio exceeds s, how :func:`robofdi.campaign.metrics.at_equal_false_alarms` compares
+    diagnosers at one false-alarm count)."""
+    trace = record.diagnosers[name]
+    t = np.asarray(trace.time, dtype=float)
+    ratio = threshold_ratio(trace)
+    return _peak(ratio, ~_any_fault_active(record, t)), {w.name: _peak(ratio, w.contains(t)) for w in fault_windows(faults)}
 
 
 def threshold_ratio(trace: DiagnoserTrace) -> np.ndarray | None:
