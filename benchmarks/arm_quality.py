@@ -17,8 +17,9 @@ Each robot's campaign is resumable (re-running the command continues it). Per di
   of the steps alone ("step delay", the issue's "abrupt actuator steps"), all detected and those at ≥ 2× their
   minimum detectable size;
 - the detection rate of incipient actuator faults (exponential rises; against the momentum baseline's), also at
-  equal false alarms: every diagnoser's thresholds scaled up until only as many of its fault-free runs alarm as the
-  best one's (:func:`robofdi.campaign.metrics.at_equal_false_alarms`; "×s" is the scale);
+  equal false alarms: every diagnoser's thresholds × the smallest factor at which only as many of its fault-free
+  runs alarm as the best one's at its own thresholds (:func:`robofdi.campaign.at_equal_false_alarms`, a point of
+  each ROC curve chosen on the same runs; "×s" is the factor);
 - for encoder drifts: the accumulated offset at detection and the smallest detectable encoder bias of the same
   joint (medians over the drifts; the bias MDF is an upper bound when the smallest bias drawn was detected), and
   how many of the drifts whose offset reached DRIFT_FACTOR × that bias by the end of the run were detected; and

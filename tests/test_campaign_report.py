@@ -83,7 +83,7 @@ def _peaks_table(free: dict, faulty: dict):
     return pd.DataFrame(rows)
 
 
-def test_at_equal_false_alarms_raises_the_thresholds_of_the_diagnosers_with_more():
+def test_at_equal_false_alarms_puts_every_diagnoser_at_the_fewest_false_alarm_runs():
     from robofdi.campaign.metrics import at_equal_false_alarms
 
     faults = [("step", 1.4), ("step", 1.6), ("exponential_rise", 3.0), ("exponential_rise", 0.9)]
@@ -92,18 +92,20 @@ def test_at_equal_false_alarms_raises_the_thresholds_of_the_diagnosers_with_more
     eq = at_equal_false_alarms(table)
     assert eq["false_alarm_runs"] == 0 and eq["fault_free_runs"] == 4          # b has none at its own thresholds
     a, b, c = (eq["diagnosers"][n] for n in "abc")
-    assert a["threshold_scale"] == 1.5 and a["false_alarm_runs"] == 0      # its largest fault-free peak
+    assert a["threshold_scale"] == 1.5 and a["false_alarm_runs"] == 0      # raised to its largest fault-free peak
     assert a["detection"]["count"] == 2                                      # 1.6 and 3.0 pass 1.5; 1.4 does not
     assert a["by_kind_profile"] == {"actuator_additive~exponential_rise": {"detected": 1, "faults": 2},
                                     "actuator_additive~step": {"detected": 1, "faults": 2}}
-    assert b["threshold_scale"] == 1.0 and b["detection"]["count"] == 3      # its own thresholds
+    assert b["threshold_scale"] == 0.9 and b["false_alarm_runs"] == 0      # lowered to its largest: its spare
+    assert b["detection"]["count"] == 3                                      # 0.9 does not pass 0.9
     assert c["threshold_scale"] == 2.0 and c["detection"]["count"] == 1
-    # without b: a's two false-alarm runs are the count; c (three) keeps two, its third largest peak the scale
+    # without b: a's two false-alarm runs are the count; a's third largest peak and c's are the scales
     eq2 = at_equal_false_alarms(_peaks_table({"a": [0.5, 1.5, 0.7, 1.2], "c": [2.0, 1.3, 0.3, 1.1]},
                                              {"a": faults, "c": faults}))
-    assert eq2["false_alarm_runs"] == 2 and eq2["diagnosers"]["a"]["threshold_scale"] == 1.0
-    c2 = eq2["diagnosers"]["c"]
+    a2, c2 = eq2["diagnosers"]["a"], eq2["diagnosers"]["c"]
+    assert eq2["false_alarm_runs"] == 2 and a2["threshold_scale"] == 0.7 and a2["false_alarm_runs"] == 2
     assert c2["threshold_scale"] == 1.1 and c2["false_alarm_runs"] == 2 and c2["detection"]["count"] == 3
+    assert a2["detection"]["count"] == 4
 
 
 def test_at_equal_false_alarms_needs_two_diagnosers_with_peak_ratios():

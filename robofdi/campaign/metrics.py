@@ -148,19 +148,20 @@ def analyse(table: pd.DataFrame, detection_level: float = 0.9, diagnosers=None) 
 
 
 def _scale_for(peaks: np.ndarray, allowed: int) -> float:
-    """The smallest threshold scale s >= 1 at which at most ``allowed`` of ``peaks`` exceed s (alarms: ratio > s)."""
+    """The smallest threshold scale s at which at most ``allowed`` of ``peaks`` exceed s (an alarm: ratio > s)."""
     ranked = np.sort(peaks)[::-1]
-    return max(1.0, float(ranked[allowed])) if allowed < ranked.size else 1.0
+    return float(ranked[allowed]) if allowed < ranked.size else 1.0
 
 
 def at_equal_false_alarms(table: pd.DataFrame, diagnosers=None) -> dict | None:
-    """Every diagnoser at the false-alarm count of the best one: k = the fewest fault-free runs with an alarm that
-    any diagnoser has at its own thresholds. A diagnoser with more gets its thresholds scaled up by the smallest
-    s at which only k of its fault-free runs alarm (the (k+1)-th largest ``peak_ratio_free``), and detects the faults
-    whose ``peak_ratio_fault`` exceeds s; the others keep s = 1. Exact for fixed-threshold alarms (an alarm is
-    |r_j| > s·threshold_j; the delays are not recomputed), and chosen on the same fault-free runs it is then tested
-    on, so it favours the diagnosers whose thresholds are raised. Only diagnosers whose every error-free row has
-    the peak columns take part; None when fewer than two do.
+    """Every diagnoser at one false-alarm count, a point of each one's ROC curve: k = the fewest fault-free runs
+    with an alarm that any diagnoser has at its own thresholds; each diagnoser's thresholds are scaled by the
+    smallest s at which only k of its fault-free runs alarm (its (k+1)-th largest ``peak_ratio_free``: above 1 for
+    a diagnoser with more false alarms, below 1 for one with spare), and it detects the faults whose
+    ``peak_ratio_fault`` exceeds s. Exact for fixed-threshold alarms (an alarm is |r_j| > s·threshold_j; delays and
+    isolation are not recomputed). Every s is chosen on the same fault-free runs it is then judged on: a
+    comparison of the residuals at one false-alarm count, not thresholds to deploy. Only diagnosers whose every
+    error-free row has the peak columns take part; None when fewer than two do.
 
     Returns {"false_alarm_runs": k, "fault_free_runs": n, "diagnosers": {name: {"threshold_scale", "false_alarm_runs",
     "detection" (a rate), "by_kind_profile": {"kind~profile": {"detected", "faults"}}}}}."""

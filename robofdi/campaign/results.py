@@ -301,12 +301,13 @@ def report_markdown(summary: dict) -> str:
 
 
 def _equal_false_alarms_markdown(equal: dict | None) -> list[str]:
-    if not equal or all(d["threshold_scale"] == 1.0 for d in equal["diagnosers"].values()):
-        return []                   # every diagnoser is at that count already: the tables above say it all
+    if not equal:
+        return []
     names = list(equal["diagnosers"])
     lines = ["", f"## At equal false alarms: {equal['false_alarm_runs']} of {equal['fault_free_runs']} fault-free runs", "",
-             "Each diagnoser's thresholds scaled up (× the factor) until no more of its fault-free runs alarm than the "
-             "best one's, on the same runs (which favours the scaled ones); detected / faults.", "",
+             "Each diagnoser's thresholds × the smallest factor at which only that many of its fault-free runs alarm "
+             "(a point of its ROC curve, chosen on these runs: a comparison, not thresholds to deploy); "
+             "detected / faults.", "",
              "| kind~profile | " + " | ".join(names) + " |", "|---|" + "---|" * len(names),
              "| threshold factor | " + " | ".join(f"{equal['diagnosers'][n]['threshold_scale']:.3g}" for n in names) + " |",
              "| all faults | " + " | ".join(_pct(equal["diagnosers"][n]["detection"]) for n in names) + " |"]
