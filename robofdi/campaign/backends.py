@@ -39,8 +39,8 @@ def _import_engine() -> None:
 
 
 #: A Dask worker's statistical profiler: it samples the task thread's stack every 10 ms (and folds the samples
-#: every second), which on robofdi's long CPU-bound tasks cost 7 % of a campaign's run phase on 2 workers (29.0 /
-#: 27.9 / 29.8 s against 31.1 / 30.2 / 31.3 s, three paired runs of 200 arm runs on the 2-vCPU machine).
+#: every second). Paused, a 200-run arm campaign's run phase on 2 local workers took 0.8 s longer to 2.3 s shorter
+#: (mean 1.1 s of 28–31 s) in five paired runs on the 2-vCPU machine (docs/performance.md).
 PROFILER_CALLBACKS = ("profile", "profile-cycle")
 
 
