@@ -21,7 +21,7 @@ from robofdi.campaign.spec import CampaignSpec, FaultDistribution, load_spec, pa
 from robofdi.protocols import Mission, System, TargetLimit
 from robofdi.systems import SYSTEMS, get_system, register_system
 
-__all__ = ["run_campaign", "CampaignInterrupted", "load", "CampaignResult", "analyse", "at_equal_false_alarms", "clopper_pearson",
-           "detection_curve", "load_spec", "parse_spec", "CampaignSpec", "FaultDistribution", "shipped_specs",
+__all__ = ["run_campaign", "CampaignInterrupted", "load", "CampaignResult", "analyse", "at_equal_false_alarms",
+           "clopper_pearson", "detection_curve", "load_spec", "parse_spec", "CampaignSpec", "FaultDistribution", "shipped_specs",
            "System", "register_system", "get_system", "SYSTEMS", "Mission", "TargetLimit", "COLUMNS", "UNITS",
            "run_seed"]

@@ -12,8 +12,8 @@ link) count as not correctly isolated in ``correctly_isolated`` and ``isolation_
 counted apart: ``not_isolable`` and ``isolation_accuracy_isolable`` (correct among the detected isolable ones).
 Error rows (runs that raised) are counted and left out of every rate.
 
-:func:`at_equal_false_alarms` compares the diagnosers at one false-alarm count (thresholds scaled up from the
-columns ``peak_ratio_free`` / ``peak_ratio_fault``), not each at its own.
+:func:`at_equal_false_alarms` compares the diagnosers at one false-alarm count (each one's thresholds scaled, read
+from the columns ``peak_ratio_free`` / ``peak_ratio_fault``), not each at its own.
 """
 from __future__ import annotations
 
