@@ -164,7 +164,10 @@ class DaskCluster:
 
     def __enter__(self):
         if self.pause_profiler:
-            self._paused = self.client.run(_pause_profiler)
+            try:
+                self._paused = self.client.run(_pause_profiler)
+            except Exception:     # a worker without Dask's profiler callbacks: the campaign runs all the same
+                self._paused = {}
         return self
 
     def __exit__(self, exc_type, exc, tb):
