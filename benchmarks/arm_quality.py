@@ -157,8 +157,9 @@ def per_class_at_equal_false_alarms(table: pd.DataFrame) -> pd.DataFrame | None:
     for name, e in equal["diagnosers"].items():
         g = f[f["diagnoser"] == name].assign(hit=lambda x, s=e["threshold_scale"]: x["peak_ratio_fault"] > s)
         count = g.groupby("class")["hit"].agg(["sum", "size"])
-        out[f"{name} (×{e['threshold_scale']:.3g})"] = [f"{int(a)}/{int(b)}" for a, b in count.to_numpy()]
-    return pd.DataFrame(out, index=count.index)
+        out[f"{name} (×{e['threshold_scale']:.3g})"] = pd.Series(
+            [f"{int(a)}/{int(b)}" for a, b in count.to_numpy()], index=count.index)
+    return pd.DataFrame(out)
 
 
 def per_class(table: pd.DataFrame, diagnoser: str) -> pd.DataFrame:
