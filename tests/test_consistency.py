@@ -14,7 +14,8 @@ from robofdi.loop import Diagnosis, diagnose_record, diagnoser_inputs
 from robofdi.models.friction import JointFriction
 from robofdi.observers.arm_schemes import ArmSchemeSettings, scheme_calibration
 from robofdi.observers.consistency import (
-    STEP_HOLD, ConsistencyDesign, ConsistencyResidual, _step_rows, design_consistency,
+    Q_BEFORE, Q_LAST, STEP_HOLD, STEPPED, ConsistencyDesign, ConsistencyResidual, _step_rows, design_consistency,
+    gain_rows,
 )
 from robofdi.observers.kinematic import (
     NOISE_WALK_SIGMAS, WINDOWS, KinematicConsistency, design_window_scales, identify_noise_walk, identify_ripple,
@@ -492,8 +493,8 @@ def test_the_step_row_holds_no_velocity_step_where_the_encoder_reading_stopped_i
     T, skew, single, v0, hold = 0.002, 0.001, 10e-6, 0.02, 50
     steps, jumps, previous = np.zeros((hold, 1)), np.zeros((hold, 1)), np.zeros((3, 1))
     z, estimate = np.empty(4), np.empty(4)
-    sums = np.zeros((15, 1))
-    sums[10] = sums[14] = np.nan
+    sums = np.zeros((gain_rows(T), 1))
+    sums[Q_LAST] = sums[Q_BEFORE] = np.nan
     frozen, paused, in_motion = case.startswith("encoder"), "one sample" in case, not case.endswith("at rest")
     for k in range(5):
         onset = k >= 3                    # the step (or the freeze) at sample 3, judged at sample 4
@@ -610,27 +611,55 @@ def test_the_step_bound_follows_the_spread_that_impulse_noise_gives_nu_at_the_po
 
 def test_the_gain_evidence_counts_only_where_the_encoder_does_not_jump():
     """Increments that follow the velocity two samples back (a +15 % gain error on a joint speeding up and slowing
-    down: a velocity a trend cannot follow) raise the gain evidence above a drift's; the same window counts nothing
-    once more than GAIN_JUMPS of its moving samples were position steps (a noisy encoder's small increments are a
-    biased sample). A drift's constant increments raise none."""
-    from robofdi.observers.consistency import GAIN_JUMPS, _gain_evidence, _gain_fit
+    down) raise the gain evidence above a drift's; the same window counts nothing once more than GAIN_JUMPS of its
+    moving samples were position steps (a noisy encoder's small increments are a biased sample). A drift's
+    constant increments raise none."""
+    from robofdi.observers.consistency import GAIN_JUMPS, JUMPED, MOVING, _gain_evidence, _gain_fit
 
     T, lam, floor = 0.002, 0.99, 1e-5
     noise = np.random.default_rng(3).normal(0.0, 2e-6, 400)
-    sums = np.zeros((14, 1))
+    sums = np.zeros((gain_rows(T), 1))
     v = 3.0 * (1.0 - np.cos(2 * np.pi * T * np.arange(400) / 0.8))      # the velocity readings [rad/s]
     for k in range(2, 400):
-        sums[12, 0] = lam * sums[12, 0] + 1.0
+        sums[MOVING, 0] = lam * sums[MOVING, 0] + 1.0
         value = _gain_evidence(sums, 0, -T * 0.15 * v[k - 2] + noise[k], T * v[k - 2], True, lam, floor)
     assert value > 5.0
-    sums[11, 0] = (GAIN_JUMPS + 0.01) * sums[12, 0]
+    sums[JUMPED, 0] = (GAIN_JUMPS + 0.01) * sums[MOVING, 0]
     assert _gain_fit(sums, 0, lam, floor) == 0.0
-    sums[11, 0] = (GAIN_JUMPS - 0.01) * sums[12, 0]
+    sums[JUMPED, 0] = (GAIN_JUMPS - 0.01) * sums[MOVING, 0]
     assert _gain_fit(sums, 0, lam, floor) == value
-    drift = np.zeros((14, 1))                     # constant increments (an encoder drift) over the same motion
+    drift = np.zeros((gain_rows(T), 1))           # constant increments (an encoder drift) over the same motion
     for k in range(2, 400):
-        drift[12, 0] = lam * drift[12, 0] + 1.0
+        drift[MOVING, 0] = lam * drift[MOVING, 0] + 1.0
         assert _gain_evidence(drift, 0, 5e-5 + noise[k], T * v[k - 2], True, lam, floor) < 1.0
+
+
+def _evidence(e, x, T=0.002, lam=0.99, floor=1e-5):
+    from robofdi.observers.consistency import _gain_evidence
+
+    sums = np.zeros((gain_rows(T), 1))
+    return np.array([_gain_evidence(sums, 0, a, b, True, lam, floor) for a, b in zip(e, x)])
+
+
+def test_the_gain_evidence_takes_a_gain_error_from_its_onset_on_a_joint_accelerating_steadily():
+    """A joint at rest for 200 samples, then accelerating at 20 rad/s² (its velocity a ramp): a −16 % velocity-gain
+    error from the start of the motion makes increments that ramp too, −T g q̇ — what a drift model of a level and
+    a trend explained as well as the gain did (arm6's wrist: evidence 0.1–0.3 s after the first alarm). Against an
+    encoder drift from its own onset (a level) the gain explains the ramp 20 samples into the motion; an encoder
+    drift that starts as the joint accelerates (one level from its onset, the same size as the gain error's
+    increments there) raises none, nor does a drift that starts 37 samples into the motion, between two of the
+    onsets the gain fit tries (every split is tried for the drift)."""
+    T = 0.002
+    k = np.arange(400)
+    noise = np.random.default_rng(5).normal(0.0, 2e-6, k.size)
+    v = np.where(k >= 200, 20.0 * T * (k - 200), 0.0)           # the velocity readings [rad/s]
+    x = T * np.concatenate([[0.0, 0.0], v[:-2]])                  # the reading two samples back, times T
+    gain = _evidence(0.16 * x + noise, x)
+    assert gain[:200].max() == 0.0
+    assert gain[220] > 1.0 and gain[300:].min() > 5.0
+    for onset in (200, 237):
+        drift = _evidence(np.where(k >= onset, 0.16 * x[300], 0.0) + noise, x)
+        assert drift.max() < 0.3, onset
 
 
 def test_the_trend_evidence_is_a_steady_growth_away_from_zero():
@@ -665,8 +694,8 @@ def test_the_encoder_counts_as_stepped_on_a_spike_of_its_increments_not_on_large
 
     def stepped(e):
         steps, jumps, previous = np.zeros((hold, 1)), np.zeros((hold, 1)), np.zeros((3, 1))
-        sums = np.zeros((14, 1))
-        sums[10] = np.nan
+        sums = np.zeros((gain_rows(T), 1))
+        sums[Q_LAST] = np.nan
         z, estimate = np.empty(4), np.empty(4)
         for k, x in enumerate(e):
             _step_rows(np.zeros(1), np.zeros(1), np.zeros(1), np.array([x]), np.ones(1), np.array([[single, 1.0]]), 0,
@@ -674,7 +703,7 @@ def test_the_encoder_counts_as_stepped_on_a_spike_of_its_increments_not_on_large
                        k % hold,
                        (k - 1) % hold, T, z, estimate, np.array([0.01 * k]), np.array([5.0]), sums, 0.99, np.zeros(1),
                        np.zeros(1), np.zeros((8, 1)), np.zeros((4, 1)), k, np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1))
-        return bool(sums[13, 0] > 0)
+        return bool(sums[STEPPED, 0] > 0)
 
     accelerating = -T * 0.16 * 50.0 * T * np.arange(200)     # −T g q̇, q̇ rising by 50 rad/s² (32 µrad a sample)
     assert np.abs(np.diff(accelerating)).min() > ENCODER_STEP * single

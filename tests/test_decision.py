@@ -327,3 +327,32 @@ def test_an_overturn_is_not_blocked_by_another_fault_that_may_raise_the_same_row
     _episode(d, [0, 0, 0, 0], 1)                   # a quiet sample: the rows did not alarm in a row
     assert _episode(d, [0, 2, 3, 0], 3)[-1].isolated == ("j1_pos",)
     assert _episode(d, [0, 2, 3, 0], 1)[-1].isolated == ("j1_vel",)
+
+
+def _gain_error(defer):
+    """The kinematic row alarms for good from sample 1; the step row (a velocity-gain error's gain evidence, which
+    needs motion) crosses its evidence level 0.5 from sample 6 on."""
+    sigs = [Signature("j_pos", {"j_kin"}), Signature("j_vel", {"j_kin", "j_step"})]
+    d = ThresholdDecision(["j_kin", "j_step"], np.ones(2), sigs, confirm=3, evidence=[1.0, 0.5], defer=defer)
+    rows = [[0.1, 0.1]] + [[3.0, 0.1]] * 5 + [[3.0, 0.8]] * 6
+    return [d.update(r) for r in rows]
+
+
+def test_deferral_lets_the_refining_hypothesis_show_before_an_encoder_is_named():
+    """Without deferral the window ends at sample 4 on the kinematic row alone: the encoder. Deferred by 4 samples
+    it ends at sample 8, the step row evident at samples 6–8: the velocity sensor, named first. Alarms are not
+    delayed; a hypothesis nothing refines is not deferred (the actuator of the velocity-sensor case)."""
+    hasty, deferred = _gain_error(0), _gain_error(4)
+    assert hasty[4].isolated == ("j_pos",)
+    assert [a.alarm.tolist() for a in deferred] == [a.alarm.tolist() for a in hasty]
+    assert all(a.isolated == () for a in deferred[:8])
+    assert deferred[8].isolated == ("j_vel",) and deferred[8].new == ("j_vel",)
+    sigs = [Signature("j", {"j"}), Signature("j_pos", {"j_kin"}, {"j"})]
+    d = ThresholdDecision(["j", "j_kin"], np.ones(2), sigs, confirm=3, defer=10)
+    out = [d.update(r) for r in ([3.0, 0.2], [3.0, 0.2], [3.0, 0.2], [3.0, 0.2])]
+    assert out[3].isolated == ("j",)
+
+
+def test_defer_is_validated():
+    with pytest.raises(RobofdiError, match="defer"):
+        ThresholdDecision(["a"], [1.0], [Signature("a", {"a"})], confirm=1, defer=-2)

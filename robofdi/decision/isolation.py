@@ -113,6 +113,13 @@ class ThresholdDecision:
     fault, kinematic and step rows, once the step row has alarmed with it for N samples, also beside a payload
     change that may raise every step row).
 
+    Deferral: with ``defer`` = D > 0 samples (and ``confirm``), a confirmation window whose picks include a fault
+    that another hypothesis refines (its required components a strict superset of the fault's) runs D samples
+    longer before it decides, over the whole window: the refinement's other components get the time the motion
+    needs to show them (an encoder fault, its kinematic row alone, against a velocity-gain error, whose step row
+    holds the gain evidence only once the joint has moved for a few tens of samples). Alarms are not delayed;
+    the isolation of such a fault is, by D samples.
+
     Revision: with ``release`` = R > 0 samples (and ``confirm``), an isolation is a decision the evidence can
     overturn. Once no component has alarmed for R samples the alarm episode that led to it is over, and the next
     alarm opens a fresh confirmation window over every hypothesis; at its end the faults it isolates join those
@@ -140,6 +147,7 @@ class ThresholdDecision:
     evidence: np.ndarray | None = None
     release: int = 0
     overturn: int = 0
+    defer: int = 0
     _isolated: list[str] = field(default_factory=list, init=False, repr=False)
 
     def __post_init__(self):
@@ -183,7 +191,7 @@ class ThresholdDecision:
                     f"signature {sig.fault!r}: component {unknown[0]!r} is not a residual component; "
                     f"expected one of {list(self.components)}"
                 )
-        for name in ("blanking", "confirm", "release", "overturn"):
+        for name in ("blanking", "confirm", "release", "overturn", "defer"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 0:
                 raise RobofdiError(f"{name}: expected an integer number of samples >= 0, got {value!r}")
@@ -200,7 +208,7 @@ class ThresholdDecision:
         """Forget everything isolated so far (start of a new run)."""
         self._isolated = []
         self._samples = 0
-        self._window = None         # (samples left, peak ratio, alarmed) while a first alarm is being confirmed
+        self._window = None         # [samples left, peak ratio, alarmed, deferred] while an alarm is being confirmed
         self._quiet_for = None      # the isolated tuple _quiet was made for
         self._since_alarm = 0       # samples since the last alarm (revision: release)
         self._revising = False      # a confirmation window is open to revise an isolation
@@ -268,7 +276,7 @@ class ThresholdDecision:
         if self.confirm and (not self._isolated or self._revising):
             evident = ratio > self._evidence_ratio
             if self._window is None and alarm.any():
-                self._window = [self.confirm, ratio.copy(), evident.astype(int)]
+                self._window = [self.confirm, ratio.copy(), evident.astype(int), False]
             elif self._window is not None:
                 self._window[0] -= 1
                 np.maximum(self._window[1], ratio, out=self._window[1])
@@ -276,8 +284,11 @@ class ThresholdDecision:
             if self._window is None or self._window[0] > 0:
                 return Alarms(alarm=alarm, isolated=tuple(self._isolated) if self._revising else ())
             ratio, persisted = self._window[1], self._window[2] >= 2
-            self._window = None
             picks = self._isolate(ratio, persisted)
+            if self.defer and not self._window[3] and any(self._refinements[f] for f in picks):
+                self._window[0], self._window[3] = self.defer, True      # deferral: the refinement gets its time
+                return Alarms(alarm=alarm, isolated=tuple(self._isolated) if self._revising else ())
+            self._window = None
             previous = list(self._isolated)
             if self._revising:
                 self._revising = False

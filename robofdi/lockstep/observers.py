@@ -390,8 +390,8 @@ class BatchConsistencyResidual(BatchDiagnoser):
         self._state[:, 3] = -1e9
         self._previous = np.zeros((N, 3, n))
         self._steps, self._jumps = np.zeros((N, self.hold, n)), np.zeros((N, self.hold, n))
-        self._gain_sums = np.zeros((N, 15, n))
-        self._gain_sums[:, 10] = self._gain_sums[:, 14] = np.nan
+        self._gain_sums = np.zeros((N, consistency.gain_rows(self.T), n))
+        self._gain_sums[:, consistency.Q_LAST] = self._gain_sums[:, consistency.Q_BEFORE] = np.nan
         self._gain, self._trend = np.zeros((N, n)), np.zeros((N, n))
         self._trend_ring, self._trend_sums = np.zeros((N, 4 * self.trend_samples, n)), np.zeros((N, 4, n))
         self._history = np.zeros((N, int(self.sizes.max()) + 1, 3 + 4 * self.orders.shape[2], n))

@@ -45,7 +45,9 @@ class ArmSchemeSettings:
     [1/s] of the consistency scheme's momentum rows, its target false-alarm rate [1/h] (thresholds by
     extreme-value theory, :func:`robofdi.decision.extreme_value_thresholds`) and its isolation confirmation
     window [samples] (:class:`robofdi.decision.ThresholdDecision` ``confirm``), the quiet time [s] after which an
-    isolation may be revised (``release``), its kinematic windows [s] and the torque-ripple periods per motor
+    isolation may be revised (``release``), how much longer [s] a window that would name an encoder waits for the
+    evidence of a velocity sensor (``defer``: a velocity-gain error's gain evidence needs 0.03–0.06 s of motion
+    after the first alarm on arm6), its kinematic windows [s] and the torque-ripple periods per motor
     revolution whose aliasing its kinematic rows cover (with the model's nominal gear ratios,
     :func:`robofdi.observers.kinematic.ripple_orders`; () = none), the random calibration motions it needs (half
     design it, half set its thresholds) and the tail law its thresholds extrapolate (:data:`CONSISTENCY_TAILS`);
@@ -63,6 +65,7 @@ class ArmSchemeSettings:
     consistency_false_alarm_rate: float = 0.1
     consistency_confirm: int = 3
     consistency_release: float = 0.5
+    consistency_defer: float = 0.05
     consistency_windows: tuple = WINDOWS
     consistency_ripple_cycles: tuple = RIPPLE_CYCLES
     consistency_calibration_motions: int = 6
@@ -83,6 +86,7 @@ class ArmSchemeSettings:
             ("consistency_confirm", is_int(self.consistency_confirm, 1), "an integer >= 1 [samples]"),
             ("consistency_release", is_number(self.consistency_release) and self.consistency_release >= 0,
              "a time >= 0 s"),
+            ("consistency_defer", is_number(self.consistency_defer) and self.consistency_defer >= 0, "a time >= 0 s"),
             ("consistency_windows", len(self.consistency_windows) > 0
              and all(is_number(w) and w >= 0 for w in self.consistency_windows), "a non-empty list of times >= 0 s"),
             ("consistency_calibration_motions", is_int(self.consistency_calibration_motions, 2),
@@ -142,7 +146,8 @@ class SchemeCalibration:
     evidence levels for the discriminating rows: their largest fault-free value, at least 1);
     ``confirm``: the isolation confirmation window [samples] of its decision; ``release``: the quiet samples
     after which its isolation may be revised (0: latched); ``overturn``: the samples a later alarm must persist
-    to overturn the hypothesis it refines (0: never); ``random_motions`` and ``top_speed``:
+    to overturn the hypothesis it refines (0: never); ``defer``: the samples longer a confirmation window that
+    would name a refinable hypothesis waits (0: none); ``random_motions`` and ``top_speed``:
     what the calibration suite must hold for it (random motions, half of them held out; the top-speed motion)."""
 
     design: Callable | None = None
@@ -152,6 +157,7 @@ class SchemeCalibration:
     top_speed: bool = False
     release: int = 0
     overturn: int = 0
+    defer: int = 0
 
 
 def _design_consistency(model, inputs, settings: ArmSchemeSettings, skip: int) -> ConsistencyDesign:
@@ -182,5 +188,6 @@ def scheme_calibration(name: str, settings: ArmSchemeSettings = ArmSchemeSetting
         return SchemeCalibration(_design_consistency, "false_alarm_rate", settings.consistency_confirm,
                                  random_motions=settings.consistency_calibration_motions, top_speed=True,
                                  release=max(1, int(round(settings.consistency_release / settings.T))),
-                                 overturn=int(round(2 * STEP_HOLD / settings.T)))
+                                 overturn=int(round(2 * STEP_HOLD / settings.T)),
+                                 defer=int(round(settings.consistency_defer / settings.T)))
     return SchemeCalibration()

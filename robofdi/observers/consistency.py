@@ -53,14 +53,15 @@ the design runs):
 A velocity-gain error g that starts while its joint is slow steps the reading by only g·q̇: nothing agrees on it,
 and its kinematic row alarms like an encoder drift's. As the joint moves, though, its increments follow the
 velocity, e_k ≈ −T g q̇_k, which no drift does: the step row also holds the gain evidence of
-:func:`_gain_evidence` — how much more of the increments over the last :data:`GAIN_WINDOW` a gain explains than a
-drift that may start inside the window, against what neither explains — over its fault-free scale
+:func:`_gain_evidence` — how much more of the increments over the last :data:`GAIN_WINDOW` a gain explains than an
+encoder drift, each from its own onset, against what neither explains — over its fault-free scale
 (``gain_scale``: :data:`GAIN_MARGIN` × its largest value on the design runs), counted only where the encoder's
 increments do not jump (:data:`GAIN_JUMPS`: a noisy encoder is no gain error) and not once the encoder has
 stepped (:data:`ENCODER_STEP`: an encoder scale error g steps the reading by g·q at its onset, and its increments
-then follow the velocity as a velocity-gain error's do, with the opposite sign of g). It builds up over about 0.2 s of
-motion, after the first isolation; the decision then replaces the encoder hypothesis by the velocity one
-(:class:`~robofdi.decision.ThresholdDecision`: evidence that persists overturns the hypothesis it refines).
+then follow the velocity as a velocity-gain error's do, with the opposite sign of g). It builds up over a few tens
+of samples of motion after the first alarm, so the decision waits that long before it names an encoder
+(:class:`~robofdi.decision.ThresholdDecision` ``defer``), and where the motion comes later still, evidence that
+persists overturns the encoder hypothesis it refines.
 
 A velocity reading that drifts by d has no step at onset either, and its kinematic row alarms like an encoder's.
 Its increments e_k = −T d (t − t₀) grow steadily away from zero, which no encoder drift's (constant) or offset's
@@ -127,7 +128,7 @@ from robofdi.observers.payload import PayloadRegressor
 from robofdi.observers.residual import Residual, shared_measurement
 
 __all__ = ["ConsistencyDesign", "ConsistencyResidual", "design_consistency", "DEFAULT_GAIN", "STEP_HOLD",
-           "FROZEN_CHANGE", "FROZEN_SAMPLES", "GAIN_WINDOW", "GAIN_FLOOR", "GAIN_MARGIN", "GAIN_JUMPS",
+           "FROZEN_CHANGE", "FROZEN_SAMPLES", "GAIN_WINDOW", "GAIN_HORIZON", "GAIN_FLOOR", "GAIN_MARGIN", "GAIN_JUMPS",
            "ENCODER_STEP", "TREND_WINDOW", "TREND_FLOOR", "TREND_MARGIN", "PAYLOAD_SHARE"]
 
 #: Momentum-observer bandwidth K_O [1/s] of the consistency residual: fast enough that an abrupt fault of twice
@@ -141,6 +142,12 @@ STEP_HOLD = 0.1
 #: Time constant [s] of the exponential window over which the step row compares a gain with a drift
 #: (:func:`_step_rows`' gain evidence).
 GAIN_WINDOW = 0.2
+#: How far back [s] the gain evidence looks for the onset of a gain error or of an encoder drift
+#: (:func:`_gain_fit`): 2.5 windows, where the window's weight has fallen to 8 %.
+GAIN_HORIZON = 0.5
+#: The onsets the gain fit tries (:func:`_gain_fit`): a gain error that started within a factor √2 of such an age
+#: explains almost all of what it would from its own onset.
+GAIN_ONSET_RATIO = math.sqrt(2.0)
 #: The smallest fault-free gain evidence a design takes: a joint its runs never moved sets no smaller one.
 GAIN_FLOOR = 0.1
 #: The gain scale is this many times the design runs' largest gain evidence: unseen fault-free motion reached
@@ -176,6 +183,12 @@ MOVE_FLOOR = 1.0
 #: none the fit found up to ±0.2 kg (the link masses' errors) that explained at most 0.12, and applied there it
 #: moved the most marginal fault-free peak of a campaign across its threshold.
 PAYLOAD_SHARE = 0.25
+
+#: The rows of the gain evidence's state per joint (:func:`_gain_evidence`): its exponential sums Σw, Σw·e, Σw·x²,
+#: Σw·x·e, Σw·e²; the last two velocity readings and the last position reading; the weights of the moving samples
+#: that were position steps and of all of them; whether the encoder stepped (:data:`ENCODER_STEP`); the position
+#: reading before the last; the samples counted; from row ``GAIN_RING`` on, the counted samples' e, then their x.
+SUM_W, SUM_E, SUM_XX, SUM_XE, SUM_EE, V_LAST, V_BEFORE, Q_LAST, JUMPED, MOVING, STEPPED, Q_BEFORE, COUNTED, GAIN_RING = range(14)
 
 
 @dataclass(frozen=True, eq=False)
@@ -346,8 +359,9 @@ class ConsistencyResidual:
         self._previous = np.zeros((3, self.n))  # the last sample's e [rad] and ν [rad/s], the e before it [rad]
         self._steps = np.zeros((self._hold, self.n))     # ring buffer of |ν| / scale (or agreement) over the hold
         self._jumps = np.zeros((self._hold, self.n))    # ring buffer of position-step ratios
-        self._gain_sums = np.zeros((15, self.n))    # the gain evidence's sums, the last readings, encoder stepped
-        self._gain_sums[10] = self._gain_sums[14] = np.nan
+        # the gain evidence's sums, the last readings, encoder stepped, its samples (_gain_evidence)
+        self._gain_sums = np.zeros((gain_rows(self.T), self.n))
+        self._gain_sums[Q_LAST] = self._gain_sums[Q_BEFORE] = np.nan
         self.gain_evidence = np.zeros(self.n)       # its last value (dimensionless)
         self._trend_ring = np.zeros((4 * self._trend_samples, self.n))  # the increments counted, sample k at k mod 4m
         self._trend_sums = np.zeros((4, self.n))    # their sums over the four windows, newest first
@@ -466,8 +480,8 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, move, step_bou
     ν and starts anywhere within a sample (its share at k is arbitrary). Not while a position step is held: its
     increment returning looks like a step too. Nor where the encoder's reading stood still at samples k and k+1
     in motion (:func:`_reading_stopped`): a frozen encoder's e = −T q̇ is what a reading's step of q̇ would make,
-    and near ν's noise the agreement test then errs; ν held at sample k is cleared there too (row 14 of
-    ``gain_sums`` keeps the reading before the last).
+    and near ν's noise the agreement test then errs; ν held at sample k is cleared there too (``gain_sums``'
+    :data:`Q_BEFORE` keeps the reading before the last).
 
     Refutation: ν_k counts in the step row only where e_k − e_{k−1} is within |m|/2 + ``move`` single-sample
     scales of m = −(T/2 + τ_s) ν_k, what a reading's step of ν_k would have made of it; a real velocity change
@@ -478,8 +492,8 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, move, step_bou
 
     Evidence of a velocity-sensor fault that made no step: the gain evidence (:func:`_gain_evidence`) and the
     trend evidence (:func:`_trend_evidence`), over their scales, both 0 once e_{k−1} stood out from e_{k−2} and
-    e_k by more than :data:`ENCODER_STEP` single-sample scales on both sides (the encoder stepped; row 13 of
-    ``gain_sums``).
+    e_k by more than :data:`ENCODER_STEP` single-sample scales on both sides (the encoder stepped; ``gain_sums``'
+    :data:`STEPPED`).
 
     A held velocity reading (``repeats`` over ``frozen_samples``) is the step row's evidence and, where
     ``held_kinematic`` is 1 (a drive whose fault-free reading never repeats: ``ConsistencyDesign.repeat_scale``),
@@ -498,7 +512,8 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, move, step_bou
         spiked = rise * fall > 0 and min(abs(rise), abs(fall)) > ENCODER_STEP * single_scale   # (ENCODER_STEP)
         # the encoder's reading stood still at the last sample and this one in motion (a frozen encoder, docstring):
         # no velocity step at the last sample, neither agreed nor by its ν
-        stopped = _reading_stopped(q[i], gain_sums[10, i], gain_sums[14, i], v[i], gain_sums[8, i], gain_sums[9, i],
+        stopped = _reading_stopped(q[i], gain_sums[Q_LAST, i], gain_sums[Q_BEFORE, i], v[i], gain_sums[V_LAST, i],
+                                   gain_sums[V_BEFORE, i],
                                    T, single_scale)
         if stopped:
             steps[previous_row, i] = 0.0
@@ -536,23 +551,23 @@ def _step_rows(r, innovation, kin, e, bound, scale, single, skew, move, step_bou
         # the reading two samples back: e_k holds the noise of v_k and v_{k−1}, which would explain itself
         # not at a position step (an offset's one-sample spike) nor where the encoder repeated its reading (held,
         # e = −T q̇ follows the velocity exactly: a frozen encoder; at rest the reading carries no gain anyway);
-        # the share of moving samples that were position steps is kept (rows 11–12)
-        reading_moved = not abs(q[i] - gain_sums[10, i]) <= FROZEN_CHANGE       # a held reading's last bits may move
+        # the share of moving samples that were position steps is kept (JUMPED, MOVING)
+        reading_moved = not abs(q[i] - gain_sums[Q_LAST, i]) <= FROZEN_CHANGE       # a held reading's last bits may move
         jumped = position_step and changed
         if reading_moved:
-            gain_sums[11, i] = lam * gain_sums[11, i] + (1.0 if jumped else 0.0)
-            gain_sums[12, i] = lam * gain_sums[12, i] + 1.0
+            gain_sums[JUMPED, i] = lam * gain_sums[JUMPED, i] + (1.0 if jumped else 0.0)
+            gain_sums[MOVING, i] = lam * gain_sums[MOVING, i] + 1.0
         if spiked:
-            gain_sums[13, i] = 1.0          # the encoder stepped: what follows is no evidence of a velocity gain
-        gain[i] = _gain_evidence(gain_sums, i, e[i], T * gain_sums[9, i], reading_moved and not jumped,
+            gain_sums[STEPPED, i] = 1.0     # the encoder stepped: what follows is no evidence of a velocity gain
+        gain[i] = _gain_evidence(gain_sums, i, e[i], T * gain_sums[V_BEFORE, i], reading_moved and not jumped,
                                  lam, single_scale)
         trend[i] = _trend_evidence(trend_ring, trend_sums, k, i, e[i] if reading_moved and not jumped else 0.0,
                                    single_scale)
-        if gain_sums[13, i] > 0:
+        if gain_sums[STEPPED, i] > 0:
             gain[i] = 0.0
             trend[i] = 0.0
-        gain_sums[9, i], gain_sums[8, i] = gain_sums[8, i], v[i]
-        gain_sums[14, i], gain_sums[10, i] = gain_sums[10, i], q[i]
+        gain_sums[V_BEFORE, i], gain_sums[V_LAST, i] = gain_sums[V_LAST, i], v[i]
+        gain_sums[Q_BEFORE, i], gain_sums[Q_LAST, i] = gain_sums[Q_LAST, i], q[i]
         if gain_scale[i] > 0 and gain[i] / gain_scale[i] > step:
             step = gain[i] / gain_scale[i]
         if trend_scale[i] > 0 and trend[i] / trend_scale[i] > step:
@@ -650,50 +665,87 @@ def _operating_point(u, v, r, mass, weight, state, features, envelope, step_scal
     return beyond
 
 
+
+
+def gain_rows(T: float) -> int:
+    """Rows of the gain evidence's state per joint at sample time ``T`` [s] (:func:`_gain_evidence`): the
+    :data:`GAIN_RING` rows of sums and readings, then the increments and the regressors of the last
+    :data:`GAIN_HORIZON` of counted samples."""
+    return GAIN_RING + 2 * max(2, int(round(GAIN_HORIZON / T)))
+
+
 @kernel
 def _gain_evidence(sums, i, e, x, add, lam, floor):
     """The gain evidence of joint i (dimensionless): how much more of the kinematic increments e [rad] a
-    velocity-gain error explains (e ∝ x = T q̇, the reading two samples back) than an encoder drift that may start
-    inside the window (a constant and a trend), against what neither explains and at least the fault-free
-    single-sample scale ``floor`` [rad]: √(max(0, SS_gain − SS_drift) / (Σw e² − max(SS_gain, SS_drift) + Σw
-    floor²)), with SS the explained sums of squares of the weighted least-squares fits over an exponential window
-    of weight λ per sample — a likelihood ratio's statistic, so a noisier sensor raises no evidence by its noise
-    alone, and a smooth drift's increments no more than the noise-free few µrad they vary by. ``sums`` (15, n):
-    Σw, Σw·a, Σw·a², Σw·e, Σw·a·e, Σw·x², Σw·x·e, Σw·e² (a: the sample's age), updated in place when ``add``
-    (see :func:`_step_rows`; rows 8–10 hold the last two velocity readings and the last position reading, rows
-    11–12 the weight of the moving samples that were position steps and of all of them, row 13 whether the
-    encoder stepped by more than :data:`ENCODER_STEP`, row 14 the position reading before the last). 0 until the
-    window holds half its weight, and where more than :data:`GAIN_JUMPS` of its moving samples were position steps (the
-    encoder, not the velocity, is what the increments show)."""
+    velocity-gain error explains (e ∝ x = T q̇, the reading two samples back) than an encoder drift, each from its
+    own onset, against what neither explains and at least the fault-free single-sample scale ``floor`` [rad]:
+    √(max(0, SS_gain − SS_drift) / (Σw e² − max(SS_gain, SS_drift) + Σw floor²)), with SS the explained sums of
+    squares of weighted least-squares fits over an exponential window of weight λ per sample
+    (:func:`_gain_fit`) — a likelihood ratio's statistic, so a noisier sensor raises no evidence by its noise
+    alone. ``sums`` (:func:`gain_rows`, n): the rows :data:`SUM_W` … :data:`GAIN_RING`, the sums and the last
+    :data:`GAIN_HORIZON` of counted samples updated in place when ``add`` (see :func:`_step_rows`; sample c at row
+    c mod their number). 0 until the window holds half its weight, and where more than
+    :data:`GAIN_JUMPS` of its moving samples were position steps (the encoder, not the velocity, is what the
+    increments show)."""
     if not add:
         return _gain_fit(sums, i, lam, floor)
-    sums[2, i] = lam * (sums[2, i] + 2.0 * sums[1, i] + sums[0, i])
-    sums[1, i] = lam * (sums[1, i] + sums[0, i])
-    sums[0, i] = lam * sums[0, i] + 1.0
-    sums[4, i] = lam * (sums[4, i] + sums[3, i])
-    sums[3, i] = lam * sums[3, i] + e
-    sums[5, i] = lam * sums[5, i] + x * x
-    sums[6, i] = lam * sums[6, i] + x * e
-    sums[7, i] = lam * sums[7, i] + e * e
+    sums[SUM_W, i] = lam * sums[SUM_W, i] + 1.0
+    sums[SUM_E, i] = lam * sums[SUM_E, i] + e
+    sums[SUM_XX, i] = lam * sums[SUM_XX, i] + x * x
+    sums[SUM_XE, i] = lam * sums[SUM_XE, i] + x * e
+    sums[SUM_EE, i] = lam * sums[SUM_EE, i] + e * e
+    horizon = (sums.shape[0] - GAIN_RING) // 2
+    at = int(sums[COUNTED, i]) % horizon
+    sums[GAIN_RING + at, i] = e
+    sums[GAIN_RING + horizon + at, i] = x
+    sums[COUNTED, i] += 1.0
     return _gain_fit(sums, i, lam, floor)
 
 
 @kernel
 def _gain_fit(sums, i, lam, floor):
-    """:func:`_gain_evidence`'s statistic from its sums."""
-    w, wa, waa, we, wae, wxx, wxe = sums[0, i], sums[1, i], sums[2, i], sums[3, i], sums[4, i], sums[5, i], sums[6, i]
+    """:func:`_gain_evidence`'s statistic from its state. The gain error started a samples ago, a on a grid of
+    ratio :data:`GAIN_ONSET_RATIO` (the increments before it ≈ 0), or before the window: SS_gain = max over the
+    onsets of (Σ_{<a} w x e)² / Σ_{<a} w x². An encoder drift makes increments of one level from its onset on,
+    and a drift that stops (an offset reached) another: SS_drift = max over every split a of the window into its
+    newest a samples and the older ones of the two levels' fit, (Σ_{<a} w e)² / Σ_{<a} w + (Σ_{≥a} w e)² /
+    Σ_{≥a} w, and the one level over the window. Every split, not a grid: a drift that started between two
+    grid ages, on a joint that accelerates, leaves a misfit that the gain partly explains (a large encoder drift
+    on arm6's wrist reached 2.3× the gain scale on a grid of ratio √2). The window's samples older than
+    :data:`GAIN_HORIZON` stay in the older level. A drift model of a level and a trend instead (an earlier
+    form) takes a gain error on a joint accelerating at a steady rate for a drift: its increments make a ramp
+    (on arm6, the evidence came 0.1–1.5 s after the first alarm, where it comes in 0.03–0.06 s now)."""
+    w, we, wxx, wxe, wee = sums[SUM_W, i], sums[SUM_E, i], sums[SUM_XX, i], sums[SUM_XE, i], sums[SUM_EE, i]
     if w < 0.5 / (1.0 - lam):       # half a window's weight: a fit to fewer samples explains anything
         return 0.0
-    if sums[11, i] > GAIN_JUMPS * sums[12, i]:      # the encoder jumps: the samples kept are its small increments
+    if sums[JUMPED, i] > GAIN_JUMPS * sums[MOVING, i]:      # the encoder jumps: the samples kept are its small increments
         return 0.0
-    det = w * waa - wa * wa
-    if det > 1e-12 * w * waa:
-        drift = (waa * we * we - 2.0 * wa * we * wae + w * wae * wae) / det
-    else:
-        drift = we * we / w
     explained = wxe * wxe / wxx if wxx > 0 else 0.0
+    drift = we * we / w
+    horizon = (sums.shape[0] - GAIN_RING) // 2
+    counted = int(sums[COUNTED, i])
+    newest = (counted - 1) % horizon
+    cw, ce, cxe, cxx, weight = 0.0, 0.0, 0.0, 0.0, 1.0
+    onset = 2.0
+    for a in range(min(counted, horizon)):      # the newest a + 1 samples
+        at = (newest - a) % horizon
+        ea, xa = sums[GAIN_RING + at, i], sums[GAIN_RING + horizon + at, i]
+        cw += weight
+        ce += weight * ea
+        cxe += weight * xa * ea
+        cxx += weight * xa * xa
+        weight *= lam
+        rest = w - cw
+        if rest > 1e-9 * w:
+            levels = ce * ce / cw + (we - ce) * (we - ce) / rest
+            if levels > drift:
+                drift = levels
+        if a + 1 >= int(onset + 0.5):
+            onset *= GAIN_ONSET_RATIO
+            if cxx > 0 and cxe * cxe / cxx > explained:
+                explained = cxe * cxe / cxx
     excess = explained - drift
-    left = sums[7, i] - (explained if explained > drift else drift)
+    left = wee - (explained if explained > drift else drift)
     if excess <= 0:
         return 0.0
     return math.sqrt(excess / (left + w * floor * floor))

@@ -421,7 +421,8 @@ def _diagnoses(scenario: ArmScenario, model: ManipulatorModel, cal: Calibration,
         rule = scheme_calibration(name, settings)
         decision = ThresholdDecision(diagnoser.components, cal.thresholds[name], diagnoser.signatures(),
                                      blanking=cal.blanking, confirm=rule.confirm, evidence=cal.evidence.get(name),
-                                     release=rule.release, overturn=rule.overturn)
+                                     release=rule.release, overturn=rule.overturn,
+                                     defer=rule.defer)
         diagnoses[name] = Diagnosis(diagnoser, decision)
     return diagnoses
 
