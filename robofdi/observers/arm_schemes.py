@@ -46,8 +46,9 @@ class ArmSchemeSettings:
     extreme-value theory, :func:`robofdi.decision.extreme_value_thresholds`) and its isolation confirmation
     window [samples] (:class:`robofdi.decision.ThresholdDecision` ``confirm``), the quiet time [s] after which an
     isolation may be revised (``release``), how much longer [s] a window that would name an encoder waits for the
-    evidence of a velocity sensor (``defer``: a velocity-gain error's gain evidence needs 0.03–0.06 s of motion
-    after the first alarm on arm6), its kinematic windows [s] and the torque-ripple periods per motor
+    evidence of a velocity sensor (``defer``: a velocity-gain error's gain evidence needs 0.03–0.05 s of motion
+    after the first alarm on arm6; a fault shorter than the window, 46 ms at 2 ms samples, is detected but not
+    named while it lasts, and the acceptance mix's shortest encoder offsets last 50 ms), its kinematic windows [s] and the torque-ripple periods per motor
     revolution whose aliasing its kinematic rows cover (with the model's nominal gear ratios,
     :func:`robofdi.observers.kinematic.ripple_orders`; () = none), the random calibration motions it needs (half
     design it, half set its thresholds) and the tail law its thresholds extrapolate (:data:`CONSISTENCY_TAILS`);
@@ -65,7 +66,7 @@ class ArmSchemeSettings:
     consistency_false_alarm_rate: float = 0.1
     consistency_confirm: int = 3
     consistency_release: float = 0.5
-    consistency_defer: float = 0.05
+    consistency_defer: float = 0.04
     consistency_windows: tuple = WINDOWS
     consistency_ripple_cycles: tuple = RIPPLE_CYCLES
     consistency_calibration_motions: int = 6
