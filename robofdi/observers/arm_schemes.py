@@ -48,8 +48,9 @@ class ArmSchemeSettings:
     isolation may be revised (``release``), how much longer [s] a window that would name an encoder waits for the
     evidence of a velocity sensor (``defer``: a velocity-gain error's gain evidence needs 0.03–0.05 s of motion
     after the first alarm on arm6; a fault shorter than the window, 46 ms at 2 ms samples, is detected but not
-    named while it lasts, and the acceptance mix's shortest encoder offsets last 50 ms), its kinematic windows [s] and the torque-ripple periods per motor
-    revolution whose aliasing its kinematic rows cover (with the model's nominal gear ratios,
+    named while it lasts, and the acceptance mix's shortest encoder offsets last 50 ms), its kinematic windows [s]
+    and the torque-ripple periods per motor revolution whose aliasing its kinematic rows cover (with the model's
+    nominal gear ratios,
     :func:`robofdi.observers.kinematic.ripple_orders`; () = none), the random calibration motions it needs (half
     design it, half set its thresholds) and the tail law its thresholds extrapolate (:data:`CONSISTENCY_TAILS`);
     the sliding-mode scheme's switching gain Λ [rad/s²], integration sub-step [s], in-sample filter constant [s]

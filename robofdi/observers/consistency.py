@@ -152,7 +152,8 @@ GAIN_ONSET_RATIO = math.sqrt(2.0)
 GAIN_FLOOR = 0.1
 #: The gain scale is this many times the design runs' largest gain evidence: unseen fault-free motion reached
 #: 1.4× it on arm6 (three motions), an encoder drift that starts as its joint accelerates 1.2× (arm6) and 4×
-#: (arm7 at 1–6 rad/s).
+#: (arm7 at 1–6 rad/s) when the drift was fitted as a level and a trend; fitted from its own onset
+#: (:func:`_gain_fit`), the 11 encoder drifts of an arm6 fast campaign reached 0.04–0.09, the fault-free level.
 GAIN_MARGIN = 4.0
 #: The largest share of a window's moving samples that may be position steps for the gain evidence to count: a
 #: noisy encoder's increments jump at 94–100 % of its samples, and the few left are the small ones (a biased fit);
