@@ -128,7 +128,8 @@ from robofdi.observers.payload import PayloadRegressor
 from robofdi.observers.residual import Residual, shared_measurement
 
 __all__ = ["ConsistencyDesign", "ConsistencyResidual", "design_consistency", "DEFAULT_GAIN", "STEP_HOLD",
-           "FROZEN_CHANGE", "FROZEN_SAMPLES", "GAIN_WINDOW", "GAIN_HORIZON", "GAIN_FLOOR", "GAIN_MARGIN", "GAIN_JUMPS",
+           "FROZEN_CHANGE", "FROZEN_SAMPLES", "GAIN_WINDOW", "GAIN_HORIZON",
+           "GAIN_ONSET_RATIO", "GAIN_FLOOR", "GAIN_MARGIN", "GAIN_JUMPS",
            "ENCODER_STEP", "TREND_WINDOW", "TREND_FLOOR", "TREND_MARGIN", "PAYLOAD_SHARE"]
 
 #: Momentum-observer bandwidth K_O [1/s] of the consistency residual: fast enough that an abrupt fault of twice
@@ -666,8 +667,6 @@ def _operating_point(u, v, r, mass, weight, state, features, envelope, step_scal
     return beyond
 
 
-
-
 def gain_rows(T: float) -> int:
     """Rows of the gain evidence's state per joint at sample time ``T`` [s] (:func:`_gain_evidence`): the
     :data:`GAIN_RING` rows of sums and readings, then the increments and the regressors of the last
@@ -714,8 +713,9 @@ def _gain_fit(sums, i, lam, floor):
     grid ages, on a joint that accelerates, leaves a misfit that the gain partly explains (a large encoder drift
     on arm6's wrist reached 2.3× the gain scale on a grid of ratio √2). The window's samples older than
     :data:`GAIN_HORIZON` stay in the older level. A drift model of a level and a trend instead (an earlier
-    form) takes a gain error on a joint accelerating at a steady rate for a drift: its increments make a ramp
-    (on arm6, the evidence came 0.1–1.5 s after the first alarm, where it comes in 0.03–0.06 s now)."""
+    form) takes a gain error on a joint accelerating at a steady rate for a drift: its increments make a ramp (on
+    an arm6 campaign, the evidence of four gain errors that started at rest came 52–520 ms after the first alarm;
+    it comes 28–52 ms after it now)."""
     w, we, wxx, wxe, wee = sums[SUM_W, i], sums[SUM_E, i], sums[SUM_XX, i], sums[SUM_XE, i], sums[SUM_EE, i]
     if w < 0.5 / (1.0 - lam):       # half a window's weight: a fit to fewer samples explains anything
         return 0.0
