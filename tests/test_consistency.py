@@ -642,23 +642,24 @@ def _evidence(e, x, T=0.002, lam=0.99, floor=1e-5):
 
 
 def test_the_gain_evidence_takes_a_gain_error_from_its_onset_on_a_joint_accelerating_steadily():
-    """A joint at rest for 200 samples, then accelerating at 20 rad/s² (its velocity a ramp): a −16 % velocity-gain
-    error from the start of the motion makes increments that ramp too, −T g q̇ — what a drift model of a level and
-    a trend explained as well as the gain did (arm6's wrist: evidence 0.1–0.3 s after the first alarm). Against an
-    encoder drift from its own onset (a level) the gain explains the ramp 20 samples into the motion; an encoder
-    drift that starts as the joint accelerates (one level from its onset, the same size as the gain error's
-    increments there) raises none, nor does a drift that starts 37 samples into the motion, between two of the
-    onsets the gain fit tries (every split is tried for the drift)."""
+    """300 samples of fault-free motion (1 rad/s, then slowing to rest: the samples at rest are not counted), then
+    the joint accelerates from rest at 20 rad/s² with a −16 % velocity-gain error: increments −T g q̇ that ramp
+    from 0 while the window still holds the earlier motion's. A drift fitted as a level and a trend took that for
+    a drift (the earlier form: 0 at 40 samples of motion, 1.3 at 80; arm6's campaigns: evidence 52–520 ms after
+    the first alarm). With the gain and the encoder drift each fitted from its own onset, the gain passes 1 at 20
+    samples and 5 at 80; an encoder drift that starts with the motion (one level, the gain error's size there)
+    raises none, nor does one that starts 37 samples into it, between two of the onsets the gain fit tries (the
+    drift gets every split)."""
     T = 0.002
-    k = np.arange(400)
-    noise = np.random.default_rng(5).normal(0.0, 2e-6, k.size)
-    v = np.where(k >= 200, 20.0 * T * (k - 200), 0.0)           # the velocity readings [rad/s]
+    v = np.concatenate([np.full(200, 1.0), np.linspace(1.0, 0.0, 100), 20.0 * T * np.arange(200)])    # [rad/s]
     x = T * np.concatenate([[0.0, 0.0], v[:-2]])                  # the reading two samples back, times T
-    gain = _evidence(0.16 * x + noise, x)
-    assert gain[:200].max() == 0.0
-    assert gain[220] > 1.0 and gain[300:].min() > 5.0
-    for onset in (200, 237):
-        drift = _evidence(np.where(k >= onset, 0.16 * x[300], 0.0) + noise, x)
+    k = np.arange(v.size)
+    noise = np.random.default_rng(5).normal(0.0, 2e-6, v.size)
+    gain = _evidence(np.where(k >= 300, 0.16, 0.0) * x + noise, x)
+    assert gain[:300].max() < 0.3
+    assert gain[320] > 1.0 and gain[380] > 5.0
+    for onset in (300, 337):
+        drift = _evidence(np.where(k >= onset, 0.16 * x[400], 0.0) + noise, x)
         assert drift.max() < 0.3, onset
 
 
