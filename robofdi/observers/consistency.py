@@ -144,9 +144,9 @@ STEP_HOLD = 0.1
 #: (:func:`_step_rows`' gain evidence).
 GAIN_WINDOW = 0.2
 #: How far back [s] the gain evidence looks for the onset of a gain error or of an encoder drift
-#: (:func:`_gain_fit`): 2.5 windows, where the window's weight has fallen to 8 %.
+#: (:func:`_gain_statistic`): 2.5 windows, where the window's weight has fallen to 8 %.
 GAIN_HORIZON = 0.5
-#: The onsets the gain fit tries (:func:`_gain_fit`): a gain error that started within a factor √2 of such an age
+#: The onsets the gain fit tries (:func:`_gain_statistic`): a gain error that started within a factor √2 of such an age
 #: explains almost all of what it would from its own onset.
 GAIN_ONSET_RATIO = math.sqrt(2.0)
 #: The smallest fault-free gain evidence a design takes: a joint its runs never moved sets no smaller one.
@@ -154,7 +154,7 @@ GAIN_FLOOR = 0.1
 #: The gain scale is this many times the design runs' largest gain evidence: unseen fault-free motion reached
 #: 1.4× it on arm6 (three motions), an encoder drift that starts as its joint accelerates 1.2× (arm6) and 4×
 #: (arm7 at 1–6 rad/s) when the drift was fitted as a level and a trend; fitted from its own onset
-#: (:func:`_gain_fit`), the 11 encoder drifts of an arm6 fast campaign reached 0.04–0.09, the fault-free level.
+#: (:func:`_gain_statistic`), the 11 encoder drifts of an arm6 fast campaign reached 0.04–0.09, the fault-free level.
 GAIN_MARGIN = 4.0
 #: The largest share of a window's moving samples that may be position steps for the gain evidence to count: a
 #: noisy encoder's increments jump at 94–100 % of its samples, and the few left are the small ones (a biased fit);
@@ -189,8 +189,10 @@ PAYLOAD_SHARE = 0.25
 #: The rows of the gain evidence's state per joint (:func:`_gain_evidence`): its exponential sums Σw, Σw·e, Σw·x²,
 #: Σw·x·e, Σw·e²; the last two velocity readings and the last position reading; the weights of the moving samples
 #: that were position steps and of all of them; whether the encoder stepped (:data:`ENCODER_STEP`); the position
-#: reading before the last; the samples counted; from row ``GAIN_RING`` on, the counted samples' e, then their x.
-SUM_W, SUM_E, SUM_XX, SUM_XE, SUM_EE, V_LAST, V_BEFORE, Q_LAST, JUMPED, MOVING, STEPPED, Q_BEFORE, COUNTED, GAIN_RING = range(14)
+#: reading before the last; the samples counted; the statistic of :func:`_gain_statistic` at the last of them; from
+#: row ``GAIN_RING`` on, the counted samples' e, then their x.
+(SUM_W, SUM_E, SUM_XX, SUM_XE, SUM_EE, V_LAST, V_BEFORE, Q_LAST, JUMPED, MOVING, STEPPED, Q_BEFORE, COUNTED, FITTED,
+ GAIN_RING) = range(15)
 
 
 @dataclass(frozen=True, eq=False)
@@ -681,12 +683,11 @@ def _gain_evidence(sums, i, e, x, add, lam, floor):
     own onset, against what neither explains and at least the fault-free single-sample scale ``floor`` [rad]:
     √(max(0, SS_gain − SS_drift) / (Σw e² − max(SS_gain, SS_drift) + Σw floor²)), with SS the explained sums of
     squares of weighted least-squares fits over an exponential window of weight λ per sample
-    (:func:`_gain_fit`) — a likelihood ratio's statistic, so a noisier sensor raises no evidence by its noise
+    (:func:`_gain_statistic`) — a likelihood ratio's statistic, so a noisier sensor raises no evidence by its noise
     alone. ``sums`` (:func:`gain_rows`, n): the rows :data:`SUM_W` … :data:`GAIN_RING`, the sums and the last
     :data:`GAIN_HORIZON` of counted samples updated in place when ``add`` (see :func:`_step_rows`; sample c at row
-    c mod their number). 0 until the window holds half its weight, and where more than
-    :data:`GAIN_JUMPS` of its moving samples were position steps (the encoder, not the velocity, is what the
-    increments show)."""
+    c mod their number). The statistic changes only with a counted sample: it is computed then and kept
+    (:data:`FITTED`), and :func:`_gain_fit` gates it."""
     if not add:
         return _gain_fit(sums, i, lam, floor)
     sums[SUM_W, i] = lam * sums[SUM_W, i] + 1.0
@@ -699,27 +700,37 @@ def _gain_evidence(sums, i, e, x, add, lam, floor):
     sums[GAIN_RING + at, i] = e
     sums[GAIN_RING + horizon + at, i] = x
     sums[COUNTED, i] += 1.0
+    sums[FITTED, i] = _gain_statistic(sums, i, lam, floor)
     return _gain_fit(sums, i, lam, floor)
 
 
 @kernel
 def _gain_fit(sums, i, lam, floor):
-    """:func:`_gain_evidence`'s statistic from its state. The gain error started a samples ago, a on a grid of
-    ratio :data:`GAIN_ONSET_RATIO` (the increments before it ≈ 0), or before the window: SS_gain = max over the
-    onsets of (Σ_{<a} w x e)² / Σ_{<a} w x². An encoder drift makes increments of one level from its onset on,
-    and a drift that stops (an offset reached) another: SS_drift = max over every split a of the window into its
-    newest a samples and the older ones of the two levels' fit, (Σ_{<a} w e)² / Σ_{<a} w + (Σ_{≥a} w e)² /
-    Σ_{≥a} w, and the one level over the window. Every split, not a grid: a drift that started between two
-    grid ages, on a joint that accelerates, leaves a misfit that the gain partly explains (a large encoder drift
-    on arm6's wrist reached 2.3× the gain scale on a grid of ratio √2). The window's samples older than
-    :data:`GAIN_HORIZON` stay in the older level. A drift model of a level and a trend instead (an earlier
-    form) takes a gain error on a joint accelerating at a steady rate for a drift: its increments make a ramp (on
-    an arm6 campaign, the evidence of four gain errors that started at rest came 52–520 ms after the first alarm;
-    it comes 28–52 ms after it now)."""
+    """The gain evidence of joint i from its state: the kept statistic (:data:`FITTED`), 0 where more than
+    :data:`GAIN_JUMPS` of the window's moving samples were position steps (the encoder, not the velocity, is what
+    the increments show: the samples kept are its small increments). ``lam`` and ``floor``: those the statistic
+    was computed with (:func:`_gain_evidence`)."""
+    if sums[JUMPED, i] > GAIN_JUMPS * sums[MOVING, i]:
+        return 0.0
+    return sums[FITTED, i]
+
+
+@kernel
+def _gain_statistic(sums, i, lam, floor):
+    """:func:`_gain_evidence`'s statistic from its state, 0 until the window holds half its weight. The gain error
+    started a samples ago, a on a grid of ratio :data:`GAIN_ONSET_RATIO` (the increments before it ≈ 0), or before
+    the window: SS_gain = max over the onsets of (Σ_{<a} w x e)² / Σ_{<a} w x². An encoder drift makes increments of
+    one level from its onset on, and a drift that stops (an offset reached) another: SS_drift = max over every split
+    a of the window into its newest a samples and the older ones of the two levels' fit, (Σ_{<a} w e)² / Σ_{<a} w +
+    (Σ_{≥a} w e)² / Σ_{≥a} w, and the one level over the window. Every split, not a grid: a drift that started
+    between two grid ages, on a joint that accelerates, leaves a misfit that the gain partly explains (a large
+    encoder drift on arm6's wrist reached 2.3× the gain scale on a grid of ratio √2). The window's samples older
+    than :data:`GAIN_HORIZON` stay in the older level. A drift model of a level and a trend instead (an earlier
+    form) takes a gain error on a joint accelerating at a steady rate for a drift: its increments make a ramp (on an
+    arm6 campaign, the evidence of four gain errors that started at rest came 52–520 ms after the first alarm; it
+    comes 28–52 ms after it now)."""
     w, we, wxx, wxe, wee = sums[SUM_W, i], sums[SUM_E, i], sums[SUM_XX, i], sums[SUM_XE, i], sums[SUM_EE, i]
     if w < 0.5 / (1.0 - lam):       # half a window's weight: a fit to fewer samples explains anything
-        return 0.0
-    if sums[JUMPED, i] > GAIN_JUMPS * sums[MOVING, i]:      # the encoder jumps: the samples kept are its small increments
         return 0.0
     explained = wxe * wxe / wxx if wxx > 0 else 0.0
     drift = we * we / w
